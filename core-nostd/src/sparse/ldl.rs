@@ -1,0 +1,268 @@
+//! The numeric phase: up-looking LDLᵀ over a stored pattern, and the solves.
+
+use super::pattern::UpperCsc;
+use super::symbolic::{Symbolic, SymbolicSize};
+use super::ux;
+use crate::error::{Error, Resource};
+use crate::real::Real;
+use crate::storage::{Slab, ensure_exact_len, ensure_len};
+
+/// The numeric factor `C = L D Lᵀ` of `C = P A Pᵀ`, `L` unit lower triangular (its strictly lower
+/// part stored in the column pattern of a [`Symbolic`]) and `D` diagonal and positive.
+///
+/// The storage holds two sets of values: a factorization writes the set not in service and puts
+/// it in service only when it succeeds, so a failed factorization leaves the previous factor
+/// usable (and, after a cut, an old factor can keep serving while a new one is built). Memory:
+/// `2 · (nnz(L) + n)` scalars ([`LdlFactor::storage_len`]).
+#[derive(Debug)]
+pub struct LdlFactor<'a, T> {
+    size: SymbolicSize,
+    l: [&'a mut [T]; 2],
+    d: [&'a mut [T]; 2],
+    active: Option<usize>,
+}
+
+impl<'a, T: Real> LdlFactor<'a, T> {
+    /// Scalars of storage a factor of this size needs.
+    pub const fn storage_len(size: &SymbolicSize) -> usize {
+        2 * (size.nnz_l + size.n)
+    }
+
+    /// An empty factor (nothing in service yet) in `storage`.
+    ///
+    /// # Errors
+    /// [`Error::Capacity`] if `storage` is shorter than [`LdlFactor::storage_len`].
+    pub fn new(size: &SymbolicSize, storage: &'a mut [T]) -> Result<Self, Error> {
+        ensure_len(storage, Self::storage_len(size), Resource::RealStorage)?;
+        let mut slab = Slab::new(storage, Resource::RealStorage);
+        let l0 = slab.take(size.nnz_l)?;
+        let l1 = slab.take(size.nnz_l)?;
+        let d0 = slab.take(size.n)?;
+        let d1 = slab.take(size.n)?;
+        Ok(LdlFactor {
+            size: *size,
+            l: [l0, l1],
+            d: [d0, d1],
+            active: None,
+        })
+    }
+
+    /// Whether a successful factorization is in service.
+    pub fn is_factored(&self) -> bool {
+        self.active.is_some()
+    }
+
+    /// Strictly lower values of `L` in service, in the order of [`Symbolic::l_row`].
+    pub fn l_values(&self) -> Option<&[T]> {
+        self.active.map(|a| &*self.l[a])
+    }
+
+    /// Diagonal `D` in service (permuted order).
+    pub fn d_values(&self) -> Option<&[T]> {
+        self.active.map(|a| &*self.d[a])
+    }
+
+    /// Factorizes `A` (values `a_values` in the order of the pattern the symbolic analysis was
+    /// built from). `work` needs `n` scalars and `cursor` `n` indices; they have no meaning on
+    /// return. The cost is [`Symbolic::factor_flops`], independent of the values.
+    ///
+    /// # Errors
+    /// [`Error::NotPositiveDefinite`] or [`Error::NotFinite`] naming the first failing column
+    /// of the permuted matrix; [`Error::SymbolicMismatch`] if `sym` is not of this factor's size;
+    /// [`Error::Length`] / [`Error::Capacity`] for wrong buffer lengths. On any error the
+    /// factor in service (if any) stays in service, unchanged.
+    pub fn factorize(
+        &mut self,
+        sym: &Symbolic<'_>,
+        a_values: &[T],
+        work: &mut [T],
+        cursor: &mut [u32],
+    ) -> Result<(), Error> {
+        if sym.size_info() != self.size {
+            return Err(Error::SymbolicMismatch);
+        }
+        let n = self.size.n;
+        ensure_exact_len(a_values, self.size.nnz_a, Resource::MatrixEntries)?;
+        ensure_len(work, n, Resource::Workspace)?;
+        ensure_len(cursor, n, Resource::Workspace)?;
+        let target = match self.active {
+            Some(0) => 1,
+            _ => 0,
+        };
+        let (l, d) = (&mut *self.l[target], &mut *self.d[target]);
+        let y = &mut work[..n];
+        y.fill(T::zero());
+        let cursor = &mut cursor[..n];
+        cursor.copy_from_slice(&sym.l_ptr()[..n]);
+        let (c_ptr, c_row, c_src) = (sym.c_ptr(), sym.c_row(), sym.c_src());
+        let (l_ptr, l_row, lt_ptr, lt_col) = (sym.l_ptr(), sym.l_row(), sym.lt_ptr(), sym.lt_col());
+        for k in 0..n {
+            // Row k of L solves L(0..k, 0..k) D y = C(0..k, k): scatter column k of C, then
+            // eliminate along the stored row pattern (increasing columns are a topological
+            // order of the elimination tree).
+            for q in ux(c_ptr[k])..ux(c_ptr[k + 1]) {
+                y[ux(c_row[q])] += a_values[ux(c_src[q])];
+            }
+            let mut dk = y[k];
+            y[k] = T::zero();
+            for &i in &lt_col[ux(lt_ptr[k])..ux(lt_ptr[k + 1])] {
+                let i = ux(i);
+                let yi = y[i];
+                y[i] = T::zero();
+                let end = ux(cursor[i]);
+                for p in ux(l_ptr[i])..end {
+                    y[ux(l_row[p])] -= l[p] * yi;
+                }
+                let lki = yi / d[i];
+                dk -= lki * yi;
+                l[end] = lki;
+                cursor[i] += 1;
+            }
+            if !dk.finite() {
+                return Err(Error::NotFinite { column: k });
+            }
+            if dk <= T::zero() {
+                return Err(Error::NotPositiveDefinite { column: k });
+            }
+            d[k] = dk;
+        }
+        self.active = Some(target);
+        Ok(())
+    }
+
+    fn in_service(&self, sym: &Symbolic<'_>, v: &[T]) -> Result<(&[T], &[T]), Error> {
+        let a = self.active.ok_or(Error::NotFactored)?;
+        if sym.size_info() != self.size {
+            return Err(Error::SymbolicMismatch);
+        }
+        ensure_exact_len(v, self.size.n, Resource::Vector)?;
+        Ok((&*self.l[a], &*self.d[a]))
+    }
+
+    /// Solves `L w = w` in place (permuted order).
+    ///
+    /// # Errors
+    /// [`Error::NotFactored`], [`Error::SymbolicMismatch`], or [`Error::Length`] if `w` does
+    /// not have `n` entries.
+    pub fn solve_lower_in_place(&self, sym: &Symbolic<'_>, w: &mut [T]) -> Result<(), Error> {
+        let (l, _) = self.in_service(sym, w)?;
+        let (l_ptr, l_row) = (sym.l_ptr(), sym.l_row());
+        for j in 0..self.size.n {
+            let wj = w[j];
+            for p in ux(l_ptr[j])..ux(l_ptr[j + 1]) {
+                w[ux(l_row[p])] -= l[p] * wj;
+            }
+        }
+        Ok(())
+    }
+
+    /// Solves `D w = w` in place (permuted order).
+    ///
+    /// # Errors
+    /// As [`LdlFactor::solve_lower_in_place`].
+    pub fn solve_diagonal_in_place(&self, sym: &Symbolic<'_>, w: &mut [T]) -> Result<(), Error> {
+        let (_, d) = self.in_service(sym, w)?;
+        for (wj, &dj) in w.iter_mut().zip(d) {
+            *wj /= dj;
+        }
+        Ok(())
+    }
+
+    /// Solves `Lᵀ w = w` in place (permuted order).
+    ///
+    /// # Errors
+    /// As [`LdlFactor::solve_lower_in_place`].
+    pub fn solve_upper_in_place(&self, sym: &Symbolic<'_>, w: &mut [T]) -> Result<(), Error> {
+        let (l, _) = self.in_service(sym, w)?;
+        let (l_ptr, l_row) = (sym.l_ptr(), sym.l_row());
+        for j in (0..self.size.n).rev() {
+            let mut wj = w[j];
+            for p in ux(l_ptr[j])..ux(l_ptr[j + 1]) {
+                wj -= l[p] * w[ux(l_row[p])];
+            }
+            w[j] = wj;
+        }
+        Ok(())
+    }
+
+    /// Solves `A x = b` in place (`b` becomes `x`, original order); `work` needs `n` scalars.
+    /// Cost: [`Symbolic::solve_flops`].
+    ///
+    /// # Errors
+    /// As [`LdlFactor::solve_lower_in_place`], and [`Error::Capacity`] for a short `work`.
+    pub fn solve_in_place(
+        &self,
+        sym: &Symbolic<'_>,
+        b: &mut [T],
+        work: &mut [T],
+    ) -> Result<(), Error> {
+        self.in_service(sym, b)?;
+        let n = self.size.n;
+        ensure_len(work, n, Resource::Workspace)?;
+        let w = &mut work[..n];
+        for (wk, &p) in w.iter_mut().zip(sym.perm()) {
+            *wk = b[ux(p)];
+        }
+        self.solve_lower_in_place(sym, w)?;
+        self.solve_diagonal_in_place(sym, w)?;
+        self.solve_upper_in_place(sym, w)?;
+        for (&wk, &p) in w.iter().zip(sym.perm()) {
+            b[ux(p)] = wk;
+        }
+        Ok(())
+    }
+}
+
+/// `y = A x` for a symmetric `A` stored as its upper triangle.
+///
+/// # Errors
+/// [`Error::Length`] if a slice does not match the pattern.
+pub fn sym_matvec<T: Real>(
+    a: &UpperCsc<'_>,
+    values: &[T],
+    x: &[T],
+    y: &mut [T],
+) -> Result<(), Error> {
+    ensure_exact_len(values, a.nnz(), Resource::MatrixEntries)?;
+    ensure_exact_len(x, a.n(), Resource::Vector)?;
+    ensure_exact_len(y, a.n(), Resource::Vector)?;
+    y.fill(T::zero());
+    for j in 0..a.n() {
+        for p in a.column_range(j) {
+            let i = ux(a.row_idx()[p]);
+            y[i] += values[p] * x[j];
+            if i != j {
+                y[j] += values[p] * x[i];
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Relative residual `‖A x − b‖₂ / ‖b‖₂` (or the absolute residual when `b = 0`); `work` needs
+/// `n` scalars.
+///
+/// # Errors
+/// As [`sym_matvec`], and [`Error::Capacity`] for a short `work`.
+pub fn relative_residual<T: Real>(
+    a: &UpperCsc<'_>,
+    values: &[T],
+    x: &[T],
+    b: &[T],
+    work: &mut [T],
+) -> Result<T, Error> {
+    ensure_exact_len(b, a.n(), Resource::Vector)?;
+    ensure_len(work, a.n(), Resource::Workspace)?;
+    let ax = &mut work[..a.n()];
+    sym_matvec(a, values, x, ax)?;
+    let (mut r2, mut b2) = (T::zero(), T::zero());
+    for (&axi, &bi) in ax.iter().zip(b) {
+        r2 += (axi - bi) * (axi - bi);
+        b2 += bi * bi;
+    }
+    Ok(if b2 > T::zero() {
+        (r2 / b2).sqrt()
+    } else {
+        r2.sqrt()
+    })
+}

@@ -1,0 +1,375 @@
+//! The symbolic phase: permuted pattern, elimination tree, column counts and the row and column
+//! patterns of the factor `L`, computed once per pattern.
+
+use super::pattern::{MAX_INDEX, UpperCsc};
+use super::{NONE, ux};
+use crate::error::{Error, PatternProblem, Resource};
+use crate::storage::{Slab, ensure_exact_len, ensure_len};
+
+/// Sizes of a symbolic factorization: what the storage of [`Symbolic`] and of the numeric
+/// factor ([`crate::sparse::LdlFactor`]) depends on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct SymbolicSize {
+    /// Dimension.
+    pub n: usize,
+    /// Stored entries of `A`'s upper triangle (diagonal included).
+    pub nnz_a: usize,
+    /// Entries of the strictly lower triangle of `L` (its unit diagonal is not stored).
+    pub nnz_l: usize,
+}
+
+impl SymbolicSize {
+    /// Length of the `u32` storage [`Symbolic::new`] needs.
+    pub const fn index_len(&self) -> usize {
+        3 * self.n + 3 * (self.n + 1) + 2 * self.nnz_a + 2 * self.nnz_l
+    }
+}
+
+/// Length of the `u32` workspace [`Symbolic::size`] and [`Symbolic::new`] need.
+pub const fn analyse_work_len(n: usize, nnz_a: usize) -> usize {
+    2 * nnz_a + 4 * n + 2
+}
+
+/// The symbolic factorization of `C = P A Pᵀ`, where `C(k, l) = A(perm[k], perm[l])`.
+///
+/// Holds the permutation and its inverse, the upper pattern of `C` with, for each of its
+/// entries, the position of the value in `A`'s value array (so the numeric phase reads `A`'s
+/// values directly), the elimination tree, the column pattern of `L` (strictly lower, rows
+/// increasing) and its row pattern (columns increasing). Built by [`Symbolic::new`]; every
+/// accessor relies on its invariants and none can fail.
+#[derive(Debug)]
+pub struct Symbolic<'a> {
+    size: SymbolicSize,
+    perm: &'a [u32],
+    iperm: &'a [u32],
+    etree: &'a [u32],
+    c_ptr: &'a [u32],
+    c_row: &'a [u32],
+    c_src: &'a [u32],
+    l_ptr: &'a [u32],
+    l_row: &'a [u32],
+    lt_ptr: &'a [u32],
+    lt_col: &'a [u32],
+    factor_flops: u64,
+}
+
+impl<'a> Symbolic<'a> {
+    /// Computes the sizes of the factorization of `A` under `perm` (`perm[k]` = column of `A`
+    /// that comes `k`-th), using `work` ([`analyse_work_len`]`(n, nnz)` entries, no meaning on
+    /// return). Allocate [`SymbolicSize::index_len`] entries of storage, then call
+    /// [`Symbolic::new`].
+    ///
+    /// # Errors
+    /// [`Error::Length`] / [`Error::NotAPermutation`] / [`Error::IndexOutOfRange`] for a bad
+    /// `perm`, [`Error::Capacity`] if `work` is too short.
+    pub fn size(a: &UpperCsc<'_>, perm: &[u32], work: &mut [u32]) -> Result<SymbolicSize, Error> {
+        let n = a.n();
+        ensure_len(work, analyse_work_len(n, a.nnz()), Resource::Workspace)?;
+        let mut slab = Slab::new(work, Resource::Workspace);
+        let iperm = slab.take(n)?;
+        invert_permutation(perm, iperm)?;
+        let c_ptr = slab.take(n + 1)?;
+        let c_row = slab.take(a.nnz())?;
+        let c_src = slab.take(a.nnz())?;
+        let parent = slab.take(n)?;
+        let mark = slab.take(n)?;
+        permute_upper(a, iperm, c_ptr, c_row, c_src, mark)?;
+        elimination_tree(c_ptr, c_row, parent, mark);
+        let counts = slab.take(n)?;
+        row_and_column_counts(c_ptr, c_row, parent, mark, counts, None)?;
+        let nnz_l = counts.iter().map(|&c| ux(c)).sum::<usize>();
+        if nnz_l > MAX_INDEX {
+            return Err(Error::Pattern {
+                column: n,
+                problem: PatternProblem::TooLarge,
+            });
+        }
+        Ok(SymbolicSize {
+            n,
+            nnz_a: a.nnz(),
+            nnz_l,
+        })
+    }
+
+    /// Builds the symbolic factorization in `storage` (at least
+    /// [`SymbolicSize::index_len`] entries for the size [`Symbolic::size`] reports), using
+    /// `work` as there.
+    ///
+    /// # Errors
+    /// As [`Symbolic::size`], and [`Error::Capacity`] if `storage` is too short.
+    pub fn new(
+        a: &UpperCsc<'_>,
+        perm: &[u32],
+        storage: &'a mut [u32],
+        work: &mut [u32],
+    ) -> Result<Self, Error> {
+        let n = a.n();
+        let size = Self::size(a, perm, work)?;
+        ensure_len(storage, size.index_len(), Resource::IndexStorage)?;
+        let mut slab = Slab::new(storage, Resource::IndexStorage);
+        let perm_s = slab.take(n)?;
+        perm_s.copy_from_slice(perm);
+        let iperm = slab.take(n)?;
+        invert_permutation(perm, iperm)?;
+        let etree = slab.take(n)?;
+        let c_ptr = slab.take(n + 1)?;
+        let c_row = slab.take(a.nnz())?;
+        let c_src = slab.take(a.nnz())?;
+        let l_ptr = slab.take(n + 1)?;
+        let l_row = slab.take(size.nnz_l)?;
+        let lt_ptr = slab.take(n + 1)?;
+        let lt_col = slab.take(size.nnz_l)?;
+
+        let mut wslab = Slab::new(work, Resource::Workspace);
+        let mark = wslab.take(n)?;
+        let col_count = wslab.take(n)?;
+        permute_upper(a, iperm, c_ptr, c_row, c_src, mark)?;
+        elimination_tree(c_ptr, c_row, etree, mark);
+        row_and_column_counts(c_ptr, c_row, etree, mark, col_count, Some(lt_ptr))?;
+
+        // Column pointers of L from the column counts; the flop count of the up-looking
+        // numeric phase follows from them: row k of column j costs one multiply-add per entry
+        // of column j above row k.
+        l_ptr[0] = 0;
+        let mut flops = 0u64;
+        for j in 0..n {
+            l_ptr[j + 1] = l_ptr[j] + col_count[j];
+            let c = u64::from(col_count[j]);
+            flops += c * c.saturating_sub(1) / 2 + 2 * c;
+        }
+        // Row patterns (sorted), then the column patterns by scattering rows in increasing
+        // order, so every column comes out sorted too.
+        for k in 0..n {
+            let mut at = ux(lt_ptr[k]);
+            mark[k] = k as u32;
+            for q in ux(c_ptr[k])..ux(c_ptr[k + 1]) {
+                let mut i = c_row[q];
+                while i != NONE && mark[ux(i)] != k as u32 {
+                    lt_col[at] = i;
+                    at += 1;
+                    mark[ux(i)] = k as u32;
+                    i = etree[ux(i)];
+                }
+            }
+            lt_col[ux(lt_ptr[k])..at].sort_unstable();
+        }
+        col_count.copy_from_slice(&l_ptr[..n]);
+        for k in 0..n {
+            for t in ux(lt_ptr[k])..ux(lt_ptr[k + 1]) {
+                let j = ux(lt_col[t]);
+                l_row[ux(col_count[j])] = k as u32;
+                col_count[j] += 1;
+            }
+        }
+        Ok(Symbolic {
+            size,
+            perm: perm_s,
+            iperm,
+            etree,
+            c_ptr,
+            c_row,
+            c_src,
+            l_ptr,
+            l_row,
+            lt_ptr,
+            lt_col,
+            factor_flops: flops,
+        })
+    }
+
+    /// The sizes.
+    pub fn size_info(&self) -> SymbolicSize {
+        self.size
+    }
+    /// Dimension.
+    pub fn n(&self) -> usize {
+        self.size.n
+    }
+    /// Entries of the strictly lower triangle of `L`.
+    pub fn nnz_l(&self) -> usize {
+        self.size.nnz_l
+    }
+    /// `perm[k]` is the column of `A` that comes `k`-th.
+    pub fn perm(&self) -> &'a [u32] {
+        self.perm
+    }
+    /// Inverse permutation: `iperm[perm[k]] == k`.
+    pub fn iperm(&self) -> &'a [u32] {
+        self.iperm
+    }
+    /// Parent of each column in the elimination tree of `C` ([`NONE`] for a root).
+    pub fn etree(&self) -> &'a [u32] {
+        self.etree
+    }
+    /// Column pointers of `L` (`n + 1`).
+    pub fn l_ptr(&self) -> &'a [u32] {
+        self.l_ptr
+    }
+    /// Row indices of `L`, column by column, increasing.
+    pub fn l_row(&self) -> &'a [u32] {
+        self.l_row
+    }
+    /// Row pointers of `L` (`n + 1`).
+    pub fn lt_ptr(&self) -> &'a [u32] {
+        self.lt_ptr
+    }
+    /// Column indices of `L`, row by row, increasing.
+    pub fn lt_col(&self) -> &'a [u32] {
+        self.lt_col
+    }
+    /// Upper pattern of `C = P A Pᵀ`: column pointers.
+    pub fn c_ptr(&self) -> &'a [u32] {
+        self.c_ptr
+    }
+    /// Upper pattern of `C`: row indices, increasing per column.
+    pub fn c_row(&self) -> &'a [u32] {
+        self.c_row
+    }
+    /// For each entry of `C`, the position of its value in `A`'s value array.
+    pub fn c_src(&self) -> &'a [u32] {
+        self.c_src
+    }
+    /// Multiply-adds (and divisions) of one numeric factorization: a data-independent count.
+    pub fn factor_flops(&self) -> u64 {
+        self.factor_flops
+    }
+    /// Multiply-adds of one solve (forward, diagonal and backward).
+    pub fn solve_flops(&self) -> u64 {
+        2 * self.size.nnz_l as u64 + self.size.n as u64
+    }
+}
+
+/// Writes the inverse of `perm` into `iperm` (same length), checking that `perm` is one.
+fn invert_permutation(perm: &[u32], iperm: &mut [u32]) -> Result<(), Error> {
+    let n = iperm.len();
+    ensure_exact_len(perm, n, Resource::Permutation)?;
+    iperm.fill(NONE);
+    for (k, &p) in perm.iter().enumerate() {
+        let slot = iperm.get_mut(ux(p)).ok_or(Error::IndexOutOfRange {
+            resource: Resource::Permutation,
+            position: k,
+            index: ux(p),
+            bound: n,
+        })?;
+        if *slot != NONE {
+            return Err(Error::NotAPermutation { position: k });
+        }
+        *slot = k as u32;
+    }
+    Ok(())
+}
+
+/// The upper pattern of `C = P A Pᵀ`, rows sorted per column, with the source position of each
+/// entry in `A`. `work` needs `n` entries.
+fn permute_upper(
+    a: &UpperCsc<'_>,
+    iperm: &[u32],
+    c_ptr: &mut [u32],
+    c_row: &mut [u32],
+    c_src: &mut [u32],
+    work: &mut [u32],
+) -> Result<(), Error> {
+    let n = a.n();
+    let count = work;
+    count.fill(0);
+    for j in 0..n {
+        for &i in &a.row_idx()[a.column_range(j)] {
+            let col = iperm[ux(i)].max(iperm[j]);
+            count[ux(col)] += 1;
+        }
+    }
+    c_ptr[0] = 0;
+    for k in 0..n {
+        c_ptr[k + 1] = c_ptr[k] + count[k];
+        count[k] = c_ptr[k];
+    }
+    for j in 0..n {
+        for p in a.column_range(j) {
+            let (ci, cj) = (iperm[ux(a.row_idx()[p])], iperm[j]);
+            let (row, col) = (ci.min(cj), ci.max(cj));
+            let at = ux(count[ux(col)]);
+            c_row[at] = row;
+            c_src[at] = p as u32;
+            count[ux(col)] += 1;
+        }
+    }
+    // Sort each column by row, moving the source positions along: columns are short (a few
+    // dozen entries for a tetrahedral mesh), so an insertion sort in place is the simple choice.
+    for k in 0..n {
+        let (s, e) = (ux(c_ptr[k]), ux(c_ptr[k + 1]));
+        for x in s + 1..e {
+            let (r, src) = (c_row[x], c_src[x]);
+            let mut y = x;
+            while y > s && c_row[y - 1] > r {
+                c_row[y] = c_row[y - 1];
+                c_src[y] = c_src[y - 1];
+                y -= 1;
+            }
+            c_row[y] = r;
+            c_src[y] = src;
+        }
+    }
+    Ok(())
+}
+
+/// Elimination tree of the matrix with upper pattern `(c_ptr, c_row)` (Liu's algorithm with
+/// path compression); `ancestor` is `n` entries of scratch.
+fn elimination_tree(c_ptr: &[u32], c_row: &[u32], parent: &mut [u32], ancestor: &mut [u32]) {
+    let n = parent.len();
+    for k in 0..n {
+        parent[k] = NONE;
+        ancestor[k] = NONE;
+        for &r in &c_row[ux(c_ptr[k])..ux(c_ptr[k + 1])] {
+            let mut i = r;
+            while i != NONE && ux(i) < k {
+                let next = ancestor[ux(i)];
+                ancestor[ux(i)] = k as u32;
+                if next == NONE {
+                    parent[ux(i)] = k as u32;
+                }
+                i = next;
+            }
+        }
+    }
+}
+
+/// Column counts of `L` (strictly lower) into `col_count`, and, if asked, row pointers of `L`
+/// into `row_ptr` (`n + 1`), by walking the row subtrees of the elimination tree.
+fn row_and_column_counts(
+    c_ptr: &[u32],
+    c_row: &[u32],
+    parent: &[u32],
+    mark: &mut [u32],
+    col_count: &mut [u32],
+    mut row_ptr: Option<&mut [u32]>,
+) -> Result<(), Error> {
+    let n = parent.len();
+    col_count.fill(0);
+    mark.fill(NONE);
+    let mut total: usize = 0;
+    if let Some(rp) = row_ptr.as_deref_mut() {
+        rp[0] = 0;
+    }
+    for k in 0..n {
+        mark[k] = k as u32;
+        for &r in &c_row[ux(c_ptr[k])..ux(c_ptr[k + 1])] {
+            let mut i = r;
+            while i != NONE && mark[ux(i)] != k as u32 {
+                col_count[ux(i)] += 1;
+                total += 1;
+                mark[ux(i)] = k as u32;
+                i = parent[ux(i)];
+            }
+        }
+        if total > MAX_INDEX {
+            return Err(Error::Pattern {
+                column: k,
+                problem: PatternProblem::TooLarge,
+            });
+        }
+        if let Some(rp) = row_ptr.as_deref_mut() {
+            rp[k + 1] = total as u32;
+        }
+    }
+    Ok(())
+}

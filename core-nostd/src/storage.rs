@@ -1,0 +1,109 @@
+//! Carving caller-owned storage into the pieces a structure needs.
+//!
+//! The core never allocates: a constructor takes one slice per element type (`&mut [u32]` for
+//! indices, `&mut [T]` for scalars) whose required length a sibling `*_len` function reports
+//! before anything is built, and splits it with a [`Slab`].
+
+use crate::error::{Error, Resource};
+
+/// Hands out consecutive, disjoint pieces of one caller-owned slice.
+pub struct Slab<'a, X> {
+    rest: &'a mut [X],
+    resource: Resource,
+    needed: usize,
+    total: usize,
+}
+
+impl<'a, X> Slab<'a, X> {
+    /// Wraps `buf`; errors name `resource` when it runs out.
+    pub fn new(buf: &'a mut [X], resource: Resource) -> Self {
+        let total = buf.len();
+        Slab {
+            rest: buf,
+            resource,
+            needed: 0,
+            total,
+        }
+    }
+
+    /// Takes the next `n` entries.
+    ///
+    /// # Errors
+    /// [`Error::Capacity`] naming the slab's resource when fewer than `n` entries remain; the
+    /// slab is unchanged then.
+    pub fn take(&mut self, n: usize) -> Result<&'a mut [X], Error> {
+        if n > self.rest.len() {
+            return Err(Error::Capacity {
+                resource: self.resource,
+                needed: self.needed.saturating_add(n),
+                available: self.total,
+            });
+        }
+        let rest = core::mem::take(&mut self.rest);
+        let (head, tail) = rest.split_at_mut(n);
+        self.rest = tail;
+        self.needed += n;
+        Ok(head)
+    }
+
+    /// Entries handed out so far.
+    pub fn used(&self) -> usize {
+        self.needed
+    }
+}
+
+/// Checks that `slice` has at least `needed` entries.
+///
+/// # Errors
+/// [`Error::Capacity`] naming `resource` otherwise.
+pub fn ensure_len<X>(slice: &[X], needed: usize, resource: Resource) -> Result<(), Error> {
+    if slice.len() < needed {
+        Err(Error::Capacity {
+            resource,
+            needed,
+            available: slice.len(),
+        })
+    } else {
+        Ok(())
+    }
+}
+
+/// Checks that `slice` has exactly `expected` entries.
+///
+/// # Errors
+/// [`Error::Length`] naming `resource` otherwise.
+pub fn ensure_exact_len<X>(slice: &[X], expected: usize, resource: Resource) -> Result<(), Error> {
+    if slice.len() != expected {
+        Err(Error::Length {
+            resource,
+            expected,
+            found: slice.len(),
+        })
+    } else {
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn slab_hands_out_disjoint_pieces_and_reports_overflow() {
+        let mut buf = [0u32; 5];
+        let mut slab = Slab::new(&mut buf, Resource::IndexStorage);
+        let a = slab.take(2).unwrap();
+        let b = slab.take(3).unwrap();
+        a[0] = 1;
+        b[2] = 7;
+        assert_eq!(
+            slab.take(1),
+            Err(Error::Capacity {
+                resource: Resource::IndexStorage,
+                needed: 6,
+                available: 5
+            })
+        );
+        assert_eq!(buf, [1, 0, 0, 0, 7]);
+    }
+}
