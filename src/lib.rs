@@ -1,2 +1,8 @@
-//! Shared helpers for the fixture-based tests and benchmarks of incise: mesh generators for
-//! tests and the `faer` oracle. Not part of the product.
+//! Shared helpers for the fixture-based tests and benchmarks of incise: test meshes, a seeded
+//! random generator, the whole sparse pipeline of the core driven from `Vec` storage, and the
+//! `faer` oracle it is checked against. Not part of the product.
+
+pub mod oracle;
+pub mod rng;
+pub mod system;
+pub mod testmesh;

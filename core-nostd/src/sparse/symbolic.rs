@@ -27,7 +27,7 @@ impl SymbolicSize {
 
 /// Length of the `u32` workspace [`Symbolic::size`] and [`Symbolic::new`] need.
 pub const fn analyse_work_len(n: usize, nnz_a: usize) -> usize {
-    2 * nnz_a + 4 * n + 2
+    2 * nnz_a + 5 * n + 1
 }
 
 /// The symbolic factorization of `C = P A Pᵀ`, where `C(k, l) = A(perm[k], perm[l])`.

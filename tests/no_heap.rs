@@ -1,0 +1,118 @@
+//! Proof that the core needs no heap: `nostd-check/` is a `#![no_std]`, `#![no_main]` program
+//! (a staticlib with its own panic handler, `panic = "abort"`) that runs the core's
+//! computations on stack buffers. It is built on its own with `cargo build --manifest-path`, so
+//! the std host cannot switch on features of shared dependencies through feature unification.
+//! The test then
+//! 1. lists every symbol of the library and fails on any allocator symbol,
+//! 2. links it into an executable with a C `main` and runs it (the computation must check out),
+//! 3. builds the same program with a global allocator and one `Vec` (feature `heap-control`)
+//!    and checks that step 1 does see that heap, so the check cannot pass vacuously.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// Builds the no_std program and returns the path of its static library.
+fn build(features: &[&str]) -> PathBuf {
+    let target_dir = root().join("target").join("nostd-check");
+    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+    let mut cmd = Command::new(cargo);
+    cmd.current_dir(root().join("nostd-check"))
+        .args(["build", "--release", "--locked", "--target-dir"])
+        .arg(&target_dir);
+    if !features.is_empty() {
+        cmd.arg("--features").arg(features.join(","));
+    }
+    // Nothing of the outer build may leak into this one.
+    for (key, _) in std::env::vars() {
+        if key.starts_with("CARGO_FEATURE_") || key == "RUSTFLAGS" || key == "CARGO_ENCODED_RUSTFLAGS" {
+            cmd.env_remove(key);
+        }
+    }
+    let status = cmd.status().expect("cargo runs");
+    assert!(status.success(), "building nostd-check failed");
+    target_dir.join("release").join("libincise_nostd_check.a")
+}
+
+/// Allocator symbols (defined or referenced) in a library, by name.
+fn allocator_symbols(lib: &Path) -> Vec<String> {
+    let out = Command::new("nm")
+        .arg("--format=posix")
+        .arg(lib)
+        .output()
+        .expect("nm (binutils) runs");
+    assert!(out.status.success(), "nm failed on {}", lib.display());
+    let text = String::from_utf8_lossy(&out.stdout);
+    const PARTS: [&str; 9] = [
+        "rust_alloc",
+        "rust_dealloc",
+        "rust_realloc",
+        "rg_alloc",
+        "rdl_alloc",
+        "alloc_error_handler",
+        "no_alloc_shim",
+        "5alloc7raw_vec",
+        "GlobalAlloc",
+    ];
+    const C_HEAP: [&str; 7] = [
+        "malloc",
+        "calloc",
+        "realloc",
+        "free",
+        "posix_memalign",
+        "aligned_alloc",
+        "memalign",
+    ];
+    let mut found: Vec<String> = text
+        .lines()
+        .filter_map(|line| line.split_whitespace().next())
+        .filter(|sym| PARTS.iter().any(|p| sym.contains(p)) || C_HEAP.contains(sym))
+        .map(str::to_owned)
+        .collect();
+    found.sort();
+    found.dedup();
+    found
+}
+
+#[test]
+fn the_core_links_and_runs_without_a_heap() {
+    let lib = build(&[]);
+    let syms = allocator_symbols(&lib);
+    assert!(syms.is_empty(), "allocator symbols linked: {syms:?}");
+
+    // Link with a C main and run: the core's computation must check out.
+    let dir = root().join("target").join("nostd-check");
+    let main_c = dir.join("main.c");
+    std::fs::write(
+        &main_c,
+        "int incise_nostd_check_sparse(void);\n\
+         int main(void) { return incise_nostd_check_sparse(); }\n",
+    )
+    .unwrap();
+    let exe = dir.join("nostd-check");
+    // --gc-sections drops the unwinding tables of the precompiled libcore, which nothing calls.
+    let status = Command::new("cc")
+        .arg("-o")
+        .arg(&exe)
+        .arg(&main_c)
+        .arg("-Wl,--gc-sections")
+        .arg(&lib)
+        .status()
+        .expect("cc runs");
+    assert!(status.success(), "linking the no_std program failed");
+    let code = Command::new(&exe).status().expect("program runs").code();
+    assert_eq!(code, Some(0), "the no_std computation failed (1: error, 2: wrong answer)");
+}
+
+#[test]
+fn the_symbol_check_sees_a_heap_when_there_is_one() {
+    let lib = build(&["heap-control"]);
+    let syms = allocator_symbols(&lib);
+    assert!(
+        syms.iter().any(|s| s.contains("rust_alloc")),
+        "the negative control should link an allocator: {syms:?}"
+    );
+}

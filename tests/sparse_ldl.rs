@@ -1,0 +1,289 @@
+//! The core's sparse LDLᵀ against faer (solutions, residuals, fill) on stiffness patterns of
+//! tetrahedral meshes, and its behaviour on the small and broken systems a user will hand it.
+
+use incise_core::sparse::{
+    Graph, LdlFactor, Symbolic, UpperCsc, analyse_work_len, block_upper_pattern,
+    relative_residual,
+};
+use incise_core::{Error, Resource};
+use incise_validation::oracle::{faer_amd_nnz_l, faer_solve};
+use incise_validation::rng::Rng;
+use incise_validation::system::{StiffnessPattern, factor_and_solve, order_pattern};
+use incise_validation::testmesh::{TetMesh, box_mesh, shuffle_nodes};
+
+/// Box meshes of 144, 700 and 1859 nodes, node numbering shuffled; the nodes of the face
+/// `x = 0` are fixed, as for a model held at one end.
+fn meshes() -> Vec<(TetMesh, Vec<u32>)> {
+    let mut rng = Rng::new(7);
+    [[5, 5, 3], [9, 9, 6], [12, 12, 10]]
+        .into_iter()
+        .map(|cells| {
+            let mesh = shuffle_nodes(&box_mesh(cells, [2.0, 1.0, 1.0]), &mut rng);
+            let fixed = (0..mesh.nodes.len() as u32)
+                .filter(|&v| mesh.nodes[v as usize][0] == 0.0)
+                .collect();
+            (mesh, fixed)
+        })
+        .collect()
+}
+
+fn rel_diff(a: &[f64], b: &[f64]) -> f64 {
+    let num: f64 = a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum();
+    let den: f64 = b.iter().map(|y| y * y).sum();
+    (num / den).sqrt()
+}
+
+#[test]
+fn f64_and_f32_solutions_agree_with_faer() {
+    let mut rng = Rng::new(11);
+    for (mesh, fixed) in meshes() {
+        let pat = StiffnessPattern::new(&mesh, &fixed).unwrap();
+        let a = pat.upper();
+        let values: Vec<f64> = pat.random_spd(&mesh, &mut rng, 0.05);
+        let b: Vec<f64> = (0..a.n()).map(|_| rng.range(-1.0, 1.0)).collect();
+        let reference = faer_solve(&a, &values, &b);
+
+        let ours = factor_and_solve(&a, &pat.perm, &values, &b).unwrap();
+        let err = rel_diff(&ours.x, &reference);
+        let mut work = vec![0.0; a.n()];
+        let res = relative_residual(&a, &values, &ours.x, &b, &mut work).unwrap();
+        eprintln!(
+            "nodes {:5} unknowns {:5}: f64 relative error {err:.2e}, relative residual {res:.2e}",
+            mesh.nodes.len(),
+            a.n()
+        );
+        assert!(err <= 1e-10, "f64 relative error {err:e}");
+        assert!(res <= 1e-12, "f64 relative residual {res:e}");
+
+        let values32: Vec<f32> = values.iter().map(|&v| v as f32).collect();
+        let b32: Vec<f32> = b.iter().map(|&v| v as f32).collect();
+        let ours32 = factor_and_solve(&a, &pat.perm, &values32, &b32).unwrap();
+        let x32: Vec<f64> = ours32.x.iter().map(|&v| f64::from(v)).collect();
+        let err32 = rel_diff(&x32, &reference);
+        eprintln!("                             f32 relative error {err32:.2e}");
+        assert!(err32 <= 1e-4, "f32 relative error {err32:e}");
+    }
+}
+
+#[test]
+fn fill_is_within_30_percent_of_faer_amd() {
+    for (mesh, fixed) in meshes() {
+        let pat = StiffnessPattern::new(&mesh, &fixed).unwrap();
+        let a = pat.upper();
+        let mut work = vec![0u32; analyse_work_len(a.n(), a.nnz())];
+        let ours = Symbolic::size(&a, &pat.perm, &mut work).unwrap().nnz_l;
+        let faer = faer_amd_nnz_l(&a);
+        let ratio = ours as f64 / faer as f64;
+        eprintln!(
+            "nodes {:5}: nnz(L) strictly lower, ours {ours:8}, faer AMD {faer:8}, ratio {ratio:.3}",
+            mesh.nodes.len()
+        );
+        assert!(ratio <= 1.3, "fill ratio {ratio}");
+    }
+}
+
+/// A small dense symmetric matrix as an upper pattern with all entries stored.
+struct Dense {
+    n: usize,
+    col_ptr: Vec<u32>,
+    row_idx: Vec<u32>,
+}
+
+impl Dense {
+    fn new(n: usize) -> Self {
+        let mut col_ptr = vec![0u32];
+        let mut row_idx = vec![];
+        for j in 0..n {
+            row_idx.extend(0..=j as u32);
+            col_ptr.push(row_idx.len() as u32);
+        }
+        Dense {
+            n,
+            col_ptr,
+            row_idx,
+        }
+    }
+    fn upper(&self) -> UpperCsc<'_> {
+        UpperCsc::new(self.n, &self.col_ptr, &self.row_idx).unwrap()
+    }
+}
+
+#[test]
+fn indefinite_matrix_names_the_column_and_keeps_the_previous_factor() {
+    let dense = Dense::new(2);
+    let a = dense.upper();
+    let perm = [0u32, 1];
+    let mut awork = vec![0u32; analyse_work_len(2, a.nnz())];
+    let size = Symbolic::size(&a, &perm, &mut awork).unwrap();
+    let mut sstore = vec![0u32; size.index_len()];
+    let sym = Symbolic::new(&a, &perm, &mut sstore, &mut awork).unwrap();
+    let mut fstore = vec![0.0f64; LdlFactor::<f64>::storage_len(&size)];
+    let mut factor = LdlFactor::new(&size, &mut fstore).unwrap();
+    let (mut y, mut cursor) = ([0.0; 2], [0u32; 2]);
+
+    // [[2, 1], [1, 2]] is positive definite.
+    factor
+        .factorize(&sym, &[2.0, 1.0, 2.0], &mut y, &mut cursor)
+        .unwrap();
+    let d_before = factor.d_values().unwrap().to_vec();
+    // [[1, 2], [2, 1]] has eigenvalues 3 and −1: the second pivot is 1 − 4 = −3.
+    assert_eq!(
+        factor.factorize(&sym, &[1.0, 2.0, 1.0], &mut y, &mut cursor),
+        Err(Error::NotPositiveDefinite { column: 1 })
+    );
+    assert_eq!(factor.d_values().unwrap(), &d_before[..]);
+    let mut x = [3.0, 3.0];
+    factor.solve_in_place(&sym, &mut x, &mut y).unwrap();
+    assert!((x[0] - 1.0).abs() < 1e-15 && (x[1] - 1.0).abs() < 1e-15);
+
+    // A NaN reaches the pivot of the column it sits in.
+    assert_eq!(
+        factor.factorize(&sym, &[4.0, f64::NAN, 4.0], &mut y, &mut cursor),
+        Err(Error::NotFinite { column: 1 })
+    );
+    assert_eq!(
+        factor.factorize(&sym, &[f64::INFINITY, 0.0, 4.0], &mut y, &mut cursor),
+        Err(Error::NotFinite { column: 0 })
+    );
+    // Still the first factor.
+    assert_eq!(factor.d_values().unwrap(), &d_before[..]);
+    let mut x = [3.0, 3.0];
+    factor.solve_in_place(&sym, &mut x, &mut y).unwrap();
+    assert!((x[0] - 1.0).abs() < 1e-15);
+}
+
+#[test]
+fn a_fresh_factor_refuses_to_solve() {
+    let dense = Dense::new(1);
+    let a = dense.upper();
+    let mut awork = vec![0u32; analyse_work_len(1, 1)];
+    let size = Symbolic::size(&a, &[0], &mut awork).unwrap();
+    let mut sstore = vec![0u32; size.index_len()];
+    let sym = Symbolic::new(&a, &[0], &mut sstore, &mut awork).unwrap();
+    let mut fstore = vec![0.0f64; LdlFactor::<f64>::storage_len(&size)];
+    let mut factor = LdlFactor::new(&size, &mut fstore).unwrap();
+    let (mut y, mut cursor) = ([0.0; 1], [0u32; 1]);
+    assert_eq!(
+        factor.solve_in_place(&sym, &mut [1.0], &mut y),
+        Err(Error::NotFactored)
+    );
+    assert_eq!(
+        factor.factorize(&sym, &[-1.0], &mut y, &mut cursor),
+        Err(Error::NotPositiveDefinite { column: 0 })
+    );
+    assert!(!factor.is_factored());
+}
+
+#[test]
+fn one_by_one_and_empty_systems() {
+    let one = Dense::new(1);
+    let s = factor_and_solve(&one.upper(), &[0], &[4.0f64], &[10.0]).unwrap();
+    assert_eq!(s.x, vec![2.5]);
+    assert_eq!(s.size.nnz_l, 0);
+
+    let empty = Dense::new(0);
+    let s = factor_and_solve::<f64>(&empty.upper(), &[], &[], &[]).unwrap();
+    assert!(s.x.is_empty());
+    assert_eq!(order_pattern(&empty.upper()).unwrap(), Vec::<u32>::new());
+}
+
+#[test]
+fn diagonal_matrix_has_no_fill() {
+    let n = 50;
+    let col_ptr: Vec<u32> = (0..=n as u32).collect();
+    let row_idx: Vec<u32> = (0..n as u32).collect();
+    let a = UpperCsc::new(n, &col_ptr, &row_idx).unwrap();
+    let d: Vec<f64> = (1..=n).map(|k| k as f64).collect();
+    let b: Vec<f64> = (0..n).map(|k| 3.0 * (k + 1) as f64).collect();
+    let perm = order_pattern(&a).unwrap();
+    let s = factor_and_solve(&a, &perm, &d, &b).unwrap();
+    assert_eq!(s.size.nnz_l, 0);
+    assert!(s.x.iter().all(|&x| (x - 3.0).abs() < 1e-15));
+}
+
+#[test]
+fn dense_matrix_matches_closed_form_factor() {
+    // The 3 × 3 matrix with L = [[1, 0, 0], [2, 1, 0], [3, 4, 1]], D = diag(1, 2, 3):
+    // A = L D Lᵀ = [[1, 2, 3], [2, 6, 14], [3, 14, 44]].
+    let dense = Dense::new(3);
+    let a = dense.upper();
+    let values = [1.0f64, 2.0, 6.0, 3.0, 14.0, 44.0];
+    let perm = [0u32, 1, 2];
+    let mut awork = vec![0u32; analyse_work_len(3, a.nnz())];
+    let size = Symbolic::size(&a, &perm, &mut awork).unwrap();
+    let mut sstore = vec![0u32; size.index_len()];
+    let sym = Symbolic::new(&a, &perm, &mut sstore, &mut awork).unwrap();
+    let mut fstore = vec![0.0f64; LdlFactor::<f64>::storage_len(&size)];
+    let mut factor = LdlFactor::new(&size, &mut fstore).unwrap();
+    let (mut y, mut cursor) = ([0.0; 3], [0u32; 3]);
+    factor.factorize(&sym, &values, &mut y, &mut cursor).unwrap();
+    assert_eq!(factor.d_values().unwrap(), &[1.0, 2.0, 3.0]);
+    // Column-major strictly lower L: (1,0), (2,0), (2,1).
+    assert_eq!(factor.l_values().unwrap(), &[2.0, 3.0, 4.0]);
+}
+
+#[test]
+fn capacity_overflow_is_an_error_not_a_panic() {
+    let mesh = box_mesh([3, 3, 3], [1.0, 1.0, 1.0]);
+    let free: Vec<u32> = (0..mesh.nodes.len() as u32).collect();
+    let mut work = vec![0u32; 10_000];
+    let nnz = Graph::tets_nnz(&mesh.tets, &free, &mut work).unwrap();
+    // Adjacency storage one short.
+    let (mut gp, mut ga) = (vec![0u32; free.len() + 1], vec![0u32; nnz - 1]);
+    assert_eq!(
+        Graph::from_tets(&mesh.tets, &free, &mut gp, &mut ga, &mut work).err(),
+        Some(Error::Capacity {
+            resource: Resource::GraphEntries,
+            needed: nnz,
+            available: nnz - 1
+        })
+    );
+    let mut ga = vec![0u32; nnz];
+    let g = Graph::from_tets(&mesh.tets, &free, &mut gp, &mut ga, &mut work).unwrap();
+    // Matrix pattern storage too short.
+    let (mut cp, mut ri) = (vec![0u32; 3 * g.n() + 1], vec![0u32; 100]);
+    assert!(matches!(
+        block_upper_pattern(&g, 3, &mut cp, &mut ri),
+        Err(Error::Capacity {
+            resource: Resource::MatrixEntries,
+            ..
+        })
+    ));
+    // Symbolic and numeric storage too short.
+    let pat = StiffnessPattern::new(&mesh, &[]).unwrap();
+    let a = pat.upper();
+    let mut awork = vec![0u32; analyse_work_len(a.n(), a.nnz())];
+    let size = Symbolic::size(&a, &pat.perm, &mut awork).unwrap();
+    let mut short = vec![0u32; size.index_len() - 1];
+    assert!(matches!(
+        Symbolic::new(&a, &pat.perm, &mut short, &mut awork),
+        Err(Error::Capacity {
+            resource: Resource::IndexStorage,
+            ..
+        })
+    ));
+    let mut fshort = vec![0.0f64; LdlFactor::<f64>::storage_len(&size) - 1];
+    assert!(matches!(
+        LdlFactor::new(&size, &mut fshort),
+        Err(Error::Capacity {
+            resource: Resource::RealStorage,
+            ..
+        })
+    ));
+    // Workspace too short.
+    let mut wshort = vec![0u32; 3];
+    assert!(matches!(
+        Symbolic::size(&a, &pat.perm, &mut wshort),
+        Err(Error::Capacity {
+            resource: Resource::Workspace,
+            ..
+        })
+    ));
+    // A permutation that repeats a value.
+    let mut bad = pat.perm.clone();
+    bad[1] = bad[0];
+    assert_eq!(
+        Symbolic::size(&a, &bad, &mut awork),
+        Err(Error::NotAPermutation { position: 1 })
+    );
+}
