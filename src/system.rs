@@ -2,9 +2,9 @@
 //! API, packaged for tests and benchmarks.
 
 use incise_core::sparse::{
-    Graph, LdlFactor, NONE, Symbolic, SymbolicSize, UpperCsc, analyse_work_len,
-    block_upper_len, block_upper_pattern, expand_block_permutation, minimum_degree,
-    minimum_degree_work_len, tet_graph_work_len,
+    Graph, LdlFactor, NONE, Symbolic, SymbolicSize, UpperCsc, analyse_work_len, block_upper_len,
+    block_upper_pattern, expand_block_permutation, minimum_degree, minimum_degree_work_len,
+    tet_graph_work_len,
 };
 use incise_core::{Error, Real};
 
@@ -85,7 +85,9 @@ impl StiffnessPattern {
             };
             for c in 0..12 {
                 for r in 0..12 {
-                    let (Some(i), Some(j)) = (dof(r), dof(c)) else { continue };
+                    let (Some(i), Some(j)) = (dof(r), dof(c)) else {
+                        continue;
+                    };
                     if i > j {
                         continue;
                     }

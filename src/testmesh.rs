@@ -101,7 +101,11 @@ mod tests {
         let m = box_mesh([3, 2, 4], [1.5, 1.0, 2.0]);
         assert_eq!(m.nodes.len(), 4 * 3 * 5);
         assert_eq!(m.tets.len(), 6 * 24);
-        let total: f64 = m.tets.iter().map(|&t| signed_volume(&m.nodes, t) / 6.0).sum();
+        let total: f64 = m
+            .tets
+            .iter()
+            .map(|&t| signed_volume(&m.nodes, t) / 6.0)
+            .sum();
         assert!((total - 3.0).abs() < 1e-12);
         assert!(m.tets.iter().all(|&t| signed_volume(&m.nodes, t) > 0.0));
     }

@@ -28,7 +28,10 @@ fn build(features: &[&str]) -> PathBuf {
     }
     // Nothing of the outer build may leak into this one.
     for (key, _) in std::env::vars() {
-        if key.starts_with("CARGO_FEATURE_") || key == "RUSTFLAGS" || key == "CARGO_ENCODED_RUSTFLAGS" {
+        if key.starts_with("CARGO_FEATURE_")
+            || key == "RUSTFLAGS"
+            || key == "CARGO_ENCODED_RUSTFLAGS"
+        {
             cmd.env_remove(key);
         }
     }
@@ -104,7 +107,11 @@ fn the_core_links_and_runs_without_a_heap() {
         .expect("cc runs");
     assert!(status.success(), "linking the no_std program failed");
     let code = Command::new(&exe).status().expect("program runs").code();
-    assert_eq!(code, Some(0), "the no_std computation failed (1: error, 2: wrong answer)");
+    assert_eq!(
+        code,
+        Some(0),
+        "the no_std computation failed (1: error, 2: wrong answer)"
+    );
 }
 
 #[test]

@@ -2,8 +2,7 @@
 //! tetrahedral meshes, and its behaviour on the small and broken systems a user will hand it.
 
 use incise_core::sparse::{
-    Graph, LdlFactor, Symbolic, UpperCsc, analyse_work_len, block_upper_pattern,
-    relative_residual,
+    Graph, LdlFactor, Symbolic, UpperCsc, analyse_work_len, block_upper_pattern, relative_residual,
 };
 use incise_core::{Error, Resource};
 use incise_validation::oracle::{faer_amd_nnz_l, faer_solve};
@@ -216,7 +215,9 @@ fn dense_matrix_matches_closed_form_factor() {
     let mut fstore = vec![0.0f64; LdlFactor::<f64>::storage_len(&size)];
     let mut factor = LdlFactor::new(&size, &mut fstore).unwrap();
     let (mut y, mut cursor) = ([0.0; 3], [0u32; 3]);
-    factor.factorize(&sym, &values, &mut y, &mut cursor).unwrap();
+    factor
+        .factorize(&sym, &values, &mut y, &mut cursor)
+        .unwrap();
     assert_eq!(factor.d_values().unwrap(), &[1.0, 2.0, 3.0]);
     // Column-major strictly lower L: (1,0), (2,0), (2,1).
     assert_eq!(factor.l_values().unwrap(), &[2.0, 3.0, 4.0]);

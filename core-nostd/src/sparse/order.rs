@@ -223,7 +223,8 @@ impl Quotient<'_> {
                 return Err(internal());
             }
             // Element `p` goes after the kept elements: shift the variables up by one.
-            self.iw.copy_within(is + kept_elements..w, is + kept_elements + 1);
+            self.iw
+                .copy_within(is + kept_elements..w, is + kept_elements + 1);
             self.iw[is + kept_elements] = p as u32;
             self.len[i] = (w - is + 1) as u32;
             self.elen[i] = (kept_elements + 1) as u32;

@@ -335,7 +335,11 @@ fn check_free_map(tets: &[[u32; 4]], free: &[u32], work: &mut [u32]) -> Result<u
             problem: PatternProblem::TooLarge,
         });
     }
-    ensure_len(work, tet_graph_work_len(n_free, tets.len()), Resource::Workspace)?;
+    ensure_len(
+        work,
+        tet_graph_work_len(n_free, tets.len()),
+        Resource::Workspace,
+    )?;
     let seen = &mut work[..n_free];
     seen.fill(0);
     for (position, &f) in free.iter().enumerate() {

@@ -142,8 +142,8 @@ impl<'a> Symbolic<'a> {
         for k in 0..n {
             let mut at = ux(lt_ptr[k]);
             mark[k] = k as u32;
-            for q in ux(c_ptr[k])..ux(c_ptr[k + 1]) {
-                let mut i = c_row[q];
+            for &r in &c_row[ux(c_ptr[k])..ux(c_ptr[k + 1])] {
+                let mut i = r;
                 while i != NONE && mark[ux(i)] != k as u32 {
                     lt_col[at] = i;
                     at += 1;
@@ -155,8 +155,8 @@ impl<'a> Symbolic<'a> {
         }
         col_count.copy_from_slice(&l_ptr[..n]);
         for k in 0..n {
-            for t in ux(lt_ptr[k])..ux(lt_ptr[k + 1]) {
-                let j = ux(lt_col[t]);
+            for &j in &lt_col[ux(lt_ptr[k])..ux(lt_ptr[k + 1])] {
+                let j = ux(j);
                 l_row[ux(col_count[j])] = k as u32;
                 col_count[j] += 1;
             }
