@@ -32,6 +32,12 @@ pub enum Resource {
     Nodes,
     /// Tetrahedra.
     Tetrahedra,
+    /// Boundary (surface) triangles.
+    SurfaceTriangles,
+    /// Tracked features.
+    Features,
+    /// Observations of one frame.
+    Observations,
 }
 
 impl fmt::Display for Resource {
@@ -48,6 +54,49 @@ impl fmt::Display for Resource {
             Resource::Vector => "vector",
             Resource::Nodes => "nodes",
             Resource::Tetrahedra => "tetrahedra",
+            Resource::SurfaceTriangles => "surface triangles",
+            Resource::Features => "features",
+            Resource::Observations => "observations",
+        };
+        f.write_str(s)
+    }
+}
+
+/// A configuration parameter, named in [`Error::InvalidParameter`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[non_exhaustive]
+pub enum Parameter {
+    /// Young's modulus (must be positive and finite).
+    YoungModulus,
+    /// Poisson ratio (must lie in `(-1, 0.5)`).
+    PoissonRatio,
+    /// Spring stiffness of the feature coupling (positive, finite).
+    SpringStiffness,
+    /// Damping ratio (non-negative, finite).
+    Damping,
+    /// Camera intrinsics (positive focal lengths, finite centre, positive image size).
+    Intrinsics,
+    /// Camera pose (finite, rotation orthonormal with determinant 1).
+    Pose,
+    /// Iteration counts of the solver (Newton, line search, PCG): positive and bounded.
+    Iterations,
+    /// Image margin beyond which an observation is rejected (non-negative).
+    ImageMargin,
+}
+
+impl fmt::Display for Parameter {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let s = match self {
+            Parameter::YoungModulus => "Young's modulus must be positive and finite",
+            Parameter::PoissonRatio => "Poisson ratio must lie in (-1, 0.5)",
+            Parameter::SpringStiffness => "spring stiffness must be positive and finite",
+            Parameter::Damping => "damping must be non-negative and finite",
+            Parameter::Intrinsics => {
+                "camera intrinsics need positive focal lengths, a finite centre and a positive image size"
+            }
+            Parameter::Pose => "camera pose must be finite with an orthonormal rotation",
+            Parameter::Iterations => "iteration counts must be positive and within their bounds",
+            Parameter::ImageMargin => "image margin must be non-negative and finite",
         };
         f.write_str(s)
     }
@@ -132,6 +181,65 @@ pub enum Error {
     NotFactored,
     /// The factor was computed for another symbolic analysis (different sizes).
     SymbolicMismatch,
+    /// A configuration parameter is out of its range.
+    InvalidParameter {
+        /// Which parameter.
+        parameter: Parameter,
+    },
+    /// A rest tetrahedron has (almost) no volume.
+    DegenerateElement {
+        /// Index of the tetrahedron.
+        tet: usize,
+    },
+    /// A rest tetrahedron is inverted (negative volume for its node order).
+    InvertedElement {
+        /// Index of the tetrahedron.
+        tet: usize,
+    },
+    /// A coordinate or value given as input is NaN or infinite.
+    NonFiniteInput {
+        /// What the value belongs to.
+        resource: Resource,
+        /// Its position in the input.
+        position: usize,
+    },
+    /// The boundary surface is not a closed 2-manifold: the edge `(a, b)` is shared by a number
+    /// of boundary triangles other than two, or a face by more than two tetrahedra.
+    NonManifold {
+        /// First node of the edge or face.
+        a: usize,
+        /// Second node of the edge or face.
+        b: usize,
+    },
+    /// No node is fixed: with the features only constraining the image plane, the problem
+    /// would be singular.
+    NoFixedNodes,
+    /// A point lies at or behind the camera's plane of projection.
+    BehindCamera {
+        /// Index of the point (node or feature, per the call).
+        index: usize,
+    },
+    /// A frame names a feature id that was not registered at frame 0.
+    UnknownFeature {
+        /// The id.
+        id: u32,
+    },
+    /// A frame names the same feature id twice.
+    DuplicateFeature {
+        /// The id.
+        id: u32,
+    },
+    /// An observation lies farther outside the image than the configured margin.
+    OutsideImage {
+        /// The feature id.
+        id: u32,
+    },
+    /// A frame holds no observation at all.
+    EmptyFrame,
+    /// No feature has been embedded yet (or none hit the model).
+    NoFeatures,
+    /// The solve produced a non-finite value; the state was rolled back.
+    Diverged,
 }
 
 impl fmt::Display for Error {
@@ -182,6 +290,34 @@ impl fmt::Display for Error {
             Error::NotFactored => f.write_str("no successful factorization to solve with"),
             Error::SymbolicMismatch => {
                 f.write_str("factor storage was sized for another symbolic analysis")
+            }
+            Error::InvalidParameter { parameter } => write!(f, "invalid parameter: {parameter}"),
+            Error::DegenerateElement { tet } => {
+                write!(f, "tetrahedron {tet} is degenerate (no volume)")
+            }
+            Error::InvertedElement { tet } => write!(f, "tetrahedron {tet} is inverted"),
+            Error::NonFiniteInput { resource, position } => {
+                write!(f, "non-finite value in {resource} at position {position}")
+            }
+            Error::NonManifold { a, b } => write!(
+                f,
+                "boundary surface is not a closed manifold near nodes {a} and {b}"
+            ),
+            Error::NoFixedNodes => {
+                f.write_str("no fixed node: the registration problem would be singular")
+            }
+            Error::BehindCamera { index } => {
+                write!(f, "point {index} lies at or behind the camera")
+            }
+            Error::UnknownFeature { id } => write!(f, "unknown feature id {id}"),
+            Error::DuplicateFeature { id } => write!(f, "feature id {id} appears twice"),
+            Error::OutsideImage { id } => {
+                write!(f, "feature {id} lies too far outside the image")
+            }
+            Error::EmptyFrame => f.write_str("the frame holds no observation"),
+            Error::NoFeatures => f.write_str("no feature is embedded in the model"),
+            Error::Diverged => {
+                f.write_str("the solve produced a non-finite value; the state was rolled back")
             }
         }
     }

@@ -23,5 +23,5 @@ pub mod real;
 pub mod sparse;
 pub mod storage;
 
-pub use error::{Error, Resource};
+pub use error::{Error, Parameter, Resource};
 pub use real::Real;
