@@ -9,7 +9,19 @@
 //! in the manner of smoltcp and QDLDL; capacities are fixed at construction and an overflow is an
 //! [`Error`], never a panic or a silent truncation.
 //!
+//! The per-frame path, top to bottom, is [`model::Model::step`]: take the frame's observations
+//! ([`features`]), then a fixed number of Newton steps ([`solve`]) on the elastic energy of the
+//! mesh ([`mesh`], [`material`]) plus the springs to the observations through the camera
+//! ([`camera`]), each solved with the sparse factorization ([`sparse`]).
+//!
 //! Modules, one per concern:
+//! - [`model`]: the model built in caller storage, and the per-frame step.
+//! - [`mesh`]: the tetrahedral mesh, its fixed nodes and its boundary surface.
+//! - [`camera`]: the pinhole camera, projection, Jacobian and rays.
+//! - [`features`]: virtual features embedded in the surface, and the frame's observations.
+//! - [`solve`]: assembly, the `Refactor` and `Frozen` strategies, the line search.
+//! - [`material`]: Saint Venant–Kirchhoff elasticity on linear tetrahedra: Lamé parameters,
+//!   rest geometry, element energy, forces and the (optionally PSD-projected) 12 × 12 tangent.
 //! - [`sparse`]: symmetric sparse patterns, a minimum-degree ordering, the symbolic analysis and
 //!   the numeric LDLᵀ factorization with its solves.
 //! - [`storage`]: carving caller-owned slices into the pieces a structure needs.
@@ -17,11 +29,28 @@
 //! - [`error`]: the one error type of the crate.
 #![no_std]
 #![forbid(unsafe_code)]
+// Numerical kernels index several arrays with one loop variable; iterator chains would hide
+// which entries meet.
+#![allow(clippy::needless_range_loop)]
+// `!(x > 0)` is deliberate: it is true for NaN, which is exactly when we want to stop.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+pub mod camera;
 pub mod error;
+pub mod features;
+pub mod material;
+pub mod mesh;
+pub mod model;
 pub mod real;
+pub mod solve;
 pub mod sparse;
 pub mod storage;
 
 pub use error::{Error, Parameter, Resource};
 pub use real::Real;
+
+pub use camera::{Camera, Intrinsics};
+pub use features::{EmbedReport, Observation};
+pub use mesh::{MeshCapacity, MeshInput};
+pub use model::{Capacities, Material, Model, ModelConfig, ModelSize, StepReport};
+pub use solve::{Energies, SolverConfig, Strategy, WorkCount};

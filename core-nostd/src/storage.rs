@@ -46,6 +46,11 @@ impl<'a, X> Slab<'a, X> {
         Ok(head)
     }
 
+    /// Entries not handed out yet.
+    pub fn remaining(&self) -> usize {
+        self.rest.len()
+    }
+
     /// Entries handed out so far.
     pub fn used(&self) -> usize {
         self.needed

@@ -1,0 +1,353 @@
+//! Virtual features: each tracked image feature is tied to a point of the model surface,
+//! stored as barycentric weights in one tetrahedron, and pulled toward its observation.
+
+use nalgebra::{Matrix3, Vector3};
+
+use crate::camera::Camera;
+use crate::error::{Error, Resource};
+use crate::mesh::Mesh;
+use crate::real::Real;
+use crate::storage::Slab;
+
+/// One observation of a tracked feature in a frame: its id and its pixel position.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Observation<T> {
+    /// Feature id, stable over the video.
+    pub id: u32,
+    /// Pixel position `(u, v)`, undistorted.
+    pub uv: [T; 2],
+}
+
+/// What [`Features::embed`] did with the frame-0 observations.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct EmbedReport {
+    /// Features whose camera ray hit the model surface: they are now virtual features.
+    pub embedded: usize,
+    /// Features whose ray missed the model: they take no part (their ids are unknown later).
+    pub missed: usize,
+    /// The lowest id that missed, if any, for the message.
+    pub first_missed: Option<u32>,
+}
+
+/// Fixed-capacity storage of the virtual features.
+///
+/// Invariants: the first `len` entries of `lookup` are `(id, slot)` pairs sorted by id with
+/// distinct ids; slots are `0..len`; each slot's tetrahedron index is valid for the mesh the
+/// features were embedded in, and its four weights are non-negative and sum to one.
+#[derive(Debug)]
+pub struct Features<'a, T> {
+    len: usize,
+    lookup: &'a mut [[u32; 2]],
+    tet: &'a mut [u32],
+    weights: &'a mut [[T; 4]],
+    target: &'a mut [[T; 2]],
+    active: &'a mut [u32],
+    stamp: &'a mut [u32],
+    stamp_value: u32,
+}
+
+impl<'a, T: Real> Features<'a, T> {
+    /// Scalars of storage for `capacity` features.
+    pub const fn real_len(capacity: usize) -> usize {
+        6 * capacity
+    }
+
+    /// Indices of storage for `capacity` features.
+    pub const fn index_len(capacity: usize) -> usize {
+        5 * capacity
+    }
+
+    /// Empty storage for `capacity` features, taken from the slabs.
+    ///
+    /// # Errors
+    /// [`Error::Capacity`] if a slab is too short.
+    pub fn new(
+        capacity: usize,
+        reals: &mut Slab<'a, T>,
+        indices: &mut Slab<'a, u32>,
+    ) -> Result<Self, Error> {
+        Ok(Features {
+            len: 0,
+            lookup: indices.take(2 * capacity)?.as_chunks_mut::<2>().0,
+            tet: indices.take(capacity)?,
+            active: indices.take(capacity)?,
+            stamp: indices.take(capacity)?,
+            weights: reals.take(4 * capacity)?.as_chunks_mut::<4>().0,
+            target: reals.take(2 * capacity)?.as_chunks_mut::<2>().0,
+            stamp_value: 0,
+        })
+    }
+
+    /// Capacity.
+    pub fn capacity(&self) -> usize {
+        self.tet.len()
+    }
+
+    /// Number of embedded features.
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    /// Whether no feature is embedded.
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    /// Places each frame-0 observation where its camera ray first meets the model surface
+    /// (`positions` are the current node positions) and replaces the features held so far.
+    ///
+    /// Cost: observations × boundary triangles ray–triangle tests; it runs once, at frame 0.
+    ///
+    /// # Errors
+    /// [`Error::Capacity`] for more observations than the capacity;
+    /// [`Error::NonFiniteInput`], [`Error::OutsideImage`] or [`Error::DuplicateFeature`] for a
+    /// bad observation. On error the features held before stay as they were.
+    pub fn embed(
+        &mut self,
+        mesh: &Mesh<'_, T>,
+        positions: &[[T; 3]],
+        camera: &Camera<T>,
+        obs: &[Observation<T>],
+        margin: T,
+    ) -> Result<EmbedReport, Error> {
+        if obs.len() > self.capacity() {
+            return Err(Error::Capacity {
+                resource: Resource::Features,
+                needed: obs.len(),
+                available: self.capacity(),
+            });
+        }
+        check_observations(camera, obs, margin)?;
+        // The duplicate check sorts the ids in the stamp array, scratch between frames.
+        self.stamp_value = 0;
+        let ids = &mut self.stamp[..obs.len()];
+        for (slot, o) in ids.iter_mut().zip(obs) {
+            *slot = o.id;
+        }
+        ids.sort_unstable();
+        let duplicate = ids.windows(2).find(|w| w[0] == w[1]).map(|w| w[0]);
+        self.stamp.fill(0);
+        if let Some(id) = duplicate {
+            return Err(Error::DuplicateFeature { id });
+        }
+
+        let mut report = EmbedReport {
+            embedded: 0,
+            missed: 0,
+            first_missed: None,
+        };
+        let mut n = 0;
+        for o in obs {
+            match first_hit(mesh, positions, camera, o.uv) {
+                Some((tet, weights)) => {
+                    self.lookup[n] = [o.id, n as u32];
+                    self.tet[n] = tet;
+                    self.weights[n] = weights;
+                    self.target[n] = o.uv;
+                    self.active[n] = 1;
+                    n += 1;
+                }
+                None => {
+                    report.missed += 1;
+                    report.first_missed = Some(report.first_missed.map_or(o.id, |m| m.min(o.id)));
+                }
+            }
+        }
+        self.len = n;
+        self.lookup[..n].sort_unstable();
+        report.embedded = n;
+        Ok(report)
+    }
+
+    /// Takes the observations of a new frame: features observed get their new target, the
+    /// others are inactive for this frame. Returns the number observed.
+    ///
+    /// # Errors
+    /// [`Error::EmptyFrame`], [`Error::UnknownFeature`], [`Error::DuplicateFeature`],
+    /// [`Error::NonFiniteInput`] or [`Error::OutsideImage`]; the frame is checked completely
+    /// before anything is written, so on error the targets are those of the previous frame.
+    pub fn set_frame(
+        &mut self,
+        camera: &Camera<T>,
+        obs: &[Observation<T>],
+        margin: T,
+    ) -> Result<usize, Error> {
+        if obs.is_empty() {
+            return Err(Error::EmptyFrame);
+        }
+        check_observations(camera, obs, margin)?;
+        // A fresh stamp marks the slots seen in this frame, to catch repeated ids.
+        if self.stamp_value == u32::MAX {
+            self.stamp.fill(0);
+            self.stamp_value = 0;
+        }
+        self.stamp_value += 1;
+        for o in obs {
+            let slot = self
+                .slot_of(o.id)
+                .ok_or(Error::UnknownFeature { id: o.id })?;
+            if self.stamp[slot] == self.stamp_value {
+                return Err(Error::DuplicateFeature { id: o.id });
+            }
+            self.stamp[slot] = self.stamp_value;
+        }
+        self.active[..self.len].fill(0);
+        for o in obs {
+            if let Some(slot) = self.slot_of(o.id) {
+                self.target[slot] = o.uv;
+                self.active[slot] = 1;
+            }
+        }
+        Ok(obs.len())
+    }
+
+    /// Slot of feature `id`, if embedded.
+    pub fn slot_of(&self, id: u32) -> Option<usize> {
+        let lookup = &self.lookup[..self.len];
+        lookup
+            .binary_search_by_key(&id, |e| e[0])
+            .ok()
+            .map(|k| lookup[k][1] as usize)
+    }
+
+    /// Id of the feature in `slot`.
+    pub fn id_of(&self, slot: usize) -> Option<u32> {
+        self.lookup[..self.len]
+            .iter()
+            .find(|e| e[1] as usize == slot)
+            .map(|e| e[0])
+    }
+
+    /// `(id, slot)` pairs, sorted by id.
+    pub fn ids(&self) -> &[[u32; 2]] {
+        &self.lookup[..self.len]
+    }
+
+    /// Tetrahedron of each slot.
+    pub fn tets(&self) -> &[u32] {
+        &self.tet[..self.len]
+    }
+
+    /// Barycentric weights of each slot.
+    pub fn weights(&self) -> &[[T; 4]] {
+        &self.weights[..self.len]
+    }
+
+    /// Target pixel of each slot (the latest observation).
+    pub fn targets(&self) -> &[[T; 2]] {
+        &self.target[..self.len]
+    }
+
+    /// Whether each slot is observed in the current frame (1) or not (0).
+    pub fn active(&self) -> &[u32] {
+        &self.active[..self.len]
+    }
+
+    /// World position of the virtual feature in `slot` for node positions `x`.
+    pub fn position(&self, slot: usize, mesh: &Mesh<'_, T>, x: &[[T; 3]]) -> Option<Vector3<T>> {
+        let tet = mesh.tets().get(*self.tet[..self.len].get(slot)? as usize)?;
+        let w = self.weights[slot];
+        let mut p = Vector3::zeros();
+        for (k, &v) in tet.iter().enumerate() {
+            let xv = x.get(v as usize)?;
+            p += Vector3::new(xv[0], xv[1], xv[2]) * w[k];
+        }
+        Some(p)
+    }
+}
+
+fn check_observations<T: Real>(
+    camera: &Camera<T>,
+    obs: &[Observation<T>],
+    margin: T,
+) -> Result<(), Error> {
+    for (position, o) in obs.iter().enumerate() {
+        if !(o.uv[0].finite() && o.uv[1].finite()) {
+            return Err(Error::NonFiniteInput {
+                resource: Resource::Observations,
+                position,
+            });
+        }
+        if !camera.in_image(o.uv[0], o.uv[1], margin) {
+            return Err(Error::OutsideImage { id: o.id });
+        }
+    }
+    Ok(())
+}
+
+/// The first boundary triangle the ray through pixel `uv` meets, as (tetrahedron, barycentric
+/// weights of the hit point in it).
+fn first_hit<T: Real>(
+    mesh: &Mesh<'_, T>,
+    x: &[[T; 3]],
+    camera: &Camera<T>,
+    uv: [T; 2],
+) -> Option<(u32, [T; 4])> {
+    let (origin, dir) = camera.ray(uv[0], uv[1]);
+    let p = |v: u32| -> Vector3<T> {
+        let q = x[v as usize];
+        Vector3::new(q[0], q[1], q[2])
+    };
+    let mut best: Option<(T, usize)> = None;
+    for (s, tri) in mesh.surface().iter().enumerate() {
+        if let Some(t) = ray_triangle(&origin, &dir, &p(tri[0]), &p(tri[1]), &p(tri[2]))
+            && best.is_none_or(|(b, _)| t < b)
+        {
+            best = Some((t, s));
+        }
+    }
+    let (t, s) = best?;
+    let hit = origin + dir * t;
+    let tet_index = *mesh.surface_tet().get(s)?;
+    let tet = mesh.tets().get(tet_index as usize)?;
+    let x0 = p(tet[0]);
+    let ds = Matrix3::from_columns(&[p(tet[1]) - x0, p(tet[2]) - x0, p(tet[3]) - x0]);
+    let l = ds.try_inverse()? * (hit - x0);
+    // The hit lies on a face, so one weight is zero up to rounding: clamp and renormalise.
+    let mut w = [T::one() - l.x - l.y - l.z, l.x, l.y, l.z];
+    let mut sum = T::zero();
+    for wk in w.iter_mut() {
+        *wk = wk.max(T::zero());
+        sum += *wk;
+    }
+    if !(sum > T::zero()) {
+        return None;
+    }
+    for wk in w.iter_mut() {
+        *wk /= sum;
+    }
+    Some((tet_index, w))
+}
+
+/// Distance along the unit ray to triangle `(a, b, c)` (either side), if hit in front of the
+/// origin (Möller–Trumbore).
+fn ray_triangle<T: Real>(
+    origin: &Vector3<T>,
+    dir: &Vector3<T>,
+    a: &Vector3<T>,
+    b: &Vector3<T>,
+    c: &Vector3<T>,
+) -> Option<T> {
+    let e1 = b - a;
+    let e2 = c - a;
+    let pv = dir.cross(&e2);
+    let det = e1.dot(&pv);
+    let scale = e1.norm() * e2.norm();
+    if det.abs() <= T::EPS * scale {
+        return None;
+    }
+    let tv = origin - a;
+    let u = tv.dot(&pv) / det;
+    // A hair of slack so that a ray through a shared edge hits one of its two triangles.
+    let slack = T::of(1e-9);
+    if u < -slack || u > T::one() + slack {
+        return None;
+    }
+    let qv = tv.cross(&e1);
+    let v = dir.dot(&qv) / det;
+    if v < -slack || u + v > T::one() + slack {
+        return None;
+    }
+    let t = e2.dot(&qv) / det;
+    (t > T::zero()).then_some(t)
+}

@@ -1,0 +1,1015 @@
+//! Saint Venant–Kirchhoff elasticity on linear tetrahedra.
+//!
+//! Kept in three layers, as fenris does, so that each can be read and tested on its own:
+//!
+//! 1. **Material** ([`Lame`], [`green_strain`], [`energy_density`], [`second_piola_kirchhoff`],
+//!    [`first_piola_kirchhoff`]): the law as a function of the deformation gradient `F` only,
+//!    `E = ½(FᵀF − I)`, `S = λ tr(E) I + 2μ E`, `P = F S`, `Ψ = μ tr(E²) + ½ λ (tr E)²`.
+//! 2. **Element geometry** ([`ElementRest`], [`deformation_gradient`]): the rest shape of one
+//!    tetrahedron, `Dm = [X1 − X0, X2 − X0, X3 − X0]`, its inverse, its volume and the constant
+//!    shape gradients `g_a` with `F = Σ_a x_a g_aᵀ`.
+//! 3. **Element quantities** ([`element_energy`], [`element_gradient`],
+//!    [`element_energy_gradient_tangent`]): `W = V Ψ(F)`, its gradient `∂W/∂x_a = V P g_a` and
+//!    its 12 × 12 tangent, the latter optionally made positive semidefinite
+//!    ([`TangentProjection`]) so that the assembled stiffness can be handed to a Cholesky /
+//!    LDLᵀ factorization.
+//!
+//! Units: positions in metres, Lamé parameters and stresses in pascals, energy density in J/m³,
+//! element energy in joules, gradient (force) in newtons, tangent in N/m.
+//!
+//! SVK is a polynomial in `F`, so every quantity here is finite for finite, moderately sized
+//! inputs, including inverted (`det F < 0`) and collapsed (`F = 0`) elements: nothing divides by
+//! a quantity of the current configuration. The one place that divides, the Jacobi rotation of
+//! the positive semidefinite projection, guards its divisor.
+
+use nalgebra::{Matrix3, Vector3};
+
+use crate::error::{Error, Parameter, Resource};
+use crate::real::Real;
+
+/// Lamé parameters of an isotropic material, in pascals.
+///
+/// Built by [`Lame::from_young_poisson`], they satisfy `μ > 0` and `3λ + 2μ > 0` (the bulk
+/// modulus `K = λ + 2μ/3` is positive), which makes the material part of the SVK tangent
+/// positive semidefinite even when `λ < 0` (Poisson ratio below zero). The fields are public
+/// for callers that know their Lamé pair directly; values outside that range are accepted by
+/// the element functions, and [`TangentProjection::PositiveDefinite`] clamps them (see there).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Lame<T> {
+    /// Shear modulus `μ` (Pa).
+    pub mu: T,
+    /// First Lamé parameter `λ` (Pa); negative for a negative Poisson ratio.
+    pub lambda: T,
+}
+
+impl<T: Real> Lame<T> {
+    /// Converts Young's modulus `young` (Pa) and the Poisson ratio `poisson` (dimensionless)
+    /// into `μ = E / (2(1 + ν))` and `λ = E ν / ((1 + ν)(1 − 2ν))`.
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] naming [`Parameter::YoungModulus`] unless `young` is positive
+    /// and finite (or `μ` overflows), naming [`Parameter::PoissonRatio`] unless
+    /// `-1 < poisson < 0.5` (or `λ` overflows because `ν` is too close to `0.5`).
+    pub fn from_young_poisson(young: T, poisson: T) -> Result<Self, Error> {
+        let young_bad = Error::InvalidParameter {
+            parameter: Parameter::YoungModulus,
+        };
+        let poisson_bad = Error::InvalidParameter {
+            parameter: Parameter::PoissonRatio,
+        };
+        // Written so that NaN fails every test.
+        if !(young.finite() && young > T::zero()) {
+            return Err(young_bad);
+        }
+        if !(poisson.finite() && poisson > -T::one() && poisson < T::of(0.5)) {
+            return Err(poisson_bad);
+        }
+        let one = T::one();
+        let mu = young / (T::of(2.0) * (one + poisson));
+        if !(mu.finite() && mu > T::zero()) {
+            return Err(young_bad);
+        }
+        let lambda = young * poisson / ((one + poisson) * (one - T::of(2.0) * poisson));
+        if !lambda.finite() {
+            return Err(poisson_bad);
+        }
+        Ok(Lame { mu, lambda })
+    }
+}
+
+/// Green–Lagrange strain `E = ½(FᵀF − I)` (dimensionless, symmetric).
+pub fn green_strain<T: Real>(f: &Matrix3<T>) -> Matrix3<T> {
+    (f.transpose() * f - Matrix3::identity()) * T::of(0.5)
+}
+
+/// SVK strain energy density `Ψ = μ tr(E²) + ½ λ (tr E)²` (J/m³) at deformation gradient `f`.
+///
+/// `tr(E²) = E : E` because `E` is symmetric. Zero for every rotation.
+pub fn energy_density<T: Real>(lame: &Lame<T>, f: &Matrix3<T>) -> T {
+    let e = green_strain(f);
+    let tr = e.trace();
+    lame.mu * e.norm_squared() + T::of(0.5) * lame.lambda * tr * tr
+}
+
+/// Second Piola–Kirchhoff stress `S = λ tr(E) I + 2μ E` (Pa, symmetric) at `f`.
+pub fn second_piola_kirchhoff<T: Real>(lame: &Lame<T>, f: &Matrix3<T>) -> Matrix3<T> {
+    stress_from_strain(lame, &green_strain(f))
+}
+
+/// First Piola–Kirchhoff stress `P = F S = ∂Ψ/∂F` (Pa) at `f`.
+pub fn first_piola_kirchhoff<T: Real>(lame: &Lame<T>, f: &Matrix3<T>) -> Matrix3<T> {
+    f * second_piola_kirchhoff(lame, f)
+}
+
+fn stress_from_strain<T: Real>(lame: &Lame<T>, e: &Matrix3<T>) -> Matrix3<T> {
+    Matrix3::from_diagonal_element(lame.lambda * e.trace()) + e * (T::of(2.0) * lame.mu)
+}
+
+/// Rest geometry of one linear tetrahedron, checked once so that the per-frame element
+/// functions cannot fail.
+///
+/// Invariants after [`ElementRest::new`]: every entry is finite, `volume > 0`, and the rest
+/// tetrahedron is positively oriented and not degenerate in the sense documented there.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ElementRest<T> {
+    /// `Dm⁻¹` (1/m), where `Dm = [X1 − X0, X2 − X0, X3 − X0]` holds the rest edge vectors from
+    /// node 0 as columns.
+    pub dm_inv: Matrix3<T>,
+    /// Rest volume `det(Dm) / 6` (m³), positive.
+    pub volume: T,
+}
+
+/// Relative degeneracy tolerance in units of machine epsilon: a rest tetrahedron with
+/// `|det Dm| ≤ DEGENERACY_EPS · EPS · ℓ³` (`ℓ` its longest edge) is rejected. `4096 · EPS` is
+/// `9.1e-13` for `f64` (the `1e-12` of common practice) and `4.9e-4` for `f32`: below it `Dm⁻¹`
+/// carries a condition number that leaves no correct digit in the strain of the working type.
+const DEGENERACY_EPS: f64 = 4096.0;
+
+impl<T: Real> ElementRest<T> {
+    /// Builds the rest geometry of the tetrahedron with node positions `x` (metres, local node
+    /// order 0..3), `tet_index` being its index in the mesh (used only in errors).
+    ///
+    /// # Errors
+    /// Checked in this order:
+    /// - [`Error::NonFiniteInput`] with [`Resource::Nodes`] if a coordinate is NaN or infinite;
+    ///   `position` is the slot of that node in the flattened connectivity,
+    ///   `4 · tet_index + a` for local node `a` (saturating). Finite coordinates so large that
+    ///   the edge vectors, `det Dm` or `Dm⁻¹` overflow are reported the same way at local node 0.
+    /// - [`Error::DegenerateElement`] if `|det Dm| ≤ 4096 · EPS · ℓ³`, `ℓ` the longest of the six
+    ///   edges (this includes coincident and coplanar nodes).
+    /// - [`Error::InvertedElement`] if `det Dm < 0` (node 3 lies on the wrong side of the face
+    ///   `0, 1, 2` for the right-hand rule).
+    pub fn new(x: &[[T; 3]; 4], tet_index: usize) -> Result<Self, Error> {
+        let slot = |a: usize| tet_index.saturating_mul(4).saturating_add(a);
+        for (a, node) in x.iter().enumerate() {
+            if !node.iter().all(|c| c.finite()) {
+                return Err(Error::NonFiniteInput {
+                    resource: Resource::Nodes,
+                    position: slot(a),
+                });
+            }
+        }
+        let overflow = Error::NonFiniteInput {
+            resource: Resource::Nodes,
+            position: slot(0),
+        };
+        let p = nodes(x);
+        let dm = Matrix3::from_columns(&[p[1] - p[0], p[2] - p[0], p[3] - p[0]]);
+        let mut longest_sq = T::zero();
+        for a in 0..4 {
+            for b in (a + 1)..4 {
+                longest_sq = longest_sq.max((p[b] - p[a]).norm_squared());
+            }
+        }
+        let scale = longest_sq * longest_sq.sqrt();
+        let det = dm.determinant();
+        if !(scale.finite() && det.finite()) {
+            return Err(overflow);
+        }
+        if det.abs() <= T::of(DEGENERACY_EPS) * T::EPS * scale {
+            return Err(Error::DegenerateElement { tet: tet_index });
+        }
+        if det < T::zero() {
+            return Err(Error::InvertedElement { tet: tet_index });
+        }
+        // `det` is well away from zero here, so the inverse exists; `None` or an overflowing
+        // entry can only come from extreme magnitudes.
+        let dm_inv = dm.try_inverse().ok_or(overflow)?;
+        let volume = det / T::of(6.0);
+        if !(dm_inv.iter().all(|v| v.finite()) && volume > T::zero()) {
+            return Err(overflow);
+        }
+        Ok(ElementRest { dm_inv, volume })
+    }
+
+    /// Constant shape-function gradients `g_a` (1/m) of the four nodes with respect to the rest
+    /// coordinates: `g_k = (row k−1 of Dm⁻¹)ᵀ` for `k = 1, 2, 3` and `g_0 = −(g_1 + g_2 + g_3)`,
+    /// so that `F = Σ_a x_a g_aᵀ` and `Σ_a g_a = 0`.
+    pub fn shape_gradients(&self) -> [Vector3<T>; 4] {
+        let r = |k: usize| self.dm_inv.row(k).transpose();
+        let (g1, g2, g3) = (r(0), r(1), r(2));
+        [-(g1 + g2 + g3), g1, g2, g3]
+    }
+}
+
+fn nodes<T: Real>(x: &[[T; 3]; 4]) -> [Vector3<T>; 4] {
+    x.map(|c| Vector3::new(c[0], c[1], c[2]))
+}
+
+/// Deformation gradient `F = Σ_a x_a g_aᵀ` (dimensionless) of the tetrahedron with current
+/// node positions `x` (metres) and shape gradients `g` from [`ElementRest::shape_gradients`].
+///
+/// Evaluated as `Σ_{k=1..3} (x_k − x_0) g_kᵀ`, equal because `Σ_a g_a = 0`, so that a large
+/// common translation of the nodes cancels before it can swamp the edge vectors.
+pub fn deformation_gradient<T: Real>(x: &[[T; 3]; 4], g: &[Vector3<T>; 4]) -> Matrix3<T> {
+    let p = nodes(x);
+    (p[1] - p[0]) * g[1].transpose()
+        + (p[2] - p[0]) * g[2].transpose()
+        + (p[3] - p[0]) * g[3].transpose()
+}
+
+/// Which tangent [`element_energy_gradient_tangent`] returns.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum TangentProjection {
+    /// The exact Hessian of the element energy; indefinite under strong compression or
+    /// inversion.
+    Exact,
+    /// A positive semidefinite modification, cheap and PSD by construction:
+    ///
+    /// - The geometric term `(g_aᵀ S g_b) I` uses `S⁺ = Q max(Λ, 0) Qᵀ` in place of `S`, from a
+    ///   fixed-cost Jacobi eigen-decomposition `S = Q Λ Qᵀ`. As a quadratic form it is
+    ///   `Σ_i v_iᵀ S⁺ v_i` over the rows `v_i` of `δF`, hence PSD. When no eigenvalue of `S` is
+    ///   negative, `S` itself is used, so the tangent is then the exact one.
+    /// - The material term is `V (λ (tr δE)² + 2μ |δE|²)`, `δE = sym(Fᵀ δF)`, which splits into
+    ///   `V (2μ |dev δE|² + (λ + 2μ/3)(tr δE)²)`: PSD whenever `μ ≥ 0` and `3λ + 2μ ≥ 0`, which
+    ///   every [`Lame::from_young_poisson`] pair satisfies, including `λ < 0` for `ν < 0`. So
+    ///   `λ` is kept as is; only for hand-made pairs outside that range the term uses
+    ///   `μ⁺ = max(μ, 0)` and `λ⁺ = max(λ, −2μ⁺/3)`.
+    PositiveDefinite,
+}
+
+/// Energy, gradient and tangent of one element, from [`element_energy_gradient_tangent`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ElementEval<T> {
+    /// Element energy `W = V Ψ(F)` (J).
+    pub energy: T,
+    /// `∂W/∂x_a = V P g_a` (N) for local nodes `a = 0..3`; they sum to zero exactly.
+    pub gradient: [Vector3<T>; 4],
+    /// `tangent[a][b] = ∂²W/∂x_a∂x_b` (N/m), a `3 × 3` block; rows index the components of
+    /// `x_a`. `tangent[b][a]` is exactly `tangent[a][b]ᵀ`.
+    pub tangent: [[Matrix3<T>; 4]; 4],
+}
+
+/// Element energy `W = V Ψ(F)` (J) alone: the cheap evaluation a line search needs.
+///
+/// `g` comes from `rest.shape_gradients()`, `x` holds the current node positions (metres).
+pub fn element_energy<T: Real>(
+    lame: &Lame<T>,
+    rest: &ElementRest<T>,
+    g: &[Vector3<T>; 4],
+    x: &[[T; 3]; 4],
+) -> T {
+    rest.volume * energy_density(lame, &deformation_gradient(x, g))
+}
+
+/// Element gradient `∂W/∂x_a = V P g_a` (N), `a = 0..3`, without the tangent.
+///
+/// The node-0 entry is formed as `−(f_1 + f_2 + f_3)` (equal because `Σ_a g_a = 0`) so that
+/// the element forces balance exactly.
+pub fn element_gradient<T: Real>(
+    lame: &Lame<T>,
+    rest: &ElementRest<T>,
+    g: &[Vector3<T>; 4],
+    x: &[[T; 3]; 4],
+) -> [Vector3<T>; 4] {
+    let f = deformation_gradient(x, g);
+    gradient_from_stress(rest.volume, &(f * second_piola_kirchhoff(lame, &f)), g)
+}
+
+fn gradient_from_stress<T: Real>(
+    volume: T,
+    p: &Matrix3<T>,
+    g: &[Vector3<T>; 4],
+) -> [Vector3<T>; 4] {
+    let vp = p * volume;
+    let (f1, f2, f3) = (vp * g[1], vp * g[2], vp * g[3]);
+    [-(f1 + f2 + f3), f1, f2, f3]
+}
+
+/// Energy, gradient and 12 × 12 tangent of one element from a single `F`: the per-frame
+/// assembly calls this once per element.
+///
+/// With `f_a = F g_a`, the tangent blocks are
+/// `K_ab = V [(g_aᵀ S g_b) I + λ f_a f_bᵀ + μ f_b f_aᵀ + μ (g_a · g_b) F Fᵀ]`
+/// (the first term geometric, the rest material), modified per `projection`. The cost is fixed
+/// and independent of the data (the projection always runs the same number of Jacobi sweeps).
+pub fn element_energy_gradient_tangent<T: Real>(
+    lame: &Lame<T>,
+    rest: &ElementRest<T>,
+    g: &[Vector3<T>; 4],
+    x: &[[T; 3]; 4],
+    projection: TangentProjection,
+) -> ElementEval<T> {
+    let v = rest.volume;
+    let f = deformation_gradient(x, g);
+    let e = green_strain(&f);
+    let tr = e.trace();
+    let energy = v * (lame.mu * e.norm_squared() + T::of(0.5) * lame.lambda * tr * tr);
+    let s = stress_from_strain(lame, &e);
+    let gradient = gradient_from_stress(v, &(f * s), g);
+
+    let (s_geo, mu, lambda) = match projection {
+        TangentProjection::Exact => (s, lame.mu, lame.lambda),
+        TangentProjection::PositiveDefinite => {
+            let mu = lame.mu.max(T::zero());
+            let lambda = lame.lambda.max(-T::of(2.0 / 3.0) * mu);
+            (positive_part(&s), mu, lambda)
+        }
+    };
+
+    let fg = g.map(|ga| f * ga);
+    let sg = g.map(|gb| s_geo * gb);
+    let ff = f * f.transpose();
+    let mut tangent = [[Matrix3::zeros(); 4]; 4];
+    for a in 0..4 {
+        for b in a..4 {
+            let geometric = g[a].dot(&sg[b]);
+            let block = Matrix3::from_diagonal_element(geometric)
+                + fg[a] * fg[b].transpose() * lambda
+                + fg[b] * fg[a].transpose() * mu
+                + ff * (mu * g[a].dot(&g[b]));
+            tangent[a][b] = block * v;
+            tangent[b][a] = tangent[a][b].transpose();
+        }
+    }
+    ElementEval {
+        energy,
+        gradient,
+        tangent,
+    }
+}
+
+/// Cyclic Jacobi sweeps of [`symmetric_eigen3`]. Cyclic Jacobi converges quadratically once
+/// the off-diagonal part is small relative to the eigenvalue gaps, and also for repeated
+/// eigenvalues; on 3 × 3 matrices the off-diagonal norm falls below `4 EPS ‖S‖` in at most
+/// four sweeps in the tests (random, clustered and repeated spectra), so five leaves a sweep of
+/// margin. Fewer sweeps never break positive semidefiniteness of the projection (that holds
+/// for any orthogonal `Q`), they only make `S⁺` a slightly less accurate projection.
+const JACOBI_SWEEPS: usize = 5;
+
+/// Eigen-decomposition `A ≈ Q diag(λ) Qᵀ` of `a` by cyclic Jacobi with a fixed
+/// number of sweeps ([`JACOBI_SWEEPS`]); `a` must be symmetric.
+/// Returns the eigenvalues (unsorted) and `Q` (orthogonal up to rounding, eigenvectors as
+/// columns). Finite input gives finite output: the one division is skipped for a zero
+/// off-diagonal entry, and an overflowing ratio leads to the identity rotation, not NaN.
+fn symmetric_eigen3<T: Real>(a: &Matrix3<T>) -> (Vector3<T>, Matrix3<T>) {
+    jacobi(a, JACOBI_SWEEPS)
+}
+
+/// [`symmetric_eigen3`] with `sweeps` cyclic sweeps.
+fn jacobi<T: Real>(a: &Matrix3<T>, sweeps: usize) -> (Vector3<T>, Matrix3<T>) {
+    let mut m = *a;
+    let mut q = Matrix3::<T>::identity();
+    let one = T::one();
+    for _ in 0..sweeps {
+        for (p, r) in [(0, 1), (0, 2), (1, 2)] {
+            let apr = m[(p, r)];
+            if apr == T::zero() {
+                continue;
+            }
+            // Golub & Van Loan, Algorithm 8.5.1 (sym.schur2): the rotation J with
+            // J_pp = J_rr = c, J_pr = s, J_rp = −s zeroes (JᵀMJ)_pr. The smaller root `t`
+            // keeps the rotation angle within ±π/4. τ may overflow to ±∞, giving t = 0.
+            let tau = (m[(r, r)] - m[(p, p)]) / (T::of(2.0) * apr);
+            let root = (one + tau * tau).sqrt();
+            let t = if tau >= T::zero() {
+                one / (tau + root)
+            } else {
+                -one / (root - tau)
+            };
+            let c = one / (one + t * t).sqrt();
+            let s = t * c;
+            for k in 0..3 {
+                // M ← M J (columns p, r), Q ← Q J.
+                let (mkp, mkr) = (m[(k, p)], m[(k, r)]);
+                m[(k, p)] = c * mkp - s * mkr;
+                m[(k, r)] = s * mkp + c * mkr;
+                let (qkp, qkr) = (q[(k, p)], q[(k, r)]);
+                q[(k, p)] = c * qkp - s * qkr;
+                q[(k, r)] = s * qkp + c * qkr;
+            }
+            for k in 0..3 {
+                // M ← Jᵀ M (rows p, r).
+                let (mpk, mrk) = (m[(p, k)], m[(r, k)]);
+                m[(p, k)] = c * mpk - s * mrk;
+                m[(r, k)] = s * mpk + c * mrk;
+            }
+            m[(p, r)] = T::zero();
+            m[(r, p)] = T::zero();
+        }
+    }
+    (m.diagonal(), q)
+}
+
+/// `S⁺ = Q max(Λ, 0) Qᵀ`, or `s` itself when no eigenvalue is negative (so the projected
+/// tangent equals the exact one for a positive semidefinite stress).
+fn positive_part<T: Real>(s: &Matrix3<T>) -> Matrix3<T> {
+    let (lam, q) = symmetric_eigen3(s);
+    if lam.iter().all(|&l| l >= T::zero()) {
+        return *s;
+    }
+    let mut out = Matrix3::zeros();
+    for i in 0..3 {
+        let qi = q.column(i);
+        out += qi * qi.transpose() * lam[i].max(T::zero());
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    extern crate std;
+
+    use super::*;
+    use nalgebra::{SMatrix, SymmetricEigen, UnitQuaternion};
+    use std::println;
+
+    type K12 = SMatrix<f64, 12, 12>;
+
+    /// splitmix64, for reproducible random geometry without external crates.
+    struct Rng(u64);
+
+    impl Rng {
+        fn next_u64(&mut self) -> u64 {
+            self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+            let mut z = self.0;
+            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+            z ^ (z >> 31)
+        }
+        /// Uniform in [0, 1).
+        fn unit(&mut self) -> f64 {
+            (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
+        }
+        /// Uniform in [lo, hi).
+        fn range(&mut self, lo: f64, hi: f64) -> f64 {
+            lo + (hi - lo) * self.unit()
+        }
+        fn vec3(&mut self, r: f64) -> Vector3<f64> {
+            Vector3::new(self.range(-r, r), self.range(-r, r), self.range(-r, r))
+        }
+        fn unit_vec3(&mut self) -> Vector3<f64> {
+            loop {
+                let v = self.vec3(1.0);
+                let n = v.norm();
+                if n > 0.1 && n <= 1.0 {
+                    return v / n;
+                }
+            }
+        }
+        fn rotation(&mut self) -> Matrix3<f64> {
+            let axis = nalgebra::Unit::new_normalize(self.unit_vec3());
+            UnitQuaternion::from_axis_angle(&axis, self.range(-3.0, 3.0))
+                .to_rotation_matrix()
+                .into_inner()
+        }
+    }
+
+    fn arr(p: &[Vector3<f64>; 4]) -> [[f64; 3]; 4] {
+        p.map(|v| [v.x, v.y, v.z])
+    }
+
+    fn vecs(x: &[[f64; 3]; 4]) -> [Vector3<f64>; 4] {
+        nodes(x)
+    }
+
+    /// A well-shaped, positively oriented rest tetrahedron of size about `h`, placed off the
+    /// origin: a regular tetrahedron, randomly rotated and perturbed by 15 %.
+    fn rest_tet(rng: &mut Rng, h: f64) -> [[f64; 3]; 4] {
+        let reg = [
+            Vector3::new(1.0, 1.0, 1.0),
+            Vector3::new(1.0, -1.0, -1.0),
+            Vector3::new(-1.0, 1.0, -1.0),
+            Vector3::new(-1.0, -1.0, 1.0),
+        ];
+        let r = rng.rotation();
+        let c = rng.vec3(10.0);
+        let mut p = reg.map(|v| c + r * (v + rng.vec3(0.15)) * (0.5 * h));
+        let det = Matrix3::from_columns(&[p[1] - p[0], p[2] - p[0], p[3] - p[0]]).determinant();
+        if det < 0.0 {
+            p.swap(1, 2);
+        }
+        arr(&p)
+    }
+
+    #[derive(Clone, Copy, Debug)]
+    enum Kind {
+        /// Random `F` near the identity (up to ±30 %), plus a rotation and translation.
+        General,
+        /// 50 % compression along a random axis (and a random rotation).
+        Compressed,
+        /// 50 % compression along z only: `x = diag(1, 1, 0.5) X`.
+        CompressedZ,
+        /// Node 3 pushed through its opposite face.
+        Inverted,
+        /// Pure stretch `diag(≥ 1)` along random principal axes: `E` and `S` PSD for `λ ≥ 0`.
+        Stretch,
+    }
+
+    const KINDS: [Kind; 5] = [
+        Kind::General,
+        Kind::Compressed,
+        Kind::CompressedZ,
+        Kind::Inverted,
+        Kind::Stretch,
+    ];
+
+    fn deform(rng: &mut Rng, kind: Kind, rest: &[[f64; 3]; 4]) -> [[f64; 3]; 4] {
+        let xr = vecs(rest);
+        let map = |a: Matrix3<f64>, t: Vector3<f64>| xr.map(|v| a * v + t);
+        let t = rng.vec3(1.0);
+        let p = match kind {
+            Kind::General => {
+                let a = Matrix3::identity() + Matrix3::from_fn(|_, _| rng.range(-0.3, 0.3));
+                map(rng.rotation() * a, t)
+            }
+            Kind::Compressed => {
+                let n = rng.unit_vec3();
+                map(
+                    rng.rotation() * (Matrix3::identity() - n * n.transpose() * 0.5),
+                    t,
+                )
+            }
+            Kind::CompressedZ => map(Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, 0.5)), t),
+            Kind::Inverted => {
+                let mut p = map(rng.rotation(), t);
+                let n = (p[1] - p[0]).cross(&(p[2] - p[0])).normalize();
+                let d = (p[3] - p[0]).dot(&n);
+                // Reflect node 3 through the plane of face 0-1-2 and beyond by 20-100 %.
+                p[3] -= n * (d * (2.0 + rng.range(0.2, 1.0)));
+                p
+            }
+            Kind::Stretch => {
+                let r = rng.rotation();
+                let d = Vector3::new(
+                    rng.range(1.0, 1.3),
+                    rng.range(1.0, 1.3),
+                    rng.range(1.0, 1.3),
+                );
+                map(r * Matrix3::from_diagonal(&d) * r.transpose(), t)
+            }
+        };
+        arr(&p)
+    }
+
+    fn lame(nu: f64) -> Lame<f64> {
+        Lame::from_young_poisson(3000.0, nu).unwrap()
+    }
+
+    fn assemble(t: &[[Matrix3<f64>; 4]; 4]) -> K12 {
+        K12::from_fn(|i, j| t[i / 3][j / 3][(i % 3, j % 3)])
+    }
+
+    fn flat(g: &[Vector3<f64>; 4]) -> [f64; 12] {
+        core::array::from_fn(|i| g[i / 3][i % 3])
+    }
+
+    fn perturbed(x: &[[f64; 3]; 4], i: usize, d: f64) -> [[f64; 3]; 4] {
+        let mut y = *x;
+        y[i / 3][i % 3] += d;
+        y
+    }
+
+    fn max_abs(v: impl IntoIterator<Item = f64>) -> f64 {
+        v.into_iter().fold(0.0, |m, x| m.max(x.abs()))
+    }
+
+    /// All cases: for several Poisson ratios (including a negative one), every kind of
+    /// deformation, several random tetrahedra.
+    fn for_cases(
+        mut f: impl FnMut(
+            Kind,
+            f64,
+            &Lame<f64>,
+            &ElementRest<f64>,
+            &[Vector3<f64>; 4],
+            &[[f64; 3]; 4],
+            f64,
+        ),
+    ) {
+        let mut rng = Rng(0x5EED_1234);
+        for nu in [0.3, 0.45, 0.0, -0.5] {
+            let l = lame(nu);
+            for kind in KINDS {
+                for _ in 0..8 {
+                    let h = rng.range(0.01, 2.0);
+                    let xr = rest_tet(&mut rng, h);
+                    let rest = ElementRest::new(&xr, 0).unwrap();
+                    let g = rest.shape_gradients();
+                    let x = deform(&mut rng, kind, &xr);
+                    f(kind, nu, &l, &rest, &g, &x, h);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn gradient_matches_energy_finite_differences() {
+        let mut worst: f64 = 0.0;
+        for_cases(|kind, nu, l, rest, g, x, h| {
+            let grad = flat(&element_gradient(l, rest, g, x));
+            let step = 1e-6 * h;
+            let fd: [f64; 12] = core::array::from_fn(|i| {
+                let ep = element_energy(l, rest, g, &perturbed(x, i, step));
+                let em = element_energy(l, rest, g, &perturbed(x, i, -step));
+                (ep - em) / (2.0 * step)
+            });
+            let scale = max_abs(grad);
+            let err = max_abs((0..12).map(|i| grad[i] - fd[i])) / scale;
+            worst = worst.max(err);
+            assert!(err <= 1e-6, "{kind:?} nu={nu}: relative error {err:e}");
+        });
+        println!("gradient vs energy FD: worst relative error {worst:e}");
+    }
+
+    #[test]
+    fn exact_tangent_matches_gradient_finite_differences() {
+        let mut worst: f64 = 0.0;
+        for_cases(|kind, nu, l, rest, g, x, h| {
+            let eval = element_energy_gradient_tangent(l, rest, g, x, TangentProjection::Exact);
+            let k = assemble(&eval.tangent);
+            let step = 1e-6 * h;
+            let mut fd = K12::zeros();
+            for j in 0..12 {
+                let gp = flat(&element_gradient(l, rest, g, &perturbed(x, j, step)));
+                let gm = flat(&element_gradient(l, rest, g, &perturbed(x, j, -step)));
+                for i in 0..12 {
+                    fd[(i, j)] = (gp[i] - gm[i]) / (2.0 * step);
+                }
+            }
+            let err = (k - fd).amax() / k.amax();
+            worst = worst.max(err);
+            assert!(err <= 1e-6, "{kind:?} nu={nu}: relative error {err:e}");
+            // The combined call agrees with the cheap ones.
+            assert_eq!(eval.energy, element_energy(l, rest, g, x));
+            assert_eq!(eval.gradient, element_gradient(l, rest, g, x));
+            assert_eq!(k, k.transpose());
+        });
+        println!("exact tangent vs gradient FD: worst relative error {worst:e}");
+    }
+
+    fn min_eig_ratio(k: &K12) -> f64 {
+        let eig = SymmetricEigen::new(*k).eigenvalues;
+        eig.min() / max_abs(eig.iter().copied())
+    }
+
+    #[test]
+    fn projected_tangent_is_psd_and_exact_for_psd_stress() {
+        let mut indefinite_seen = 0;
+        let mut worst_psd: f64 = 0.0;
+        for_cases(|kind, nu, l, rest, g, x, _| {
+            let exact = assemble(
+                &element_energy_gradient_tangent(l, rest, g, x, TangentProjection::Exact).tangent,
+            );
+            let proj = assemble(
+                &element_energy_gradient_tangent(
+                    l,
+                    rest,
+                    g,
+                    x,
+                    TangentProjection::PositiveDefinite,
+                )
+                .tangent,
+            );
+            let r = min_eig_ratio(&proj);
+            worst_psd = worst_psd.min(r);
+            assert!(
+                r >= -1e-10,
+                "{kind:?} nu={nu}: smallest/largest eigenvalue {r:e}"
+            );
+            if min_eig_ratio(&exact) < -1e-8 {
+                indefinite_seen += 1;
+            }
+            if matches!(kind, Kind::Stretch) && nu >= 0.0 {
+                // Pure stretch: E ⪰ 0 and λ ≥ 0 make S ⪰ 0, so nothing is projected.
+                assert_eq!(proj, exact, "{kind:?} nu={nu}");
+            }
+        });
+        // The projection has something to do on the compressed and inverted cases.
+        assert!(
+            indefinite_seen > 20,
+            "only {indefinite_seen} indefinite exact tangents"
+        );
+        println!(
+            "projected tangent: worst smallest/largest eigenvalue {worst_psd:e}; {indefinite_seen} exact tangents indefinite"
+        );
+    }
+
+    #[test]
+    fn hand_made_lame_outside_range_is_clamped_to_psd() {
+        let mut rng = Rng(7);
+        let l = Lame {
+            mu: 100.0,
+            lambda: -300.0,
+        }; // 3λ + 2μ < 0
+        for kind in KINDS {
+            let xr = rest_tet(&mut rng, 1.0);
+            let rest = ElementRest::new(&xr, 0).unwrap();
+            let g = rest.shape_gradients();
+            let x = deform(&mut rng, kind, &xr);
+            let k = assemble(
+                &element_energy_gradient_tangent(
+                    &l,
+                    &rest,
+                    &g,
+                    &x,
+                    TangentProjection::PositiveDefinite,
+                )
+                .tangent,
+            );
+            assert!(min_eig_ratio(&k) >= -1e-10, "{kind:?}");
+        }
+    }
+
+    #[test]
+    fn collapsed_and_inverted_elements_stay_finite() {
+        let mut rng = Rng(99);
+        let xr = rest_tet(&mut rng, 1.0);
+        let rest = ElementRest::new(&xr, 0).unwrap();
+        let g = rest.shape_gradients();
+        let c = vecs(&xr)[0];
+        let all_same = [[c.x, c.y, c.z]; 4];
+        let mut flat_z = xr;
+        for p in &mut flat_z {
+            p[2] = 0.0;
+        }
+        let mut line = xr;
+        for p in &mut line {
+            p[1] = 0.0;
+            p[2] = 0.0;
+        }
+        let inverted = deform(&mut rng, Kind::Inverted, &xr);
+        let mirrored = [xr[0], xr[2], xr[1], xr[3]];
+        for nu in [0.3, -0.9, 0.499] {
+            let l = lame(nu);
+            for x in [all_same, flat_z, line, inverted, mirrored] {
+                let det = deformation_gradient(&x, &g).determinant();
+                assert!(det <= 1e-12, "det F = {det}");
+                for projection in [
+                    TangentProjection::Exact,
+                    TangentProjection::PositiveDefinite,
+                ] {
+                    let e = element_energy_gradient_tangent(&l, &rest, &g, &x, projection);
+                    assert!(e.energy.is_finite());
+                    assert!(e.gradient.iter().all(|v| v.iter().all(|c| c.is_finite())));
+                    assert!(
+                        e.tangent
+                            .iter()
+                            .flatten()
+                            .all(|m| m.iter().all(|c| c.is_finite()))
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn rigid_motion_has_zero_energy_and_force() {
+        let mut rng = Rng(3);
+        let l = lame(0.3);
+        for _ in 0..50 {
+            let xr = rest_tet(&mut rng, 1.0);
+            let rest = ElementRest::new(&xr, 0).unwrap();
+            let g = rest.shape_gradients();
+            let r = rng.rotation();
+            let t = rng.vec3(5.0);
+            let x = arr(&vecs(&xr).map(|v| r * v + t));
+            let e = element_energy_gradient_tangent(&l, &rest, &g, &x, TangentProjection::Exact);
+            // A unit strain would give energy ~ μ V and forces ~ μ V |g|.
+            let force_scale =
+                l.mu * rest.volume * max_abs(g.iter().flat_map(|v| v.iter().copied()));
+            assert!(e.energy.abs() <= 1e-24 * l.mu * rest.volume, "{}", e.energy);
+            assert!(max_abs(flat(&e.gradient)) <= 1e-12 * force_scale);
+        }
+    }
+
+    #[test]
+    fn lame_closed_form_and_rejections() {
+        let l = Lame::<f64>::from_young_poisson(1000.0, 0.3).unwrap();
+        assert!((l.mu - 384.615_384_615_384_6).abs() < 1e-10);
+        assert!((l.lambda - 576.923_076_923_077).abs() < 1e-10);
+        let l = Lame::from_young_poisson(1000.0, -0.5).unwrap();
+        assert!(l.lambda < 0.0 && 3.0 * l.lambda + 2.0 * l.mu > 0.0);
+        let young = Err(Error::InvalidParameter {
+            parameter: Parameter::YoungModulus,
+        });
+        let poisson = Err(Error::InvalidParameter {
+            parameter: Parameter::PoissonRatio,
+        });
+        assert_eq!(Lame::from_young_poisson(1000.0, 0.5), poisson);
+        assert_eq!(Lame::from_young_poisson(1000.0, 0.7), poisson);
+        assert_eq!(Lame::from_young_poisson(1000.0, -1.0), poisson);
+        assert_eq!(Lame::from_young_poisson(1000.0, f64::NAN), poisson);
+        assert_eq!(Lame::from_young_poisson(0.0, 0.3), young);
+        assert_eq!(Lame::from_young_poisson(-5.0, 0.3), young);
+        assert_eq!(Lame::from_young_poisson(f64::INFINITY, 0.3), young);
+        assert_eq!(Lame::from_young_poisson(f64::NAN, 0.3), young);
+        assert_eq!(Lame::from_young_poisson(1e308, 0.5 - 1e-17), poisson);
+    }
+
+    #[test]
+    fn rest_geometry_errors() {
+        let good = [
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [0.0, 0.0, 1.0],
+        ];
+        let rest = ElementRest::<f64>::new(&good, 0).unwrap();
+        assert!((rest.volume - 1.0 / 6.0).abs() < 1e-15);
+        assert_eq!(rest.dm_inv, Matrix3::identity());
+        // F of the rest positions is the identity, and the shape gradients sum to zero.
+        let g = rest.shape_gradients();
+        assert_eq!(deformation_gradient(&good, &g), Matrix3::identity());
+        assert_eq!(g[0] + g[1] + g[2] + g[3], Vector3::zeros());
+
+        let inverted = [good[0], good[2], good[1], good[3]];
+        assert_eq!(
+            ElementRest::new(&inverted, 7),
+            Err(Error::InvertedElement { tet: 7 })
+        );
+        let coplanar = [good[0], good[1], good[2], [0.3, 0.3, 0.0]];
+        assert_eq!(
+            ElementRest::new(&coplanar, 3),
+            Err(Error::DegenerateElement { tet: 3 })
+        );
+        let sliver = [good[0], good[1], good[2], [0.3, 0.3, 1e-14]];
+        assert_eq!(
+            ElementRest::new(&sliver, 3),
+            Err(Error::DegenerateElement { tet: 3 })
+        );
+        let thin_but_fine = [good[0], good[1], good[2], [0.3, 0.3, 1e-9]];
+        assert!(ElementRest::new(&thin_but_fine, 3).is_ok());
+        let coincident = [[2.0, 2.0, 2.0]; 4];
+        assert_eq!(
+            ElementRest::new(&coincident, 1),
+            Err(Error::DegenerateElement { tet: 1 })
+        );
+        // Degeneracy is relative to size: a tiny well-shaped tetrahedron is accepted.
+        let tiny = good.map(|p| p.map(|c| c * 1e-30));
+        assert!(ElementRest::new(&tiny, 0).is_ok());
+        let mut nan = good;
+        nan[2][1] = f64::NAN;
+        assert_eq!(
+            ElementRest::new(&nan, 5),
+            Err(Error::NonFiniteInput {
+                resource: Resource::Nodes,
+                position: 22
+            })
+        );
+        let mut inf = good;
+        inf[0][0] = f64::INFINITY;
+        assert_eq!(
+            ElementRest::new(&inf, usize::MAX),
+            Err(Error::NonFiniteInput {
+                resource: Resource::Nodes,
+                position: usize::MAX
+            })
+        );
+        let huge = good.map(|p| p.map(|c| c * 1e200));
+        assert!(matches!(
+            ElementRest::new(&huge, 0),
+            Err(Error::NonFiniteInput { .. })
+        ));
+    }
+
+    #[test]
+    fn small_strain_matches_linear_elasticity() {
+        let l = lame(0.3);
+        let mut prev_err = f64::NAN;
+        for eps in [1e-2, 1e-3, 1e-4] {
+            let f = Matrix3::from_diagonal(&Vector3::new(1.0 + eps, 1.0, 1.0));
+            let p = first_piola_kirchhoff(&l, &f);
+            let sigma = Matrix3::from_diagonal(&Vector3::new(
+                (l.lambda + 2.0 * l.mu) * eps,
+                l.lambda * eps,
+                l.lambda * eps,
+            ));
+            let err = (p - sigma).amax() / sigma.amax();
+            // SVK: P_xx = (1 + ε)(λ + 2μ)(ε + ε²/2), so the relative error is 3ε/2 + O(ε²).
+            assert!(err <= 2.0 * eps, "eps={eps}: relative error {err:e}");
+            assert!(err >= eps, "eps={eps}: relative error {err:e}");
+            if prev_err.is_finite() {
+                let ratio = prev_err / err;
+                assert!((9.0..11.0).contains(&ratio), "error ratio {ratio}");
+            }
+            prev_err = err;
+            // Energy density against ½ σ : ε.
+            let psi = energy_density(&l, &f);
+            let lin = 0.5 * (l.lambda + 2.0 * l.mu) * eps * eps;
+            assert!(((psi - lin) / lin).abs() <= 2.0 * eps);
+        }
+    }
+
+    #[test]
+    fn jacobi_is_accurate_after_fixed_sweeps() {
+        let mut rng = Rng(11);
+        let mut cases: std::vec::Vec<Matrix3<f64>> = std::vec::Vec::new();
+        cases.push(Matrix3::zeros());
+        cases.push(Matrix3::from_diagonal(&Vector3::new(3.0, -1.0, 2.0)));
+        cases.push(Matrix3::identity() * 5.0);
+        for _ in 0..2000 {
+            let q = rng.rotation();
+            let scale = 10f64.powf(rng.range(-6.0, 6.0));
+            let d = match rng.next_u64() % 4 {
+                0 => rng.vec3(1.0),
+                // Repeated eigenvalue.
+                1 => {
+                    let a = rng.range(-1.0, 1.0);
+                    Vector3::new(a, a, rng.range(-1.0, 1.0))
+                }
+                // Clustered eigenvalues.
+                2 => {
+                    let a = rng.range(-1.0, 1.0);
+                    Vector3::new(a, a + 1e-9, a - 1e-7)
+                }
+                // One eigenvalue dominating.
+                _ => Vector3::new(1.0, rng.range(-1e-8, 1e-8), rng.range(-1e-3, 1e-3)),
+            };
+            let a = q * Matrix3::from_diagonal(&(d * scale)) * q.transpose();
+            cases.push((a + a.transpose()) * 0.5);
+        }
+        let mut worst_rec: f64 = 0.0;
+        let mut worst_orth: f64 = 0.0;
+        for a in &cases {
+            let (lam, q) = symmetric_eigen3(a);
+            let norm = a.norm().max(f64::MIN_POSITIVE);
+            let rec = (q * Matrix3::from_diagonal(&lam) * q.transpose() - a).norm() / norm;
+            let orth = (q.transpose() * q - Matrix3::identity()).norm();
+            worst_rec = worst_rec.max(rec);
+            worst_orth = worst_orth.max(orth);
+            assert!(rec <= 1e-14, "reconstruction error {rec:e} for {a}");
+            assert!(orth <= 1e-14);
+            let mut ours: [f64; 3] = lam.into();
+            ours.sort_by(f64::total_cmp);
+            let mut reference: [f64; 3] = SymmetricEigen::new(*a).eigenvalues.into();
+            reference.sort_by(f64::total_cmp);
+            for i in 0..3 {
+                assert!((ours[i] - reference[i]).abs() <= 1e-13 * norm);
+            }
+        }
+        println!(
+            "Jacobi ({JACOBI_SWEEPS} sweeps): worst reconstruction {worst_rec:e}, orthogonality {worst_orth:e}"
+        );
+        // Already diagonal: no rotation, exact, no division.
+        let d = Matrix3::from_diagonal(&Vector3::new(3.0, -1.0, 0.0));
+        assert_eq!(
+            symmetric_eigen3(&d),
+            (Vector3::new(3.0, -1.0, 0.0), Matrix3::identity())
+        );
+    }
+
+    /// Sweeps needed until the off-diagonal norm of `QᵀAQ` is below `EPS · ‖A‖`, over random,
+    /// repeated and clustered spectra: the basis of [`JACOBI_SWEEPS`].
+    #[test]
+    fn jacobi_sweeps_needed() {
+        let mut rng = Rng(12);
+        let mut histogram = [0usize; JACOBI_SWEEPS + 1];
+        for _ in 0..20000 {
+            let q = rng.rotation();
+            let d = match rng.next_u64() % 4 {
+                0 => rng.vec3(1.0),
+                1 => {
+                    let a = rng.range(-1.0, 1.0);
+                    Vector3::new(a, a + 1e-12, rng.range(-1.0, 1.0))
+                }
+                2 => {
+                    let a = rng.range(-1.0, 1.0);
+                    Vector3::new(a, a + 1e-8, a - 1e-6)
+                }
+                _ => Vector3::new(1.0, rng.range(-1e-8, 1e-8), rng.range(-1e-3, 1e-3)),
+            };
+            let a = q * Matrix3::from_diagonal(&d) * q.transpose();
+            let a = (a + a.transpose()) * 0.5;
+            let off = |sweeps: usize| {
+                let (_, qq) = jacobi(&a, sweeps);
+                let m = qq.transpose() * a * qq;
+                (m - Matrix3::from_diagonal(&m.diagonal())).norm()
+            };
+            let needed = (0..=JACOBI_SWEEPS)
+                .find(|&k| off(k) <= 4.0 * f64::EPSILON * a.norm())
+                .unwrap_or_else(|| panic!("not converged in {JACOBI_SWEEPS} sweeps: {a}"));
+            histogram[needed] += 1;
+        }
+        println!("Jacobi: matrices needing k sweeps, k = 0..={JACOBI_SWEEPS}: {histogram:?}");
+        assert_eq!(histogram[JACOBI_SWEEPS], 0, "no margin left");
+    }
+
+    #[test]
+    fn works_in_f32() {
+        let l = Lame::<f32>::from_young_poisson(3000.0, 0.3).unwrap();
+        let xr = [
+            [0.0f32, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [0.0, 0.0, 1.0],
+        ];
+        let rest = ElementRest::new(&xr, 0).unwrap();
+        let g = rest.shape_gradients();
+        let x = [
+            [0.0f32, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [0.1, 0.1, -0.5],
+        ];
+        let e =
+            element_energy_gradient_tangent(&l, &rest, &g, &x, TangentProjection::PositiveDefinite);
+        assert!(e.energy.is_finite() && e.energy > 0.0);
+        assert!(
+            e.tangent
+                .iter()
+                .flatten()
+                .all(|m| m.iter().all(|c| c.is_finite()))
+        );
+    }
+}

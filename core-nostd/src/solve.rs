@@ -1,0 +1,453 @@
+//! The per-frame minimisation: assembly of the energy, its gradient and a positive definite
+//! Hessian into the fixed stiffness pattern, the two linear strategies, and a line search with
+//! a fixed number of trial steps.
+//!
+//! The energy minimised over the free nodes is
+//! `W(x) = W_I(x) + W_S(x) + W_D(x)`:
+//! - `W_I`, the Saint Venant–Kirchhoff elastic energy of the mesh ([`crate::material`]);
+//! - `W_S = Σ ½ k ‖f_i − P(f_iᵛ)‖²`, the springs between each observed feature `f_i` and the
+//!   projection of its virtual feature `f_iᵛ = Σ_a w_a x_a` (Gauss–Newton through `P`: the
+//!   Hessian keeps `k Jᵀ J`, `J = ∂P/∂x`, and drops the curvature of `P`);
+//! - `W_D = ½ Σ_a c_a ‖x_a − x_a⁻‖²`, a damping term toward the previous frame's positions
+//!   `x⁻`, with `c_a` a fraction ([`SolverConfig::damping`]) of node `a`'s rest stiffness. It
+//!   keeps the Hessian positive definite when features are lost and steadies the depth the
+//!   monocular springs cannot see; at a frame's fixed point it vanishes, so it does not bias a
+//!   converged registration.
+//!
+//! Every loop runs a number of times fixed by the configuration and the scene's sizes, so a
+//! frame's cost does not depend on the data.
+
+use nalgebra::{Matrix3, Vector3};
+
+use crate::camera::Camera;
+use crate::error::{Error, Parameter};
+use crate::features::Features;
+use crate::material::{
+    ElementRest, Lame, TangentProjection, element_energy, element_energy_gradient_tangent,
+    element_gradient,
+};
+use crate::mesh::Mesh;
+use crate::real::Real;
+use crate::sparse::{NONE, UpperCsc};
+
+/// Upper bound on [`SolverConfig::newton_iterations`].
+pub const MAX_NEWTON_ITERATIONS: u32 = 64;
+/// Upper bound on [`SolverConfig::line_search_steps`].
+pub const MAX_LINE_SEARCH_STEPS: u32 = 16;
+/// Upper bound on the PCG iterations of [`Strategy::Frozen`].
+pub const MAX_PCG_ITERATIONS: u32 = 1000;
+
+/// How each Newton step solves its linear system.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Strategy {
+    /// Refactor the positive definite Hessian at every Newton step and solve exactly.
+    Refactor,
+    /// Factor one positive definite matrix per topology (the Hessian at the frame-0 state) and
+    /// run a fixed number of preconditioned conjugate gradient steps with it on each Newton
+    /// step.
+    Frozen {
+        /// PCG iterations per Newton step.
+        pcg_iterations: u32,
+    },
+}
+
+/// Parameters of the per-frame solve.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SolverConfig<T> {
+    /// The linear strategy.
+    pub strategy: Strategy,
+    /// Newton steps per frame (fixed: no convergence test).
+    pub newton_iterations: u32,
+    /// Trial step lengths `1, ½, ¼, …` evaluated per Newton step (all of them, always).
+    pub line_search_steps: u32,
+    /// Spring stiffness `k` of the feature coupling, J/px².
+    pub spring_stiffness: T,
+    /// Damping toward the previous frame, as a fraction of each node's rest stiffness
+    /// (dimensionless, `≥ 0`).
+    pub damping: T,
+    /// Observations farther than this outside the image are rejected, pixels.
+    pub image_margin: T,
+}
+
+impl<T: Real> SolverConfig<T> {
+    /// Checks the ranges.
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] naming the first parameter out of range.
+    pub fn validate(&self) -> Result<(), Error> {
+        let iterations_ok = (1..=MAX_NEWTON_ITERATIONS).contains(&self.newton_iterations)
+            && (1..=MAX_LINE_SEARCH_STEPS).contains(&self.line_search_steps)
+            && match self.strategy {
+                Strategy::Refactor => true,
+                Strategy::Frozen { pcg_iterations } => {
+                    (1..=MAX_PCG_ITERATIONS).contains(&pcg_iterations)
+                }
+            };
+        if !iterations_ok {
+            return Err(Error::InvalidParameter {
+                parameter: Parameter::Iterations,
+            });
+        }
+        if !(self.spring_stiffness.finite() && self.spring_stiffness > T::zero()) {
+            return Err(Error::InvalidParameter {
+                parameter: Parameter::SpringStiffness,
+            });
+        }
+        if !(self.damping.finite() && self.damping >= T::zero()) {
+            return Err(Error::InvalidParameter {
+                parameter: Parameter::Damping,
+            });
+        }
+        if !(self.image_margin.finite() && self.image_margin >= T::zero()) {
+            return Err(Error::InvalidParameter {
+                parameter: Parameter::ImageMargin,
+            });
+        }
+        Ok(())
+    }
+}
+
+/// The parts of the energy, joules (the spring part in the units of `k`·px²).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Energies<T> {
+    /// Elastic energy `W_I`.
+    pub elastic: T,
+    /// Spring energy `W_S`.
+    pub spring: T,
+    /// Damping energy `W_D`.
+    pub damping: T,
+}
+
+impl<T: Real> Energies<T> {
+    /// `W_I + W_S + W_D`.
+    pub fn total(&self) -> T {
+        self.elastic + self.spring + self.damping
+    }
+}
+
+/// Work done, counted in data-independent units, per stage of a frame.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub struct WorkCount {
+    /// Assemblies of gradient (and Hessian).
+    pub assemblies: u32,
+    /// Element evaluations with a tangent (assembly).
+    pub element_tangents: u64,
+    /// Element evaluations without a tangent (gradient only, or energy in the line search).
+    pub element_evaluations: u64,
+    /// Feature spring evaluations.
+    pub feature_evaluations: u64,
+    /// Numeric factorizations.
+    pub factorizations: u32,
+    /// Multiply-adds of the factorizations.
+    pub factor_flops: u64,
+    /// Triangular solve pairs (forward + diagonal + backward).
+    pub solves: u32,
+    /// Multiply-adds of the solves.
+    pub solve_flops: u64,
+    /// Sparse matrix–vector products (PCG).
+    pub matvecs: u32,
+    /// Multiply-adds of the matrix–vector products.
+    pub matvec_flops: u64,
+    /// Energy evaluations of the line search.
+    pub energy_evaluations: u32,
+}
+
+/// Everything the assembly reads, borrowed from the model.
+pub(crate) struct Problem<'p, 'a, T: Real> {
+    pub mesh: &'p Mesh<'a, T>,
+    pub lame: Lame<T>,
+    pub camera: &'p Camera<T>,
+    pub features: &'p Features<'a, T>,
+    pub spring_stiffness: T,
+    /// Damping weight per node.
+    pub damping: &'p [T],
+    /// Positions of the previous frame (damping anchor).
+    pub anchor: &'p [[T; 3]],
+    /// Per tetrahedron, per node pair ([`PAIRS`]) and column, the position in the pattern's
+    /// value array of the block's first row; [`NONE`] when a node of the pair is fixed.
+    pub scatter: &'p [[u32; 30]],
+    /// Column pointers of the stiffness pattern (the diagonal ends each column).
+    pub col_ptr: &'p [u32],
+}
+
+/// The ten node pairs of a tetrahedron whose `3 × 3` blocks are stored (upper triangle).
+pub(crate) const PAIRS: [(usize, usize); 10] = [
+    (0, 0),
+    (1, 1),
+    (2, 2),
+    (3, 3),
+    (0, 1),
+    (0, 2),
+    (0, 3),
+    (1, 2),
+    (1, 3),
+    (2, 3),
+];
+
+fn node_of<T: Real>(x: &[[T; 3]], v: u32) -> Vector3<T> {
+    let p = x[v as usize];
+    Vector3::new(p[0], p[1], p[2])
+}
+
+impl<T: Real> Problem<'_, '_, T> {
+    fn element_x(&self, t: usize, x: &[[T; 3]]) -> [[T; 3]; 4] {
+        self.mesh.tets()[t].map(|v| x[v as usize])
+    }
+
+    fn element_rest(&self, t: usize) -> Result<ElementRest<T>, Error> {
+        self.mesh.element_rest(t).ok_or(Error::IndexOutOfRange {
+            resource: crate::error::Resource::Tetrahedra,
+            position: t,
+            index: t,
+            bound: self.mesh.n_tets(),
+        })
+    }
+
+    /// Energy at positions `x`.
+    ///
+    /// # Errors
+    /// [`Error::BehindCamera`] if a virtual feature cannot be projected.
+    pub fn energy(&self, x: &[[T; 3]], work: &mut WorkCount) -> Result<Energies<T>, Error> {
+        let mut e = Energies::default();
+        for t in 0..self.mesh.n_tets() {
+            let rest = self.element_rest(t)?;
+            let g = rest.shape_gradients();
+            e.elastic += element_energy(&self.lame, &rest, &g, &self.element_x(t, x));
+        }
+        work.element_evaluations += self.mesh.n_tets() as u64;
+        e.spring = self.spring_energy(x, work)?;
+        e.damping = self.damping_energy(x);
+        work.energy_evaluations += 1;
+        Ok(e)
+    }
+
+    fn spring_energy(&self, x: &[[T; 3]], work: &mut WorkCount) -> Result<T, Error> {
+        let half_k = T::of(0.5) * self.spring_stiffness;
+        let mut sum = T::zero();
+        for slot in 0..self.features.len() {
+            if self.features.active()[slot] == 0 {
+                continue;
+            }
+            let p = self
+                .features
+                .position(slot, self.mesh, x)
+                .ok_or(Error::NoFeatures)?;
+            let uv = self.camera.project(&p, slot)?;
+            let target = self.features.targets()[slot];
+            let (du, dv) = (target[0] - uv.x, target[1] - uv.y);
+            sum += half_k * (du * du + dv * dv);
+            work.feature_evaluations += 1;
+        }
+        Ok(sum)
+    }
+
+    fn damping_energy(&self, x: &[[T; 3]]) -> T {
+        let mut sum = T::zero();
+        for (v, &c) in self.damping.iter().enumerate().take(self.mesh.n_nodes()) {
+            let d = node_of(x, v as u32) - node_of(self.anchor, v as u32);
+            sum += T::of(0.5) * c * d.norm_squared();
+        }
+        sum
+    }
+
+    /// Gradient over the free unknowns into `grad` (`3 · n_free`), and, when `hessian` is
+    /// given, the positive definite Hessian into the pattern's values; returns the energy.
+    ///
+    /// # Errors
+    /// [`Error::BehindCamera`] if a virtual feature cannot be projected.
+    pub fn assemble(
+        &self,
+        x: &[[T; 3]],
+        grad: &mut [T],
+        mut hessian: Option<&mut [T]>,
+        work: &mut WorkCount,
+    ) -> Result<Energies<T>, Error> {
+        let free = self.mesh.free_index();
+        grad.fill(T::zero());
+        if let Some(h) = hessian.as_deref_mut() {
+            h.fill(T::zero());
+        }
+        let mut e = Energies::default();
+        for t in 0..self.mesh.n_tets() {
+            let rest = self.element_rest(t)?;
+            let g = rest.shape_gradients();
+            let xe = self.element_x(t, x);
+            let tet = self.mesh.tets()[t];
+            let gradient = match hessian.as_deref_mut() {
+                Some(h) => {
+                    let eval = element_energy_gradient_tangent(
+                        &self.lame,
+                        &rest,
+                        &g,
+                        &xe,
+                        TangentProjection::PositiveDefinite,
+                    );
+                    e.elastic += eval.energy;
+                    for (p, &(a, b)) in PAIRS.iter().enumerate() {
+                        add_block(
+                            h,
+                            &self.scatter[t],
+                            p,
+                            free,
+                            &tet,
+                            a,
+                            b,
+                            &eval.tangent[a][b],
+                        );
+                    }
+                    eval.gradient
+                }
+                None => {
+                    e.elastic += element_energy(&self.lame, &rest, &g, &xe);
+                    element_gradient(&self.lame, &rest, &g, &xe)
+                }
+            };
+            for (a, ga) in gradient.iter().enumerate() {
+                add_gradient(grad, free, tet[a], ga);
+            }
+        }
+        if hessian.is_some() {
+            work.element_tangents += self.mesh.n_tets() as u64;
+        } else {
+            work.element_evaluations += self.mesh.n_tets() as u64;
+        }
+
+        // Springs, Gauss–Newton through the projection.
+        let k = self.spring_stiffness;
+        for slot in 0..self.features.len() {
+            if self.features.active()[slot] == 0 {
+                continue;
+            }
+            let t = self.features.tets()[slot] as usize;
+            let w = self.features.weights()[slot];
+            let tet = self.mesh.tets()[t];
+            let p = self
+                .features
+                .position(slot, self.mesh, x)
+                .ok_or(Error::NoFeatures)?;
+            let (uv, j) = self.camera.project_with_jacobian(&p, slot)?;
+            let target = self.features.targets()[slot];
+            let r = nalgebra::Vector2::new(target[0] - uv.x, target[1] - uv.y);
+            e.spring += T::of(0.5) * k * r.norm_squared();
+            let jr = j.transpose() * r * k;
+            for a in 0..4 {
+                add_gradient(grad, free, tet[a], &(-jr * w[a]));
+            }
+            if let Some(h) = hessian.as_deref_mut() {
+                let jtj = j.transpose() * j * k;
+                for (pi, &(a, b)) in PAIRS.iter().enumerate() {
+                    add_block(
+                        h,
+                        &self.scatter[t],
+                        pi,
+                        free,
+                        &tet,
+                        a,
+                        b,
+                        &(jtj * (w[a] * w[b])),
+                    );
+                }
+            }
+            work.feature_evaluations += 1;
+        }
+
+        // Damping toward the previous frame.
+        for v in 0..self.mesh.n_nodes() {
+            let f = free[v];
+            if f == NONE {
+                continue;
+            }
+            let c = self.damping[v];
+            let d = node_of(x, v as u32) - node_of(self.anchor, v as u32);
+            e.damping += T::of(0.5) * c * d.norm_squared();
+            add_gradient(grad, free, v as u32, &(d * c));
+            if let Some(h) = hessian.as_deref_mut() {
+                // The diagonal entry is the last of its column in the upper pattern.
+                for d in 0..3 {
+                    let end = self.col_ptr[3 * f as usize + d + 1] as usize;
+                    h[end - 1] += c;
+                }
+            }
+        }
+        work.assemblies += 1;
+        Ok(e)
+    }
+}
+
+fn add_gradient<T: Real>(grad: &mut [T], free: &[u32], v: u32, g: &Vector3<T>) {
+    let f = free[v as usize];
+    if f != NONE {
+        let base = 3 * f as usize;
+        grad[base] += g.x;
+        grad[base + 1] += g.y;
+        grad[base + 2] += g.z;
+    }
+}
+
+/// Adds the `3 × 3` block of local pair `(a, b)` (`a ≤ b`, pair index `p`) into the upper
+/// pattern: where the global order of the two nodes is reversed, the stored block is the
+/// transpose; on the diagonal only the upper triangle is stored.
+#[allow(clippy::too_many_arguments)]
+fn add_block<T: Real>(
+    h: &mut [T],
+    scatter: &[u32; 30],
+    p: usize,
+    free: &[u32],
+    tet: &[u32; 4],
+    a: usize,
+    b: usize,
+    m: &Matrix3<T>,
+) {
+    let starts = &scatter[3 * p..3 * p + 3];
+    if starts[0] == NONE {
+        return;
+    }
+    let (fa, fb) = (free[tet[a] as usize], free[tet[b] as usize]);
+    for (c, &s) in starts.iter().enumerate() {
+        let s = s as usize;
+        if a == b {
+            for r in 0..=c {
+                h[s + r] += m[(r, c)];
+            }
+        } else if fa < fb {
+            for r in 0..3 {
+                h[s + r] += m[(r, c)];
+            }
+        } else {
+            for r in 0..3 {
+                h[s + r] += m[(c, r)];
+            }
+        }
+    }
+}
+
+/// Builds the scatter map of every tetrahedron for the pattern `a`.
+///
+/// # Errors
+/// [`Error::SymbolicMismatch`] if a block the mesh needs is missing from the pattern.
+pub(crate) fn build_scatter<T: Real>(
+    mesh: &Mesh<'_, T>,
+    a: &UpperCsc<'_>,
+    scatter: &mut [[u32; 30]],
+) -> Result<(), Error> {
+    let free = mesh.free_index();
+    for (t, tet) in mesh.tets().iter().enumerate() {
+        for (p, &(la, lb)) in PAIRS.iter().enumerate() {
+            let (fa, fb) = (free[tet[la] as usize], free[tet[lb] as usize]);
+            for c in 0..3 {
+                scatter[t][3 * p + c] = if fa == NONE || fb == NONE {
+                    NONE
+                } else {
+                    let (lo, hi) = (fa.min(fb) as usize, fa.max(fb) as usize);
+                    a.find(3 * lo, 3 * hi + c).ok_or(Error::SymbolicMismatch)? as u32
+                };
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Dot product.
+pub(crate) fn dot<T: Real>(a: &[T], b: &[T]) -> T {
+    a.iter().zip(b).fold(T::zero(), |s, (&x, &y)| s + x * y)
+}
