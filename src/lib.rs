@@ -4,5 +4,6 @@
 
 pub mod oracle;
 pub mod rng;
+pub mod scene;
 pub mod system;
 pub mod testmesh;

@@ -52,5 +52,5 @@ pub use real::Real;
 pub use camera::{Camera, Intrinsics};
 pub use features::{EmbedReport, Observation};
 pub use mesh::{MeshCapacity, MeshInput};
-pub use model::{Capacities, Material, Model, ModelConfig, ModelSize, StepReport};
+pub use model::{Capacities, Linearization, Material, Model, ModelConfig, ModelSize, StepReport};
 pub use solve::{Energies, SolverConfig, Strategy, WorkCount};

@@ -196,16 +196,37 @@ fn nodes<T: Real>(x: &[[T; 3]; 4]) -> [Vector3<T>; 4] {
     x.map(|c| Vector3::new(c[0], c[1], c[2]))
 }
 
-/// Deformation gradient `F = Σ_a x_a g_aᵀ` (dimensionless) of the tetrahedron with current
-/// node positions `x` (metres) and shape gradients `g` from [`ElementRest::shape_gradients`].
+/// Displacement gradient `H = ∂u/∂X = Σ_a u_a g_aᵀ` (dimensionless) of the tetrahedron whose
+/// nodes are displaced by `u` (metres) from rest, with shape gradients `g` from
+/// [`ElementRest::shape_gradients`]; the deformation gradient is `F = I + H`.
 ///
-/// Evaluated as `Σ_{k=1..3} (x_k − x_0) g_kᵀ`, equal because `Σ_a g_a = 0`, so that a large
-/// common translation of the nodes cancels before it can swamp the edge vectors.
-pub fn deformation_gradient<T: Real>(x: &[[T; 3]; 4], g: &[Vector3<T>; 4]) -> Matrix3<T> {
-    let p = nodes(x);
+/// The element functions work from displacements rather than positions so that strain is
+/// computed without cancellation: with positions, `F` carries an absolute rounding error of
+/// `ε·|x|/h` and `E = ½(FᵀF − I)` loses the digits a small strain needs, which makes energy
+/// differences (the line search) and near-converged gradients noisy. Evaluated as
+/// `Σ_{k=1..3} (u_k − u_0) g_kᵀ` (equal because `Σ_a g_a = 0`), so a common translation
+/// cancels first.
+pub fn displacement_gradient<T: Real>(u: &[[T; 3]; 4], g: &[Vector3<T>; 4]) -> Matrix3<T> {
+    let p = nodes(u);
     (p[1] - p[0]) * g[1].transpose()
         + (p[2] - p[0]) * g[2].transpose()
         + (p[3] - p[0]) * g[3].transpose()
+}
+
+/// Deformation gradient `F = I + H` for displacements `u`, see [`displacement_gradient`].
+pub fn deformation_gradient<T: Real>(u: &[[T; 3]; 4], g: &[Vector3<T>; 4]) -> Matrix3<T> {
+    Matrix3::identity() + displacement_gradient(u, g)
+}
+
+/// Green strain from the displacement gradient, `E = ½(H + Hᵀ + HᵀH)`: the same as
+/// [`green_strain`] of `I + H`, without subtracting `I` from a number near it.
+fn green_strain_of_displacement<T: Real>(h: &Matrix3<T>) -> Matrix3<T> {
+    (h + h.transpose() + h.transpose() * h) * T::of(0.5)
+}
+
+fn energy_density_of_strain<T: Real>(lame: &Lame<T>, e: &Matrix3<T>) -> T {
+    let tr = e.trace();
+    lame.mu * e.norm_squared() + T::of(0.5) * lame.lambda * tr * tr
 }
 
 /// Which tangent [`element_energy_gradient_tangent`] returns.
@@ -242,14 +263,16 @@ pub struct ElementEval<T> {
 
 /// Element energy `W = V Ψ(F)` (J) alone: the cheap evaluation a line search needs.
 ///
-/// `g` comes from `rest.shape_gradients()`, `x` holds the current node positions (metres).
+/// `g` comes from `rest.shape_gradients()`, `u` holds the node displacements from rest
+/// (metres).
 pub fn element_energy<T: Real>(
     lame: &Lame<T>,
     rest: &ElementRest<T>,
     g: &[Vector3<T>; 4],
-    x: &[[T; 3]; 4],
+    u: &[[T; 3]; 4],
 ) -> T {
-    rest.volume * energy_density(lame, &deformation_gradient(x, g))
+    let e = green_strain_of_displacement(&displacement_gradient(u, g));
+    rest.volume * energy_density_of_strain(lame, &e)
 }
 
 /// Element gradient `∂W/∂x_a = V P g_a` (N), `a = 0..3`, without the tangent.
@@ -260,10 +283,11 @@ pub fn element_gradient<T: Real>(
     lame: &Lame<T>,
     rest: &ElementRest<T>,
     g: &[Vector3<T>; 4],
-    x: &[[T; 3]; 4],
+    u: &[[T; 3]; 4],
 ) -> [Vector3<T>; 4] {
-    let f = deformation_gradient(x, g);
-    gradient_from_stress(rest.volume, &(f * second_piola_kirchhoff(lame, &f)), g)
+    let h = displacement_gradient(u, g);
+    let s = stress_from_strain(lame, &green_strain_of_displacement(&h));
+    gradient_from_stress(rest.volume, &((Matrix3::identity() + h) * s), g)
 }
 
 fn gradient_from_stress<T: Real>(
@@ -276,8 +300,8 @@ fn gradient_from_stress<T: Real>(
     [-(f1 + f2 + f3), f1, f2, f3]
 }
 
-/// Energy, gradient and 12 × 12 tangent of one element from a single `F`: the per-frame
-/// assembly calls this once per element.
+/// Energy, gradient and 12 × 12 tangent of one element (node displacements `u` from rest,
+/// metres) from a single `F`: the per-frame assembly calls this once per element.
 ///
 /// With `f_a = F g_a`, the tangent blocks are
 /// `K_ab = V [(g_aᵀ S g_b) I + λ f_a f_bᵀ + μ f_b f_aᵀ + μ (g_a · g_b) F Fᵀ]`
@@ -287,14 +311,14 @@ pub fn element_energy_gradient_tangent<T: Real>(
     lame: &Lame<T>,
     rest: &ElementRest<T>,
     g: &[Vector3<T>; 4],
-    x: &[[T; 3]; 4],
+    u: &[[T; 3]; 4],
     projection: TangentProjection,
 ) -> ElementEval<T> {
     let v = rest.volume;
-    let f = deformation_gradient(x, g);
-    let e = green_strain(&f);
-    let tr = e.trace();
-    let energy = v * (lame.mu * e.norm_squared() + T::of(0.5) * lame.lambda * tr * tr);
+    let h = displacement_gradient(u, g);
+    let f = Matrix3::identity() + h;
+    let e = green_strain_of_displacement(&h);
+    let energy = v * energy_density_of_strain(lame, &e);
     let s = stress_from_strain(lame, &e);
     let gradient = gradient_from_stress(v, &(f * s), g);
 
@@ -554,6 +578,11 @@ mod tests {
         core::array::from_fn(|i| g[i / 3][i % 3])
     }
 
+    /// Node displacements `x − xr`: what the element functions take.
+    fn disp(x: &[[f64; 3]; 4], xr: &[[f64; 3]; 4]) -> [[f64; 3]; 4] {
+        core::array::from_fn(|a| core::array::from_fn(|c| x[a][c] - xr[a][c]))
+    }
+
     fn perturbed(x: &[[f64; 3]; 4], i: usize, d: f64) -> [[f64; 3]; 4] {
         let mut y = *x;
         y[i / 3][i % 3] += d;
@@ -587,7 +616,7 @@ mod tests {
                     let rest = ElementRest::new(&xr, 0).unwrap();
                     let g = rest.shape_gradients();
                     let x = deform(&mut rng, kind, &xr);
-                    f(kind, nu, &l, &rest, &g, &x, h);
+                    f(kind, nu, &l, &rest, &g, &disp(&x, &xr), h);
                 }
             }
         }
@@ -696,7 +725,7 @@ mod tests {
             let xr = rest_tet(&mut rng, 1.0);
             let rest = ElementRest::new(&xr, 0).unwrap();
             let g = rest.shape_gradients();
-            let x = deform(&mut rng, kind, &xr);
+            let x = disp(&deform(&mut rng, kind, &xr), &xr);
             let k = assemble(
                 &element_energy_gradient_tangent(
                     &l,
@@ -733,6 +762,7 @@ mod tests {
         for nu in [0.3, -0.9, 0.499] {
             let l = lame(nu);
             for x in [all_same, flat_z, line, inverted, mirrored] {
+                let x = disp(&x, &xr);
                 let det = deformation_gradient(&x, &g).determinant();
                 assert!(det <= 1e-12, "det F = {det}");
                 for projection in [
@@ -763,7 +793,7 @@ mod tests {
             let g = rest.shape_gradients();
             let r = rng.rotation();
             let t = rng.vec3(5.0);
-            let x = arr(&vecs(&xr).map(|v| r * v + t));
+            let x = disp(&arr(&vecs(&xr).map(|v| r * v + t)), &xr);
             let e = element_energy_gradient_tangent(&l, &rest, &g, &x, TangentProjection::Exact);
             // A unit strain would give energy ~ μ V and forces ~ μ V |g|.
             let force_scale =
@@ -810,7 +840,10 @@ mod tests {
         assert_eq!(rest.dm_inv, Matrix3::identity());
         // F of the rest positions is the identity, and the shape gradients sum to zero.
         let g = rest.shape_gradients();
-        assert_eq!(deformation_gradient(&good, &g), Matrix3::identity());
+        assert_eq!(
+            deformation_gradient(&[[0.0; 3]; 4], &g),
+            Matrix3::identity()
+        );
         assert_eq!(g[0] + g[1] + g[2] + g[3], Vector3::zeros());
 
         let inverted = [good[0], good[2], good[1], good[3]];
@@ -996,14 +1029,15 @@ mod tests {
         ];
         let rest = ElementRest::new(&xr, 0).unwrap();
         let g = rest.shape_gradients();
-        let x = [
+        // Node 3 pushed through the opposite face: displacements from rest.
+        let u = [
             [0.0f32, 0.0, 0.0],
-            [1.0, 0.0, 0.0],
-            [0.0, 1.0, 0.0],
-            [0.1, 0.1, -0.5],
+            [0.0, 0.0, 0.0],
+            [0.0, 0.0, 0.0],
+            [0.1, 0.1, -1.5],
         ];
         let e =
-            element_energy_gradient_tangent(&l, &rest, &g, &x, TangentProjection::PositiveDefinite);
+            element_energy_gradient_tangent(&l, &rest, &g, &u, TangentProjection::PositiveDefinite);
         assert!(e.energy.is_finite() && e.energy > 0.0);
         assert!(
             e.tangent

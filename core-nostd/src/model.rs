@@ -194,6 +194,8 @@ struct Topology<'w> {
     col_ptr: &'w mut [u32],
     row_idx: &'w mut [u32],
     perm: &'w mut [u32],
+    /// What is left of the workspace, for the symbolic factorization.
+    scratch: &'w mut [u32],
     nnz_a: usize,
     size: SymbolicSize,
 }
@@ -223,6 +225,7 @@ impl<'w> Topology<'w> {
             col_ptr,
             row_idx,
             perm,
+            scratch: tail,
             nnz_a,
             size,
         })
@@ -259,6 +262,19 @@ pub struct StepReport<T> {
     pub min_step_length: T,
     /// Work done, per stage.
     pub work: WorkCount,
+}
+
+/// The linear system of a Newton step, from [`Model::linearize`].
+#[derive(Debug)]
+pub struct Linearization<'m, T> {
+    /// Energies at the current positions.
+    pub energies: Energies<T>,
+    /// Gradient over the free unknowns.
+    pub gradient: &'m [T],
+    /// Positive definite Hessian values on `pattern`.
+    pub hessian: &'m [T],
+    /// The stiffness pattern (upper triangle, unknowns in free-node order).
+    pub pattern: UpperCsc<'m>,
 }
 
 /// The organ model.
@@ -358,8 +374,7 @@ impl<'a, T: Real> Model<'a, T> {
         let col_ptr: &'a [u32] = &col_ptr[..n + 1];
         let row_idx: &'a [u32] = &row_idx[..topo.nnz_a];
         let a = UpperCsc::new(n, col_ptr, row_idx)?;
-        let scratch = ws.take(ws.remaining())?;
-        let symbolic = Symbolic::new(&a, topo.perm, sym_store, scratch)?;
+        let symbolic = Symbolic::new(&a, topo.perm, sym_store, topo.scratch)?;
         let factor = LdlFactor::new(&symbolic.size_info(), factor_store)?;
         build_scatter(&mesh, &a, scatter)?;
 
@@ -370,9 +385,15 @@ impl<'a, T: Real> Model<'a, T> {
         for (t, tet) in mesh.tets().iter().enumerate() {
             let rest = mesh.element_rest(t).ok_or(Error::SymbolicMismatch)?;
             let g = rest.shape_gradients();
-            let xe = tet.map(|v| mesh.rest()[v as usize]);
-            let eval =
-                element_energy_gradient_tangent(&lame, &rest, &g, &xe, TangentProjection::Exact);
+            let at_rest = [[T::zero(); 3]; 4];
+            let eval = element_energy_gradient_tangent(
+                &lame,
+                &rest,
+                &g,
+                &at_rest,
+                TangentProjection::Exact,
+            );
+            let _ = tet;
             for (l, &v) in tet.iter().enumerate() {
                 damping[v as usize] += eval.tangent[l][l].trace() / T::of(3.0);
             }
@@ -541,6 +562,20 @@ impl<'a, T: Real> Model<'a, T> {
         }
     }
 
+    /// Takes a frame's observations without solving (what [`Model::step`] does first); for
+    /// validation with an outside solver through [`Model::linearize`]. Returns the number
+    /// observed.
+    ///
+    /// # Errors
+    /// As [`Features::set_frame`]; [`Error::NoFeatures`] before [`Model::embed_features`].
+    pub fn observe(&mut self, frame: &[Observation<T>]) -> Result<usize, Error> {
+        if self.features.is_empty() {
+            return Err(Error::NoFeatures);
+        }
+        let margin = self.config.solver.image_margin;
+        self.features.set_frame(&self.config.camera, frame, margin)
+    }
+
     fn solve_frame(&mut self) -> Result<StepReport<T>, Error> {
         let n = self.n_unknowns();
         let n_nodes = self.mesh.n_nodes();
@@ -586,8 +621,7 @@ impl<'a, T: Real> Model<'a, T> {
                 }
             }
             let slope = dot(&self.grad[..n], &self.step[..n]);
-            let total = e.total();
-            let alpha = self.line_search(total, slope, trials, &mut work)?;
+            let alpha = self.line_search(&e, slope, trials, &mut work)?;
             min_step = min_step.min(alpha);
             if alpha > T::zero() {
                 self.move_along(alpha, n_nodes);
@@ -716,14 +750,20 @@ impl<'a, T: Real> Model<'a, T> {
 
     /// Evaluates all trial lengths `1, ½, …` and returns the first that satisfies the Armijo
     /// condition, else the one with the lowest energy if it improves, else 0.
+    ///
+    /// Armijo is tested with the energy's rounding error as slack: near the minimum the
+    /// decrease a Newton step buys falls below what the energy can resolve, and the step must
+    /// still be taken for the gradient to keep shrinking.
     fn line_search(
         &mut self,
-        energy: T,
+        at: &Energies<T>,
         slope: T,
         trials: u32,
         work: &mut WorkCount,
     ) -> Result<T, Error> {
         let n_nodes = self.mesh.n_nodes();
+        let energy = at.total();
+        let slack = T::of(2.0) * at.rounding;
         let mut alpha = T::one();
         let mut chosen: Option<T> = None;
         let mut best = (energy, T::zero());
@@ -735,7 +775,7 @@ impl<'a, T: Real> Model<'a, T> {
                 Err(e) => return Err(e),
             };
             if e.finite() {
-                if chosen.is_none() && e <= energy + T::of(1e-4) * alpha * slope {
+                if chosen.is_none() && e <= energy + T::of(1e-4) * alpha * slope + slack {
                     chosen = Some(alpha);
                 }
                 if e < best.0 {
@@ -798,6 +838,60 @@ impl<'a, T: Real> Model<'a, T> {
             }
         }
         w
+    }
+
+    /// The energies at the current positions (observations of the last frame, damping toward
+    /// the previous frame's positions).
+    ///
+    /// # Errors
+    /// [`Error::BehindCamera`] if a virtual feature cannot be projected.
+    pub fn energy(&self) -> Result<Energies<T>, Error> {
+        let n = self.mesh.n_nodes();
+        self.problem()
+            .energy(&self.x[..n], &mut WorkCount::default())
+    }
+
+    /// Assembles the system a Newton step solves at the current positions, for validation
+    /// against other solvers: the gradient over the free unknowns (`3 · n_free`, node by free
+    /// index) and the positive definite Hessian on the stiffness pattern.
+    ///
+    /// # Errors
+    /// As [`Model::energy`].
+    pub fn linearize(&mut self) -> Result<Linearization<'_, T>, Error> {
+        let energies = self.assemble(true, &mut WorkCount::default())?;
+        let n = self.n_unknowns();
+        let nnz = self.row_idx.len();
+        Ok(Linearization {
+            energies,
+            gradient: &self.grad[..n],
+            hessian: &self.hessian[..nnz],
+            pattern: UpperCsc::new(n, self.col_ptr, self.row_idx)?,
+        })
+    }
+
+    /// Moves the free nodes to `x` (one position per node; the entries of fixed nodes are
+    /// ignored, they stay at rest). The damping anchor moves with them.
+    ///
+    /// # Errors
+    /// [`Error::Length`] if `x` does not have one entry per node, [`Error::NonFiniteInput`]
+    /// for a non-finite coordinate; nothing changes then.
+    pub fn set_positions(&mut self, x: &[[T; 3]]) -> Result<(), Error> {
+        let n = self.mesh.n_nodes();
+        crate::storage::ensure_exact_len(x, n, Resource::Nodes)?;
+        if let Some(position) = x.iter().position(|p| !p.iter().all(|c| c.finite())) {
+            return Err(Error::NonFiniteInput {
+                resource: Resource::Nodes,
+                position,
+            });
+        }
+        let free = self.mesh.free_index();
+        for v in 0..n {
+            if free[v] != NONE {
+                self.x[v] = x[v];
+            }
+        }
+        self.anchor[..n].copy_from_slice(&self.x[..n]);
+        Ok(())
     }
 
     /// Positions of node `v` as a vector (`None` out of range).

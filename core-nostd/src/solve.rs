@@ -116,6 +116,11 @@ pub struct Energies<T> {
     pub spring: T,
     /// Damping energy `W_D`.
     pub damping: T,
+    /// An estimate of the rounding error of the total: node positions are only known to
+    /// `ε·|x|`, so each energy term is uncertain by its local force times that (filled by the
+    /// assembly, zero from an energy-only evaluation). The line search cannot see decreases
+    /// below it.
+    pub rounding: T,
 }
 
 impl<T: Real> Energies<T> {
@@ -190,8 +195,13 @@ fn node_of<T: Real>(x: &[[T; 3]], v: u32) -> Vector3<T> {
 }
 
 impl<T: Real> Problem<'_, '_, T> {
-    fn element_x(&self, t: usize, x: &[[T; 3]]) -> [[T; 3]; 4] {
-        self.mesh.tets()[t].map(|v| x[v as usize])
+    /// Displacements from rest of the nodes of tetrahedron `t`.
+    fn element_u(&self, t: usize, x: &[[T; 3]]) -> [[T; 3]; 4] {
+        let rest = self.mesh.rest();
+        self.mesh.tets()[t].map(|v| {
+            let (p, q) = (x[v as usize], rest[v as usize]);
+            [p[0] - q[0], p[1] - q[1], p[2] - q[2]]
+        })
     }
 
     fn element_rest(&self, t: usize) -> Result<ElementRest<T>, Error> {
@@ -212,7 +222,7 @@ impl<T: Real> Problem<'_, '_, T> {
         for t in 0..self.mesh.n_tets() {
             let rest = self.element_rest(t)?;
             let g = rest.shape_gradients();
-            e.elastic += element_energy(&self.lame, &rest, &g, &self.element_x(t, x));
+            e.elastic += element_energy(&self.lame, &rest, &g, &self.element_u(t, x));
         }
         work.element_evaluations += self.mesh.n_tets() as u64;
         e.spring = self.spring_energy(x, work)?;
@@ -268,10 +278,11 @@ impl<T: Real> Problem<'_, '_, T> {
             h.fill(T::zero());
         }
         let mut e = Energies::default();
+        let mut force_sum = T::zero();
         for t in 0..self.mesh.n_tets() {
             let rest = self.element_rest(t)?;
             let g = rest.shape_gradients();
-            let xe = self.element_x(t, x);
+            let xe = self.element_u(t, x);
             let tet = self.mesh.tets()[t];
             let gradient = match hessian.as_deref_mut() {
                 Some(h) => {
@@ -304,6 +315,7 @@ impl<T: Real> Problem<'_, '_, T> {
             };
             for (a, ga) in gradient.iter().enumerate() {
                 add_gradient(grad, free, tet[a], ga);
+                force_sum += ga.abs().sum();
             }
         }
         if hessian.is_some() {
@@ -330,6 +342,7 @@ impl<T: Real> Problem<'_, '_, T> {
             let r = nalgebra::Vector2::new(target[0] - uv.x, target[1] - uv.y);
             e.spring += T::of(0.5) * k * r.norm_squared();
             let jr = j.transpose() * r * k;
+            force_sum += jr.abs().sum();
             for a in 0..4 {
                 add_gradient(grad, free, tet[a], &(-jr * w[a]));
             }
@@ -361,6 +374,7 @@ impl<T: Real> Problem<'_, '_, T> {
             let d = node_of(x, v as u32) - node_of(self.anchor, v as u32);
             e.damping += T::of(0.5) * c * d.norm_squared();
             add_gradient(grad, free, v as u32, &(d * c));
+            force_sum += (d * c).abs().sum();
             if let Some(h) = hessian.as_deref_mut() {
                 // The diagonal entry is the last of its column in the upper pattern.
                 for d in 0..3 {
@@ -369,6 +383,10 @@ impl<T: Real> Problem<'_, '_, T> {
                 }
             }
         }
+        let x_max = x.iter().fold(T::zero(), |m, p| {
+            m.max(p[0].abs()).max(p[1].abs()).max(p[2].abs())
+        });
+        e.rounding = T::of(8.0) * T::EPS * x_max * force_sum;
         work.assemblies += 1;
         Ok(e)
     }

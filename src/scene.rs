@@ -1,0 +1,107 @@
+//! Small synthetic scenes for tests and benchmarks: a camera looking at a mesh, the model built
+//! in `Vec` storage, and observations of material points.
+
+use incise_core::mesh::MeshCapacity;
+use incise_core::{
+    Camera, Capacities, Error, Intrinsics, MeshInput, Model, ModelConfig, ModelSize, Observation,
+};
+use nalgebra::{Matrix3, Vector3};
+
+use crate::testmesh::TetMesh;
+
+/// World-to-camera rotation and translation of a camera at `eye` looking at `target`, with
+/// `up` pointing up in the image (OpenCV axes: x right, y down, z forward).
+pub fn look_at(eye: [f64; 3], target: [f64; 3], up: [f64; 3]) -> (Matrix3<f64>, Vector3<f64>) {
+    let eye = Vector3::from(eye);
+    let z = (Vector3::from(target) - eye).normalize();
+    let x = z.cross(&Vector3::from(up)).normalize();
+    let y = z.cross(&x);
+    let r = Matrix3::from_rows(&[x.transpose(), y.transpose(), z.transpose()]);
+    (r, -(r * eye))
+}
+
+/// A camera from `look_at` and square pixels.
+pub fn camera(
+    eye: [f64; 3],
+    target: [f64; 3],
+    up: [f64; 3],
+    focal: f64,
+    size: (u32, u32),
+) -> Camera<f64> {
+    let (r, t) = look_at(eye, target, up);
+    let intr = Intrinsics {
+        fx: focal,
+        fy: focal,
+        cx: f64::from(size.0) / 2.0,
+        cy: f64::from(size.1) / 2.0,
+        width: size.0,
+        height: size.1,
+    };
+    Camera::new(intr, r, t, 1e-4).expect("valid camera")
+}
+
+/// The storage of one model, sized by the core's own analysis.
+pub struct ModelStorage<T> {
+    /// The sizes.
+    pub size: ModelSize,
+    reals: Vec<T>,
+    indices: Vec<u32>,
+    work: Vec<u32>,
+}
+
+impl<T: incise_core::Real> ModelStorage<T> {
+    /// Sizes storage for `mesh` with room for `features` features.
+    pub fn new(mesh: &MeshInput<'_, T>, features: usize) -> Result<Self, Error> {
+        let caps = Capacities {
+            mesh: MeshCapacity::exact(mesh),
+            features,
+            factor_headroom_percent: 0,
+        };
+        let mut work = vec![0u32; ModelSize::work_len(&caps.mesh, features)];
+        let size = ModelSize::analyse(mesh, &caps, &mut work)?;
+        Ok(ModelStorage {
+            size,
+            reals: vec![T::zero(); size.real_len()],
+            indices: vec![0; size.index_len()],
+            work,
+        })
+    }
+
+    /// Builds the model in this storage.
+    pub fn model<'a>(
+        &'a mut self,
+        mesh: &MeshInput<'_, T>,
+        config: &ModelConfig<T>,
+    ) -> Result<Model<'a, T>, Error> {
+        Model::new(
+            mesh,
+            config,
+            &self.size,
+            &mut self.reals,
+            &mut self.indices,
+            &mut self.work,
+        )
+    }
+}
+
+/// Nodes of `mesh` whose coordinate `axis` equals `value` (to 1e-12).
+pub fn nodes_where(mesh: &TetMesh, axis: usize, value: f64) -> Vec<u32> {
+    (0..mesh.nodes.len() as u32)
+        .filter(|&v| (mesh.nodes[v as usize][axis] - value).abs() < 1e-12)
+        .collect()
+}
+
+/// Observations of world points through `camera`, ids `0..`.
+pub fn observe(camera: &Camera<f64>, points: &[[f64; 3]]) -> Vec<Observation<f64>> {
+    points
+        .iter()
+        .enumerate()
+        .map(|(id, p)| {
+            let uv = camera.project(&Vector3::from(*p), id).expect("in front");
+            Observation {
+                id: id as u32,
+                uv: [uv.x, uv.y],
+            }
+        })
+        .collect()
+}

@@ -1,0 +1,365 @@
+//! The per-frame solve against closed forms and an independent solver: a cantilever against
+//! Euler–Bernoulli, a converged `Refactor` solve against a Newton loop whose linear systems faer
+//! solves, and the registration of a box to a deformation made by the same model.
+
+use incise_core::{
+    Material, MeshInput, ModelConfig, Observation, SolverConfig, StepReport, Strategy,
+};
+use incise_validation::oracle::faer_solve;
+use incise_validation::scene::{ModelStorage, camera, nodes_where, observe};
+use incise_validation::testmesh::box_mesh;
+use nalgebra::Vector3;
+
+const YOUNG: f64 = 3.0e4;
+const POISSON: f64 = 0.3;
+
+fn config(
+    cam: incise_core::Camera<f64>,
+    k: f64,
+    strategy: Strategy,
+    damping: f64,
+) -> ModelConfig<f64> {
+    ModelConfig {
+        material: Material {
+            young: YOUNG,
+            poisson: POISSON,
+        },
+        camera: cam,
+        solver: SolverConfig {
+            strategy,
+            newton_iterations: 4,
+            line_search_steps: 4,
+            spring_stiffness: k,
+            damping,
+            image_margin: 50.0,
+        },
+    }
+}
+
+/// Points on a grid of the top face `z = zt` with `x` in `[x0, x1]` and `y` in `[0, ly]`.
+fn top_grid(x0: f64, x1: f64, ly: f64, zt: f64, n: usize) -> Vec<[f64; 3]> {
+    let mut pts = vec![];
+    for i in 0..n {
+        for j in 0..n {
+            let fx = (i as f64 + 0.5) / n as f64;
+            let fy = (j as f64 + 0.5) / n as f64;
+            pts.push([x0 + (x1 - x0) * fx, ly * fy, zt]);
+        }
+    }
+    pts
+}
+
+/// The tip of a cantilever pulled sideways (in the image plane) by springs.
+struct Cantilever {
+    mesh: incise_validation::testmesh::TetMesh,
+    fixed: Vec<u32>,
+    cam: incise_core::Camera<f64>,
+    frame0: Vec<Observation<f64>>,
+    pulled: Vec<Observation<f64>>,
+    length: f64,
+    side: f64,
+}
+
+impl Cantilever {
+    fn new(cells: [usize; 3]) -> Self {
+        let (length, side) = (0.1, 0.01);
+        let mesh = box_mesh(cells, [length, side, side]);
+        let fixed = nodes_where(&mesh, 0, 0.0);
+        let cam = camera(
+            [0.05, 0.005, 0.5],
+            [0.05, 0.005, 0.0],
+            [0.0, 1.0, 0.0],
+            5000.0,
+            (1200, 600),
+        );
+        let pts = top_grid(0.095, 0.1, side, side, 5);
+        let frame0 = observe(&cam, &pts);
+        let pulled = frame0
+            .iter()
+            .map(|o| Observation {
+                id: o.id,
+                uv: [o.uv[0], o.uv[1] - 8.0],
+            })
+            .collect();
+        Cantilever {
+            mesh,
+            fixed,
+            cam,
+            frame0,
+            pulled,
+            length,
+            side,
+        }
+    }
+
+    fn input(&self) -> MeshInput<'_, f64> {
+        MeshInput {
+            rest: &self.mesh.nodes,
+            tets: &self.mesh.tets,
+            fixed: &self.fixed,
+        }
+    }
+}
+
+/// Runs frames on the same observations until the gradient stops shrinking; returns the last
+/// report.
+fn converge(
+    model: &mut incise_core::Model<'_, f64>,
+    frame: &[Observation<f64>],
+) -> StepReport<f64> {
+    let mut last = model.step(frame).unwrap();
+    for _ in 0..30 {
+        let next = model.step(frame).unwrap();
+        let done = next.gradient_norm_after >= 0.5 * last.gradient_norm_after;
+        last = next;
+        if done {
+            break;
+        }
+    }
+    last
+}
+
+#[test]
+fn cantilever_tip_deflection_matches_euler_bernoulli() {
+    let mut errors = vec![];
+    for cells in [[40, 4, 4], [60, 6, 6], [100, 10, 10]] {
+        let beam = Cantilever::new(cells);
+        let input = beam.input();
+        let mut cfg = config(beam.cam, 3.0e-11, Strategy::Refactor, 0.0);
+        cfg.solver.newton_iterations = 3;
+        let mut storage = ModelStorage::new(&input, 64).unwrap();
+        let mut model = storage.model(&input, &cfg).unwrap();
+        model.embed_features(&beam.frame0).unwrap();
+        // A small deflection is nearly linear: one frame of Newton steps converges.
+        let report = model.step(&beam.pulled).unwrap();
+        eprintln!(
+            "cells {cells:?}: {} unknowns, nnz(L) {}, gradient norm {:.2e} -> {:.2e}",
+            model.n_unknowns(),
+            model.symbolic().nnz_l(),
+            report.gradient_norm_before,
+            report.gradient_norm_after
+        );
+        assert!(report.gradient_norm_after < 1e-9);
+
+        // The load: the spring force on each virtual feature at equilibrium, and where it acts.
+        let (e, i) = (YOUNG, beam.side.powi(4) / 12.0);
+        let mut predicted = 0.0;
+        let k = cfg.solver.spring_stiffness;
+        for (slot, target) in model.features().targets().iter().enumerate() {
+            let p = model
+                .features()
+                .position(slot, model.mesh(), model.positions())
+                .unwrap();
+            let (uv, j) = beam.cam.project_with_jacobian(&p, slot).unwrap();
+            let r = nalgebra::Vector2::new(target[0] - uv.x, target[1] - uv.y);
+            let force = j.transpose() * r * k;
+            // Where the force acts along the beam, at rest (small deflection).
+            let a = model
+                .features()
+                .position(slot, model.mesh(), model.mesh().rest())
+                .unwrap()
+                .x;
+            let l = beam.length;
+            predicted += force.y * a * a * (3.0 * l - a) / (6.0 * e * i);
+        }
+        let tip = nodes_where(&beam.mesh, 0, beam.length);
+        let measured: f64 = tip
+            .iter()
+            .map(|&v| model.positions()[v as usize][1] - beam.mesh.nodes[v as usize][1])
+            .sum::<f64>()
+            / tip.len() as f64;
+        let rel = (measured - predicted).abs() / predicted.abs();
+        eprintln!(
+            "cells {cells:?}: tip deflection {measured:.4e} m, Euler–Bernoulli {predicted:.4e} m, relative difference {rel:.3}"
+        );
+        assert!(
+            predicted.abs() > 1e-4 * beam.length,
+            "load too small to mean anything"
+        );
+        assert!(
+            predicted.abs() < 2e-2 * beam.length,
+            "load outside small deflection"
+        );
+        errors.push(rel);
+    }
+    // Linear tetrahedra are stiff in bending; the error must shrink with the mesh and the
+    // finest mesh must be within 5%.
+    assert!(errors.windows(2).all(|w| w[1] < w[0]), "{errors:?}");
+    assert!(*errors.last().unwrap() <= 0.05, "{errors:?}");
+}
+
+#[test]
+fn converged_refactor_solve_matches_a_newton_loop_solved_by_faer() {
+    let beam = Cantilever::new([20, 2, 2]);
+    let input = beam.input();
+    let cfg = config(beam.cam, 2.0e-7, Strategy::Refactor, 0.0);
+
+    let mut storage = ModelStorage::new(&input, 64).unwrap();
+    let mut ours = storage.model(&input, &cfg).unwrap();
+    ours.embed_features(&beam.frame0).unwrap();
+    let last = converge(&mut ours, &beam.pulled);
+    assert!(
+        last.gradient_norm_after < 1e-12,
+        "{:e}",
+        last.gradient_norm_after
+    );
+
+    let mut storage_ref = ModelStorage::new(&input, 64).unwrap();
+    let mut reference = storage_ref.model(&input, &cfg).unwrap();
+    reference.embed_features(&beam.frame0).unwrap();
+    reference.observe(&beam.pulled).unwrap();
+    let free = reference.mesh().free_index().to_vec();
+    let mut gnorm = f64::INFINITY;
+    for _ in 0..30 {
+        let lin = reference.linearize().unwrap();
+        let minus_g: Vec<f64> = lin.gradient.iter().map(|g| -g).collect();
+        gnorm = minus_g.iter().map(|g| g * g).sum::<f64>().sqrt();
+        let dx = faer_solve(&lin.pattern, lin.hessian, &minus_g);
+        let mut x = reference.positions().to_vec();
+        for (v, &f) in free.iter().enumerate() {
+            if f != incise_core::sparse::NONE {
+                for c in 0..3 {
+                    x[v][c] += dx[3 * f as usize + c];
+                }
+            }
+        }
+        reference.set_positions(&x).unwrap();
+    }
+    assert!(
+        gnorm < 1e-12,
+        "faer Newton loop did not converge: {gnorm:e}"
+    );
+
+    let disp: f64 = reference
+        .positions()
+        .iter()
+        .zip(&beam.mesh.nodes)
+        .map(|(x, x0)| (0..3).map(|c| (x[c] - x0[c]).powi(2)).sum::<f64>())
+        .sum::<f64>()
+        .sqrt();
+    let diff: f64 = reference
+        .positions()
+        .iter()
+        .zip(ours.positions())
+        .map(|(a, b)| (0..3).map(|c| (a[c] - b[c]).powi(2)).sum::<f64>())
+        .sum::<f64>()
+        .sqrt();
+    eprintln!("displacement norm {disp:.3e} m, difference to the faer solve {diff:.3e} m");
+    assert!(diff <= 1e-8 * disp, "relative difference {:e}", diff / disp);
+}
+
+/// A box held at one end, bent and stretched by springs pulling its free end in the image
+/// plane; returns the deformed positions.
+fn target_deformation(
+    mesh: &incise_validation::testmesh::TetMesh,
+    fixed: &[u32],
+    cam: incise_core::Camera<f64>,
+    size: [f64; 3],
+) -> Vec<[f64; 3]> {
+    let input = MeshInput {
+        rest: &mesh.nodes,
+        tets: &mesh.tets,
+        fixed,
+    };
+    let cfg = config(cam, 2.0e-7, Strategy::Refactor, 0.0);
+    let mut storage = ModelStorage::new(&input, 64).unwrap();
+    let mut model = storage.model(&input, &cfg).unwrap();
+    let pts = top_grid(0.9 * size[0], size[0], size[1], size[2], 4);
+    let frame0 = observe(&cam, &pts);
+    model.embed_features(&frame0).unwrap();
+    let pulled: Vec<_> = frame0
+        .iter()
+        .map(|o| Observation {
+            id: o.id,
+            uv: [o.uv[0] + 25.0, o.uv[1] - 60.0],
+        })
+        .collect();
+    converge(&mut model, &pulled);
+    model.positions().to_vec()
+}
+
+fn registration(strategy: Strategy) {
+    let size = [0.06, 0.02, 0.02];
+    let mesh = box_mesh([12, 4, 4], size);
+    let fixed = nodes_where(&mesh, 0, 0.0);
+    let cam = camera(
+        [0.03, 0.01, 0.3],
+        [0.03, 0.01, 0.0],
+        [0.0, 1.0, 0.0],
+        2000.0,
+        (640, 480),
+    );
+    let target = target_deformation(&mesh, &fixed, cam, size);
+
+    // Observed: the nodes of the top face (facing the camera, never occluded), moving from
+    // rest to the target over ten frames, then held.
+    let top = nodes_where(&mesh, 2, size[2]);
+    let at = |s: f64| -> Vec<[f64; 3]> {
+        top.iter()
+            .map(|&v| {
+                let (a, b) = (mesh.nodes[v as usize], target[v as usize]);
+                [0, 1, 2].map(|c| a[c] + s * (b[c] - a[c]))
+            })
+            .collect()
+    };
+    let input = MeshInput {
+        rest: &mesh.nodes,
+        tets: &mesh.tets,
+        fixed: &fixed,
+    };
+    let cfg = config(cam, 2.0e-6, strategy, 1e-3);
+    let mut storage = ModelStorage::new(&input, 256).unwrap();
+    let mut model = storage.model(&input, &cfg).unwrap();
+    let report = model.embed_features(&observe(&cam, &at(0.0))).unwrap();
+    assert_eq!(report.missed, 0);
+    for frame in 1..=20 {
+        let s = (frame as f64 / 10.0).min(1.0);
+        let r = model.step(&observe(&cam, &at(s))).unwrap();
+        assert!(
+            r.gradient_norm_after < r.gradient_norm_before,
+            "{strategy:?} frame {frame}: gradient {:e} -> {:e}",
+            r.gradient_norm_before,
+            r.gradient_norm_after
+        );
+    }
+    // Surface RMS error over all boundary nodes.
+    let mut on_surface = vec![false; mesh.nodes.len()];
+    for tri in model.mesh().surface() {
+        for &v in tri {
+            on_surface[v as usize] = true;
+        }
+    }
+    let (mut sum, mut count) = (0.0, 0);
+    for v in (0..mesh.nodes.len()).filter(|&v| on_surface[v]) {
+        let d = Vector3::from(model.positions()[v]) - Vector3::from(target[v]);
+        sum += d.norm_squared();
+        count += 1;
+    }
+    let rms = (sum / count as f64).sqrt();
+    let max_disp = target
+        .iter()
+        .zip(&mesh.nodes)
+        .map(|(a, b)| (Vector3::from(*a) - Vector3::from(*b)).norm())
+        .fold(0.0, f64::max);
+    eprintln!(
+        "{strategy:?}: surface RMS error {:.3} mm ({:.2}% of the box), largest target displacement {:.2} mm",
+        rms * 1e3,
+        100.0 * rms / size[0],
+        max_disp * 1e3
+    );
+    assert!(
+        max_disp > 0.1 * size[0],
+        "the target deformation is too small to test anything"
+    );
+    assert!(rms <= 0.02 * size[0]);
+}
+
+#[test]
+fn registration_follows_a_deformation_with_refactor() {
+    registration(Strategy::Refactor);
+}
+
+#[test]
+fn registration_follows_a_deformation_with_frozen() {
+    registration(Strategy::Frozen { pcg_iterations: 20 });
+}
