@@ -3,6 +3,7 @@
 //! computations on stack buffers. It is built on its own with `cargo build --manifest-path`, so
 //! the std host cannot switch on features of shared dependencies through feature unification.
 //! The test then
+//! The program factorizes a stiffness matrix and runs `Model::step` on a box held at one end.
 //! 1. lists every symbol of the library and fails on any allocator symbol,
 //! 2. links it into an executable with a C `main` and runs it (the computation must check out),
 //! 3. builds the same program with a global allocator and one `Vec` (feature `heap-control`)
@@ -92,7 +93,13 @@ fn the_core_links_and_runs_without_a_heap() {
     std::fs::write(
         &main_c,
         "int incise_nostd_check_sparse(void);\n\
-         int main(void) { return incise_nostd_check_sparse(); }\n",
+         int incise_nostd_check_step(void);\n\
+         int main(void) {\n\
+           int a = incise_nostd_check_sparse();\n\
+           if (a != 0) return 10 + a;\n\
+           int b = incise_nostd_check_step();\n\
+           return b == 0 ? 0 : 20 + b;\n\
+         }\n",
     )
     .unwrap();
     let exe = dir.join("nostd-check");

@@ -48,6 +48,9 @@ pub mod storage;
 
 pub use error::{Error, Parameter, Resource};
 pub use real::Real;
+// The small matrices of the public API (camera pose) are nalgebra's; re-exported so that a user
+// needs no version of their own.
+pub use nalgebra;
 
 pub use camera::{Camera, Intrinsics};
 pub use features::{EmbedReport, Observation};

@@ -21,6 +21,121 @@ const NODES: usize = (C + 1) * (C + 1) * (C + 1);
 const TETS: usize = 6 * C * C * C;
 const N: usize = 3 * NODES;
 
+/// Builds a model of a small box held at one end, embeds features seen from above and runs
+/// registration steps pulling its free end; 0 when every step lowers the gradient.
+#[unsafe(no_mangle)]
+pub extern "C" fn incise_nostd_check_step() -> i32 {
+    match step() {
+        Ok(true) => 0,
+        Ok(false) => 2,
+        Err(_) => 1,
+    }
+}
+
+fn step() -> Result<bool, incise_core::Error> {
+    use incise_core::nalgebra::{Matrix3, Vector3};
+    use incise_core::{
+        Camera, Capacities, Intrinsics, Material, MeshCapacity, MeshInput, Model, ModelConfig,
+        ModelSize, Observation, SolverConfig, Strategy,
+    };
+    const CX: usize = 4;
+    const NN: usize = (CX + 1) * 3 * 3;
+    const NT: usize = 6 * CX * 2 * 2;
+    let (lx, ly, lz) = (0.04f64, 0.01, 0.01);
+    let id = |i: usize, j: usize, k: usize| (i + (CX + 1) * (j + 3 * k)) as u32;
+    let mut rest = [[0.0f64; 3]; NN];
+    for k in 0..3 {
+        for j in 0..3 {
+            for i in 0..=CX {
+                rest[id(i, j, k) as usize] =
+                    [lx * i as f64 / CX as f64, ly * j as f64 / 2.0, lz * k as f64 / 2.0];
+            }
+        }
+    }
+    let mut tets = [[0u32; 4]; NT];
+    let mut t = 0;
+    for k in 0..2 {
+        for j in 0..2 {
+            for i in 0..CX {
+                for path in [[0, 1, 2], [0, 2, 1], [1, 0, 2], [1, 2, 0], [2, 0, 1], [2, 1, 0]] {
+                    let mut c = [i, j, k];
+                    tets[t][0] = id(i, j, k);
+                    for (s, axis) in path.into_iter().enumerate() {
+                        c[axis] += 1;
+                        tets[t][s + 1] = id(c[0], c[1], c[2]);
+                    }
+                    // Kuhn paths alternate in orientation: make every tetrahedron positive.
+                    let p = |v: u32| rest[v as usize];
+                    let (a, b, cc, d) = (p(tets[t][0]), p(tets[t][1]), p(tets[t][2]), p(tets[t][3]));
+                    let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+                    let v = [cc[0] - a[0], cc[1] - a[1], cc[2] - a[2]];
+                    let w = [d[0] - a[0], d[1] - a[1], d[2] - a[2]];
+                    let vol = u[0] * (v[1] * w[2] - v[2] * w[1]) - u[1] * (v[0] * w[2] - v[2] * w[0])
+                        + u[2] * (v[0] * w[1] - v[1] * w[0]);
+                    if vol < 0.0 {
+                        tets[t].swap(2, 3);
+                    }
+                    t += 1;
+                }
+            }
+        }
+    }
+    let fixed = [id(0, 0, 0), id(0, 1, 0), id(0, 2, 0), id(0, 0, 1), id(0, 1, 1), id(0, 2, 1),
+        id(0, 0, 2), id(0, 1, 2), id(0, 2, 2)];
+    let mesh = MeshInput { rest: &rest, tets: &tets, fixed: &fixed };
+
+    // A camera 0.2 m above the box, looking down.
+    let r = Matrix3::new(1.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, -1.0);
+    let eye = Vector3::new(0.02, 0.005, 0.2);
+    let intr = Intrinsics { fx: 2000.0, fy: 2000.0, cx: 320.0, cy: 240.0, width: 640, height: 480 };
+    let camera = Camera::new(intr, r, -(r * eye), 1e-4)?;
+    let config = ModelConfig {
+        material: Material { young: 3.0e4, poisson: 0.3 },
+        camera,
+        solver: SolverConfig {
+            strategy: Strategy::Refactor,
+            newton_iterations: 3,
+            line_search_steps: 4,
+            spring_stiffness: 2e-7,
+            damping: 1e-3,
+            image_margin: 50.0,
+        },
+    };
+    let caps = Capacities {
+        mesh: MeshCapacity { nodes: NN, tets: NT, surface_triangles: 4 * NT },
+        features: 16,
+        factor_headroom_percent: 0,
+    };
+    let mut work = [0u32; 32768];
+    let size = ModelSize::analyse(&mesh, &caps, &mut work)?;
+    let mut reals = [0.0f64; 32768];
+    let mut indices = [0u32; 32768];
+    let mut model = Model::new(&mesh, &config, &size, &mut reals, &mut indices, &mut work)?;
+
+    // Nine features on the top face near the free end.
+    let mut frame = [Observation { id: 0, uv: [0.0; 2] }; 9];
+    for (n, o) in frame.iter_mut().enumerate() {
+        let p = Vector3::new(0.034 + 0.002 * (n % 3) as f64, 0.003 + 0.002 * (n / 3) as f64, lz);
+        let uv = camera.project(&p, n)?;
+        *o = Observation { id: n as u32, uv: [uv.x, uv.y] };
+    }
+    if model.embed_features(&frame)?.embedded != 9 {
+        return Ok(false);
+    }
+    let mut ok = true;
+    for step in 1..=4 {
+        for o in frame.iter_mut() {
+            o.uv[1] -= 2.0 * step as f64;
+        }
+        let report = model.step(&frame)?;
+        ok &= report.gradient_norm_after < report.gradient_norm_before;
+    }
+    model.set_strategy(Strategy::Frozen { pcg_iterations: 10 })?;
+    let report = model.step(&frame)?;
+    ok &= report.gradient_norm_after <= report.gradient_norm_before;
+    Ok(ok)
+}
+
 /// Factorizes a stiffness-like matrix of a small box mesh and solves with it; 0 on success.
 #[unsafe(no_mangle)]
 pub extern "C" fn incise_nostd_check_sparse() -> i32 {
