@@ -3,7 +3,7 @@
 //! `faer` oracle it is checked against. Not part of the product.
 
 pub mod oracle;
-pub mod rng;
+pub use incise::rng;
 pub mod scene;
 pub mod system;
 pub mod testmesh;

@@ -508,6 +508,11 @@ impl<'a, T: Real> Model<'a, T> {
             return Err(Error::NoFeatures);
         }
         self.holds = FactorHolds::Nothing;
+        // The frozen factor is part of setting up, not of the first frame, so that every frame
+        // costs the same.
+        if let Strategy::Frozen { .. } = self.config.solver.strategy {
+            self.prepare_frozen(&mut WorkCount::default())?;
+        }
         Ok(report)
     }
 
@@ -586,10 +591,8 @@ impl<'a, T: Real> Model<'a, T> {
         if let Strategy::Frozen { .. } = self.config.solver.strategy
             && self.holds != FactorHolds::Frozen
         {
-            // The frozen matrix: the Hessian at the current (frame-start) state.
-            self.assemble(true, &mut work)?;
-            self.factorize(&mut work)?;
-            self.holds = FactorHolds::Frozen;
+            // Only after a switch of strategy: a one-off cost, counted in this frame's work.
+            self.prepare_frozen(&mut work)?;
         }
 
         let mut energy_before = Energies::default();
@@ -680,6 +683,14 @@ impl<'a, T: Real> Model<'a, T> {
             None
         };
         problem.assemble(&x[..n_nodes], &mut grad[..n], h, work)
+    }
+
+    /// Factors the frozen matrix: the positive definite Hessian at the current state.
+    fn prepare_frozen(&mut self, work: &mut WorkCount) -> Result<(), Error> {
+        self.assemble(true, work)?;
+        self.factorize(work)?;
+        self.holds = FactorHolds::Frozen;
+        Ok(())
     }
 
     fn factorize(&mut self, work: &mut WorkCount) -> Result<(), Error> {

@@ -109,9 +109,9 @@ impl<'a, T: Real> LdlFactor<'a, T> {
                 let i = ux(i);
                 let yi = y[i];
                 y[i] = T::zero();
-                let end = ux(cursor[i]);
-                for p in ux(l_ptr[i])..end {
-                    y[ux(l_row[p])] -= l[p] * yi;
+                let (start, end) = (ux(l_ptr[i]), ux(cursor[i]));
+                for (&r, &lv) in l_row[start..end].iter().zip(&l[start..end]) {
+                    y[ux(r)] -= lv * yi;
                 }
                 let lki = yi / d[i];
                 dk -= lki * yi;
@@ -149,8 +149,9 @@ impl<'a, T: Real> LdlFactor<'a, T> {
         let (l_ptr, l_row) = (sym.l_ptr(), sym.l_row());
         for j in 0..self.size.n {
             let wj = w[j];
-            for p in ux(l_ptr[j])..ux(l_ptr[j + 1]) {
-                w[ux(l_row[p])] -= l[p] * wj;
+            let cols = ux(l_ptr[j])..ux(l_ptr[j + 1]);
+            for (&r, &lv) in l_row[cols.clone()].iter().zip(&l[cols]) {
+                w[ux(r)] -= lv * wj;
             }
         }
         Ok(())
@@ -177,8 +178,9 @@ impl<'a, T: Real> LdlFactor<'a, T> {
         let (l_ptr, l_row) = (sym.l_ptr(), sym.l_row());
         for j in (0..self.size.n).rev() {
             let mut wj = w[j];
-            for p in ux(l_ptr[j])..ux(l_ptr[j + 1]) {
-                wj -= l[p] * w[ux(l_row[p])];
+            let cols = ux(l_ptr[j])..ux(l_ptr[j + 1]);
+            for (&r, &lv) in l_row[cols.clone()].iter().zip(&l[cols]) {
+                wj -= lv * w[ux(r)];
             }
             w[j] = wj;
         }

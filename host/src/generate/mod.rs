@@ -1,0 +1,1 @@
+//! The synthetic-scene generator (being written).
