@@ -127,7 +127,7 @@ fn with_model<R>(c: &Case, strategy: Strategy, f: impl FnOnce(&mut Model<'_, f64
         tets: &c.mesh.tets,
         fixed: &c.fixed,
     };
-    let mut storage = ModelStorage::new(&input, FEATURES).expect("size");
+    let mut storage = ModelStorage::new(&input, FEATURES, 0).expect("size");
     let mut model = storage
         .model(&input, &config(c.cam, strategy))
         .expect("model");
@@ -280,10 +280,10 @@ fn instructions() {
                             .or_else(|| l.strip_prefix("totals: "))
                     }) {
                         let ir: f64 = total.split_whitespace().next().unwrap().parse().unwrap();
-                        if let Ok(n) = n.parse::<usize>() {
-                            if n > 1 {
-                                counts.push((n, ir));
-                            }
+                        if let Ok(n) = n.parse::<usize>()
+                            && n > 1
+                        {
+                            counts.push((n, ir));
                         }
                     }
                 }

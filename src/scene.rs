@@ -1,10 +1,9 @@
-//! Small synthetic scenes for tests and benchmarks: a camera looking at a mesh, the model built
-//! in `Vec` storage, and observations of material points.
+//! Small synthetic scenes for tests and benchmarks: a camera looking at a mesh and observations
+//! of material points. The model itself is built in the host's `ModelStorage`.
 
-use incise_core::mesh::MeshCapacity;
-use incise_core::{
-    Camera, Capacities, Error, Intrinsics, MeshInput, Model, ModelConfig, ModelSize, Observation,
-};
+pub use incise::run::ModelStorage;
+
+use incise_core::{Camera, Intrinsics, Observation};
 use nalgebra::{Matrix3, Vector3};
 
 use crate::testmesh::TetMesh;
@@ -38,50 +37,6 @@ pub fn camera(
         height: size.1,
     };
     Camera::new(intr, r, t, 1e-4).expect("valid camera")
-}
-
-/// The storage of one model, sized by the core's own analysis.
-pub struct ModelStorage<T> {
-    /// The sizes.
-    pub size: ModelSize,
-    reals: Vec<T>,
-    indices: Vec<u32>,
-    work: Vec<u32>,
-}
-
-impl<T: incise_core::Real> ModelStorage<T> {
-    /// Sizes storage for `mesh` with room for `features` features.
-    pub fn new(mesh: &MeshInput<'_, T>, features: usize) -> Result<Self, Error> {
-        let caps = Capacities {
-            mesh: MeshCapacity::exact(mesh),
-            features,
-            factor_headroom_percent: 0,
-        };
-        let mut work = vec![0u32; ModelSize::work_len(&caps.mesh, features)];
-        let size = ModelSize::analyse(mesh, &caps, &mut work)?;
-        Ok(ModelStorage {
-            size,
-            reals: vec![T::zero(); size.real_len()],
-            indices: vec![0; size.index_len()],
-            work,
-        })
-    }
-
-    /// Builds the model in this storage.
-    pub fn model<'a>(
-        &'a mut self,
-        mesh: &MeshInput<'_, T>,
-        config: &ModelConfig<T>,
-    ) -> Result<Model<'a, T>, Error> {
-        Model::new(
-            mesh,
-            config,
-            &self.size,
-            &mut self.reals,
-            &mut self.indices,
-            &mut self.work,
-        )
-    }
 }
 
 /// Nodes of `mesh` whose coordinate `axis` equals `value` (to 1e-12).

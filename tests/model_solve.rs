@@ -127,7 +127,7 @@ fn cantilever_tip_deflection_matches_euler_bernoulli() {
         let input = beam.input();
         let mut cfg = config(beam.cam, 3.0e-11, Strategy::Refactor, 0.0);
         cfg.solver.newton_iterations = 3;
-        let mut storage = ModelStorage::new(&input, 64).unwrap();
+        let mut storage = ModelStorage::new(&input, 64, 0).unwrap();
         let mut model = storage.model(&input, &cfg).unwrap();
         model.embed_features(&beam.frame0).unwrap();
         // A small deflection is nearly linear: one frame of Newton steps converges.
@@ -194,7 +194,7 @@ fn converged_refactor_solve_matches_a_newton_loop_solved_by_faer() {
     let input = beam.input();
     let cfg = config(beam.cam, 2.0e-7, Strategy::Refactor, 0.0);
 
-    let mut storage = ModelStorage::new(&input, 64).unwrap();
+    let mut storage = ModelStorage::new(&input, 64, 0).unwrap();
     let mut ours = storage.model(&input, &cfg).unwrap();
     ours.embed_features(&beam.frame0).unwrap();
     let last = converge(&mut ours, &beam.pulled);
@@ -204,7 +204,7 @@ fn converged_refactor_solve_matches_a_newton_loop_solved_by_faer() {
         last.gradient_norm_after
     );
 
-    let mut storage_ref = ModelStorage::new(&input, 64).unwrap();
+    let mut storage_ref = ModelStorage::new(&input, 64, 0).unwrap();
     let mut reference = storage_ref.model(&input, &cfg).unwrap();
     reference.embed_features(&beam.frame0).unwrap();
     reference.observe(&beam.pulled).unwrap();
@@ -262,7 +262,7 @@ fn target_deformation(
         fixed,
     };
     let cfg = config(cam, 2.0e-7, Strategy::Refactor, 0.0);
-    let mut storage = ModelStorage::new(&input, 64).unwrap();
+    let mut storage = ModelStorage::new(&input, 64, 0).unwrap();
     let mut model = storage.model(&input, &cfg).unwrap();
     let pts = top_grid(0.9 * size[0], size[0], size[1], size[2], 4);
     let frame0 = observe(&cam, &pts);
@@ -308,7 +308,7 @@ fn registration(strategy: Strategy) {
         fixed: &fixed,
     };
     let cfg = config(cam, 2.0e-6, strategy, 1e-3);
-    let mut storage = ModelStorage::new(&input, 256).unwrap();
+    let mut storage = ModelStorage::new(&input, 256, 0).unwrap();
     let mut model = storage.model(&input, &cfg).unwrap();
     let report = model.embed_features(&observe(&cam, &at(0.0))).unwrap();
     assert_eq!(report.missed, 0);

@@ -10,14 +10,23 @@
 //! - [`render`]: rasterised silhouettes and overlay pictures.
 //! - [`metrics`]: Dice, surface and target errors, polyline distances.
 //! - [`generate`]: the synthetic-scene generator (`incise gen`) (the "real" object, its motion and its images).
+//! - [`scene`]: the scene directory format (scene.toml, tracks, ground truth).
+//! - [`run`]: `incise run`, the frame loop over a scene and its metrics.
 //! - [`rng`]: a small seeded random generator, so that everything generated is reproducible.
+//! - [`report`]: human summaries, overview pictures, plots.
 //! - [`cli`]: the `incise` command line.
 #![forbid(unsafe_code)]
+// Geometry and image loops index several arrays with one variable; `!(x > 0.0)` is meant to
+// be true for NaN.
+#![allow(clippy::needless_range_loop, clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod cli;
 pub mod generate;
 pub mod metrics;
 pub mod msh;
 pub mod render;
+pub mod report;
 pub mod rng;
+pub mod run;
+pub mod scene;
 pub mod vtu;

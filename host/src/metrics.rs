@@ -1,1 +1,262 @@
-//! (being written)
+//! The metrics of DESIGN.md, the same everywhere: Dice of silhouettes, surface RMS distance,
+//! target registration error, and the distance between cut polylines.
+
+use crate::render::Mask;
+
+/// Dice coefficient `2 |A ∩ B| / (|A| + |B|)` of two masks of the same size (1 when both are
+/// empty).
+///
+/// # Panics
+/// If the masks differ in size (a programming error: both come from the same camera).
+pub fn dice(a: &Mask, b: &Mask) -> f64 {
+    assert_eq!(
+        (a.width, a.height),
+        (b.width, b.height),
+        "Dice of masks of different sizes"
+    );
+    let (mut both, mut na, mut nb) = (0usize, 0usize, 0usize);
+    for (&x, &y) in a.data.iter().zip(&b.data) {
+        let (x, y) = (x != 0, y != 0);
+        both += usize::from(x && y);
+        na += usize::from(x);
+        nb += usize::from(y);
+    }
+    if na + nb == 0 {
+        1.0
+    } else {
+        2.0 * both as f64 / (na + nb) as f64
+    }
+}
+
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// Distance from `p` to the closed triangle `(a, b, c)` (Ericson's closest-point regions).
+pub fn point_triangle_distance(p: [f64; 3], a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> f64 {
+    let closest = closest_on_triangle(p, a, b, c);
+    let d = sub(p, closest);
+    dot(d, d).sqrt()
+}
+
+fn closest_on_triangle(p: [f64; 3], a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> [f64; 3] {
+    let lerp =
+        |o: [f64; 3], d: [f64; 3], t: f64| [o[0] + t * d[0], o[1] + t * d[1], o[2] + t * d[2]];
+    let (ab, ac, ap) = (sub(b, a), sub(c, a), sub(p, a));
+    let (d1, d2) = (dot(ab, ap), dot(ac, ap));
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return a;
+    }
+    let bp = sub(p, b);
+    let (d3, d4) = (dot(ab, bp), dot(ac, bp));
+    if d3 >= 0.0 && d4 <= d3 {
+        return b;
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        return lerp(a, ab, d1 / (d1 - d3));
+    }
+    let cp = sub(p, c);
+    let (d5, d6) = (dot(ab, cp), dot(ac, cp));
+    if d6 >= 0.0 && d5 <= d6 {
+        return c;
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        return lerp(a, ac, d2 / (d2 - d6));
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
+        return lerp(b, sub(c, b), (d4 - d3) / ((d4 - d3) + (d5 - d6)));
+    }
+    let denom = 1.0 / (va + vb + vc);
+    let (v, w) = (vb * denom, vc * denom);
+    [
+        a[0] + ab[0] * v + ac[0] * w,
+        a[1] + ab[1] * v + ac[1] * w,
+        a[2] + ab[2] * v + ac[2] * w,
+    ]
+}
+
+/// Distance from `p` to the nearest of `triangles` over `positions`.
+pub fn point_surface_distance(p: [f64; 3], positions: &[[f64; 3]], triangles: &[[u32; 3]]) -> f64 {
+    triangles
+        .iter()
+        .map(|t| {
+            point_triangle_distance(
+                p,
+                positions[t[0] as usize],
+                positions[t[1] as usize],
+                positions[t[2] as usize],
+            )
+        })
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// Root-mean-square distance from `points` to a triangulated surface (metres in, metres out).
+/// The cost is points × triangles, fine for the scenes' few thousand of each.
+pub fn surface_rms(points: &[[f64; 3]], positions: &[[f64; 3]], triangles: &[[u32; 3]]) -> f64 {
+    if points.is_empty() {
+        return 0.0;
+    }
+    let sum: f64 = points
+        .iter()
+        .map(|&p| point_surface_distance(p, positions, triangles).powi(2))
+        .sum();
+    (sum / points.len() as f64).sqrt()
+}
+
+/// Root-mean-square distance between paired points (target registration error when `a` are
+/// the model's predictions of internal targets and `b` their true positions).
+///
+/// # Panics
+/// If the slices differ in length.
+pub fn paired_rms(a: &[[f64; 3]], b: &[[f64; 3]]) -> f64 {
+    assert_eq!(a.len(), b.len(), "paired points of different counts");
+    if a.is_empty() {
+        return 0.0;
+    }
+    let sum: f64 = a
+        .iter()
+        .zip(b)
+        .map(|(p, q)| dot(sub(*p, *q), sub(*p, *q)))
+        .sum();
+    (sum / a.len() as f64).sqrt()
+}
+
+/// Distance from `p` to the segment `a–b` in the image plane.
+pub fn point_segment_distance_2d(p: [f64; 2], a: [f64; 2], b: [f64; 2]) -> f64 {
+    let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+    let len2 = dx * dx + dy * dy;
+    let t = if len2 > 0.0 {
+        (((p[0] - a[0]) * dx + (p[1] - a[1]) * dy) / len2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    let (cx, cy) = (a[0] + t * dx - p[0], a[1] + t * dy - p[1]);
+    (cx * cx + cy * cy).sqrt()
+}
+
+fn point_polyline_distance(p: [f64; 2], line: &[[f64; 2]]) -> f64 {
+    match line {
+        [] => f64::INFINITY,
+        [a] => point_segment_distance_2d(p, *a, *a),
+        _ => line
+            .windows(2)
+            .map(|w| point_segment_distance_2d(p, w[0], w[1]))
+            .fold(f64::INFINITY, f64::min),
+    }
+}
+
+/// Directed distance `sup_{p ∈ a} d(p, b)`, with `a` sampled every `step` pixels along its
+/// segments (the supremum over a segment is not always at a vertex).
+fn directed_hausdorff(a: &[[f64; 2]], b: &[[f64; 2]], step: f64) -> f64 {
+    let mut worst: f64 = 0.0;
+    let mut visit = |p: [f64; 2]| worst = worst.max(point_polyline_distance(p, b));
+    match a {
+        [] => return 0.0,
+        [p] => visit(*p),
+        _ => {
+            for w in a.windows(2) {
+                let len = ((w[1][0] - w[0][0]).powi(2) + (w[1][1] - w[0][1]).powi(2)).sqrt();
+                let n = (len / step).ceil().max(1.0) as usize;
+                for k in 0..=n {
+                    let t = k as f64 / n as f64;
+                    visit([
+                        w[0][0] + t * (w[1][0] - w[0][0]),
+                        w[0][1] + t * (w[1][1] - w[0][1]),
+                    ]);
+                }
+            }
+        }
+    }
+    worst
+}
+
+/// Symmetric Hausdorff distance between two polylines in the image (pixels), evaluated on
+/// points every 0.25 pixel along each (so exact to that resolution). Infinite if exactly one
+/// of them is empty, 0 if both are.
+pub fn hausdorff_polyline(a: &[[f64; 2]], b: &[[f64; 2]]) -> f64 {
+    match (a.is_empty(), b.is_empty()) {
+        (true, true) => 0.0,
+        (true, false) | (false, true) => f64::INFINITY,
+        _ => directed_hausdorff(a, b, 0.25).max(directed_hausdorff(b, a, 0.25)),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn mask(w: u32, h: u32, set: impl Fn(u32, u32) -> bool) -> Mask {
+        let mut m = Mask::new(w, h);
+        for y in 0..h {
+            for x in 0..w {
+                m.data[(y * w + x) as usize] = u8::from(set(x, y));
+            }
+        }
+        m
+    }
+
+    #[test]
+    fn dice_on_hand_made_masks() {
+        let a = mask(10, 10, |x, _| x < 5);
+        assert_eq!(dice(&a, &a), 1.0);
+        let b = mask(10, 10, |x, _| x >= 5);
+        assert_eq!(dice(&a, &b), 0.0);
+        // Half of a overlaps all of c: |A| = 50, |C| = 25, |A ∩ C| = 25 → 50/75.
+        let c = mask(10, 10, |x, y| x < 5 && y < 5);
+        assert!((dice(&a, &c) - 2.0 / 3.0).abs() < 1e-15);
+        // Bands of 5 columns sharing 3: 2·30 / (50 + 50).
+        let d = mask(10, 10, |x, _| (3..8).contains(&x));
+        let e = mask(10, 10, |x, _| (5..10).contains(&x));
+        assert!((dice(&d, &e) - 0.6).abs() < 1e-15);
+        assert_eq!(dice(&Mask::new(3, 3), &Mask::new(3, 3)), 1.0);
+    }
+
+    #[test]
+    fn half_overlap_is_one_half() {
+        let a = mask(8, 8, |x, _| x < 4);
+        let b = mask(8, 8, |x, _| (2..6).contains(&x));
+        assert!((dice(&a, &b) - 0.5).abs() < 1e-15);
+    }
+
+    #[test]
+    fn point_triangle_regions() {
+        let (a, b, c) = ([0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]);
+        assert!((point_triangle_distance([0.2, 0.2, 3.0], a, b, c) - 3.0).abs() < 1e-15);
+        assert!((point_triangle_distance([-1.0, -1.0, 0.0], a, b, c) - 2f64.sqrt()).abs() < 1e-15);
+        assert!((point_triangle_distance([0.5, -2.0, 0.0], a, b, c) - 2.0).abs() < 1e-15);
+        assert!((point_triangle_distance([1.0, 1.0, 0.0], a, b, c) - 0.5f64.sqrt()).abs() < 1e-15);
+        assert_eq!(point_triangle_distance([0.1, 0.1, 0.0], a, b, c), 0.0);
+    }
+
+    #[test]
+    fn polyline_hausdorff() {
+        let a = [[0.0, 0.0], [10.0, 0.0]];
+        let b = [[0.0, 1.0], [10.0, 1.0]];
+        assert!((hausdorff_polyline(&a, &b) - 1.0).abs() < 1e-12);
+        // A longer line: the extra 5 pixels count.
+        let c = [[0.0, 0.0], [15.0, 0.0]];
+        assert!((hausdorff_polyline(&a, &c) - 5.0).abs() < 1e-12);
+        // The supremum inside a segment, not at a vertex: a tent against a flat line.
+        let tent = [[0.0, 0.0], [5.0, 4.0], [10.0, 0.0]];
+        assert!((hausdorff_polyline(&a, &tent) - 4.0).abs() < 1e-12);
+        assert_eq!(hausdorff_polyline(&[], &[]), 0.0);
+        assert!(hausdorff_polyline(&a, &[]).is_infinite());
+    }
+
+    #[test]
+    fn rms_helpers() {
+        let pos = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+        let tris = [[0u32, 1, 2]];
+        let pts = [[0.1, 0.1, 0.3], [0.1, 0.1, -0.4]];
+        let rms = surface_rms(&pts, &pos, &tris);
+        assert!((rms - ((0.09 + 0.16) / 2.0f64).sqrt()).abs() < 1e-15);
+        assert!((paired_rms(&[[0.0; 3]], &[[3.0, 4.0, 0.0]]) - 5.0).abs() < 1e-15);
+    }
+}

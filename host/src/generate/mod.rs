@@ -1,1 +1,20 @@
-//! The synthetic-scene generator (being written).
+//! The synthetic-scene generator: the *real* object behind a scene, its scripted motion and its
+//! images, with the ground truth the model is scored against.
+//!
+//! - [`neohookean`]: compressible Neo-Hookean elasticity on linear tetrahedra (energy, forces,
+//!   positive semidefinite Hessian), the real object's law, deliberately not the model's SVK.
+//! - [`sim`]: the quasi-static simulator of the real object, driven frame by frame through
+//!   prescribed (held or grasped) nodes.
+//! - [`object`]: the real object's mesh (a fine band, or an organ mesh refined eight-fold) and
+//!   the pre-cut slit, made by duplicating nodes on a surface of mesh faces.
+//! - [`tracking`]: what a tracker would report: features on the visible surface, hidden when
+//!   occluded, with noise, drop-outs and jumps.
+//! - [`scenario`]: the `scenario.toml` a scene is generated from.
+//! - [`pipeline`]: `incise gen` itself, frame by frame, and the files it writes.
+
+pub mod neohookean;
+pub mod object;
+pub mod pipeline;
+pub mod scenario;
+pub mod sim;
+pub mod tracking;

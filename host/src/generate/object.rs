@@ -1,0 +1,351 @@
+//! The real object's mesh: a finely meshed band or a refined organ mesh, and the pre-cut slit
+//! made by duplicating the nodes on a surface of mesh faces.
+
+use std::collections::HashMap;
+
+/// A tetrahedral mesh (metres, positively oriented tetrahedra).
+#[derive(Clone, Debug, PartialEq)]
+pub struct TetMesh {
+    /// Node positions.
+    pub nodes: Vec<[f64; 3]>,
+    /// Tetrahedra.
+    pub tets: Vec<[u32; 4]>,
+}
+
+/// Six times the signed volume of the tetrahedron `(a, b, c, d)`.
+pub fn signed_volume6(a: [f64; 3], b: [f64; 3], c: [f64; 3], d: [f64; 3]) -> f64 {
+    let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+    let v = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
+    let w = [d[0] - a[0], d[1] - a[1], d[2] - a[2]];
+    u[0] * (v[1] * w[2] - v[2] * w[1]) - u[1] * (v[0] * w[2] - v[2] * w[0])
+        + u[2] * (v[0] * w[1] - v[1] * w[0])
+}
+
+impl TetMesh {
+    /// The box `[0, size]` cut into `cells`, each cell into six tetrahedra around its main
+    /// diagonal (conforming), node `(i, j, k)` at `i + (nx + 1)(j + (ny + 1) k)`.
+    pub fn band(size: [f64; 3], cells: [usize; 3]) -> TetMesh {
+        let [nx, ny, nz] = cells;
+        let id = |i: usize, j: usize, k: usize| (i + (nx + 1) * (j + (ny + 1) * k)) as u32;
+        let mut nodes = Vec::with_capacity((nx + 1) * (ny + 1) * (nz + 1));
+        for k in 0..=nz {
+            for j in 0..=ny {
+                for i in 0..=nx {
+                    nodes.push([
+                        size[0] * i as f64 / nx as f64,
+                        size[1] * j as f64 / ny as f64,
+                        size[2] * k as f64 / nz as f64,
+                    ]);
+                }
+            }
+        }
+        let mut tets = Vec::with_capacity(6 * nx * ny * nz);
+        for k in 0..nz {
+            for j in 0..ny {
+                for i in 0..nx {
+                    for path in [
+                        [0, 1, 2],
+                        [0, 2, 1],
+                        [1, 0, 2],
+                        [1, 2, 0],
+                        [2, 0, 1],
+                        [2, 1, 0],
+                    ] {
+                        let mut c = [i, j, k];
+                        let mut t = [id(i, j, k); 4];
+                        for (s, axis) in path.into_iter().enumerate() {
+                            c[axis] += 1;
+                            t[s + 1] = id(c[0], c[1], c[2]);
+                        }
+                        tets.push(t);
+                    }
+                }
+            }
+        }
+        let mut mesh = TetMesh { nodes, tets };
+        mesh.orient_positive();
+        mesh
+    }
+
+    /// Swaps two nodes of every negatively oriented tetrahedron.
+    pub fn orient_positive(&mut self) {
+        for t in &mut self.tets {
+            let p = |v: u32| self.nodes[v as usize];
+            if signed_volume6(p(t[0]), p(t[1]), p(t[2]), p(t[3])) < 0.0 {
+                t.swap(2, 3);
+            }
+        }
+    }
+
+    /// Uniform refinement: every tetrahedron into eight (four at the corners, four from the
+    /// inner octahedron split along its shortest diagonal), new nodes at edge midpoints after
+    /// the original ones, so node `v` of `self` is node `v` of the result.
+    pub fn refine(&self) -> TetMesh {
+        let mut nodes = self.nodes.clone();
+        let mut mid: HashMap<(u32, u32), u32> = HashMap::new();
+        let mut midpoint = |a: u32, b: u32, nodes: &mut Vec<[f64; 3]>| -> u32 {
+            let key = (a.min(b), a.max(b));
+            *mid.entry(key).or_insert_with(|| {
+                let (p, q) = (nodes[a as usize], nodes[b as usize]);
+                nodes.push([
+                    (p[0] + q[0]) / 2.0,
+                    (p[1] + q[1]) / 2.0,
+                    (p[2] + q[2]) / 2.0,
+                ]);
+                (nodes.len() - 1) as u32
+            })
+        };
+        let mut tets = Vec::with_capacity(8 * self.tets.len());
+        for &[a, b, c, d] in &self.tets {
+            let ab = midpoint(a, b, &mut nodes);
+            let ac = midpoint(a, c, &mut nodes);
+            let ad = midpoint(a, d, &mut nodes);
+            let bc = midpoint(b, c, &mut nodes);
+            let bd = midpoint(b, d, &mut nodes);
+            let cd = midpoint(c, d, &mut nodes);
+            tets.extend([
+                [a, ab, ac, ad],
+                [ab, b, bc, bd],
+                [ac, bc, c, cd],
+                [ad, bd, cd, d],
+            ]);
+            // The octahedron (ab, ac, ad, bc, bd, cd): split along the shortest of its three
+            // diagonals (ab–cd, ac–bd, ad–bc) for the best-shaped children.
+            let len = |p: u32, q: u32| {
+                let (x, y) = (nodes[p as usize], nodes[q as usize]);
+                (0..3).map(|k| (x[k] - y[k]).powi(2)).sum::<f64>()
+            };
+            let diagonals = [
+                (ab, cd, [ac, ad, bd, bc]),
+                (ac, bd, [ab, ad, cd, bc]),
+                (ad, bc, [ab, ac, cd, bd]),
+            ];
+            let (p, q, ring) = diagonals
+                .into_iter()
+                .min_by(|x, y| len(x.0, x.1).total_cmp(&len(y.0, y.1)))
+                .expect("three diagonals");
+            // The ring around the diagonal p–q, in cyclic order: four tetrahedra share p–q.
+            for k in 0..4 {
+                tets.push([p, q, ring[k], ring[(k + 1) % 4]]);
+            }
+        }
+        let mut mesh = TetMesh { nodes, tets };
+        mesh.orient_positive();
+        mesh
+    }
+
+    /// Centroid of tetrahedron `t`.
+    pub fn centroid(&self, t: usize) -> [f64; 3] {
+        let mut c = [0.0; 3];
+        for &v in &self.tets[t] {
+            for k in 0..3 {
+                c[k] += self.nodes[v as usize][k] / 4.0;
+            }
+        }
+        c
+    }
+
+    /// Boundary faces `(a, b, c, tet)`, oriented outward.
+    pub fn boundary(&self) -> Vec<([u32; 3], usize)> {
+        let mut count: HashMap<[u32; 3], Vec<(usize, usize)>> = HashMap::new();
+        for (t, tet) in self.tets.iter().enumerate() {
+            for l in 0..4 {
+                let mut f = [tet[(l + 1) % 4], tet[(l + 2) % 4], tet[(l + 3) % 4]];
+                f.sort_unstable();
+                count.entry(f).or_default().push((t, l));
+            }
+        }
+        let mut out: Vec<([u32; 3], usize)> = count
+            .into_values()
+            .filter(|v| v.len() == 1)
+            .map(|v| {
+                let (t, l) = v[0];
+                let tet = self.tets[t];
+                let mut tri = [tet[(l + 1) % 4], tet[(l + 2) % 4], tet[(l + 3) % 4]];
+                let p = |v: u32| self.nodes[v as usize];
+                if signed_volume6(p(tri[0]), p(tri[1]), p(tri[2]), p(tet[l])) > 0.0 {
+                    tri.swap(1, 2);
+                }
+                (tri, t)
+            })
+            .collect();
+        // Deterministic order, whatever the hash map did.
+        out.sort_unstable();
+        out
+    }
+}
+
+/// The result of cutting a slit: the mesh with duplicated nodes, and for each duplicate the
+/// node it was split from.
+#[derive(Clone, Debug)]
+pub struct Slit {
+    /// The cut mesh.
+    pub mesh: TetMesh,
+    /// `(original, duplicate)` node pairs: the two lips of the slit.
+    pub pairs: Vec<(u32, u32)>,
+    /// Number of mesh faces that form the slit.
+    pub faces: usize,
+}
+
+/// Cuts `mesh` along the interior faces that separate tetrahedra whose centroids lie on
+/// opposite sides of the plane `(point, normal)`, keeping those whose centroid is inside
+/// `region` (`[min, max]`). A node on those faces is split into one copy per group of its
+/// tetrahedra still connected through uncut faces, so the lips separate while the slit's front
+/// stays attached.
+pub fn cut_slit(mesh: &TetMesh, point: [f64; 3], normal: [f64; 3], region: [[f64; 3]; 2]) -> Slit {
+    let side =
+        |p: [f64; 3]| -> bool { (0..3).map(|k| (p[k] - point[k]) * normal[k]).sum::<f64>() > 0.0 };
+    let inside = |p: [f64; 3]| (0..3).all(|k| p[k] >= region[0][k] && p[k] <= region[1][k]);
+    // Interior faces and their two tetrahedra.
+    let mut faces: HashMap<[u32; 3], Vec<usize>> = HashMap::new();
+    for (t, tet) in mesh.tets.iter().enumerate() {
+        for l in 0..4 {
+            let mut f = [tet[(l + 1) % 4], tet[(l + 2) % 4], tet[(l + 3) % 4]];
+            f.sort_unstable();
+            faces.entry(f).or_default().push(t);
+        }
+    }
+    let mut cut: Vec<[u32; 3]> = faces
+        .iter()
+        .filter(|(f, ts)| {
+            ts.len() == 2 && side(mesh.centroid(ts[0])) != side(mesh.centroid(ts[1])) && {
+                let c = (0..3)
+                    .map(|k| f.iter().map(|&v| mesh.nodes[v as usize][k]).sum::<f64>() / 3.0)
+                    .collect::<Vec<_>>();
+                inside([c[0], c[1], c[2]])
+            }
+        })
+        .map(|(f, _)| *f)
+        .collect();
+    cut.sort_unstable();
+    let is_cut: std::collections::HashSet<[u32; 3]> = cut.iter().copied().collect();
+
+    // Tetrahedra around each node on the slit.
+    let mut slit_nodes: Vec<u32> = cut.iter().flatten().copied().collect();
+    slit_nodes.sort_unstable();
+    slit_nodes.dedup();
+    let mut around: HashMap<u32, Vec<usize>> = slit_nodes.iter().map(|&v| (v, vec![])).collect();
+    for (t, tet) in mesh.tets.iter().enumerate() {
+        for v in tet {
+            if let Some(list) = around.get_mut(v) {
+                list.push(t);
+            }
+        }
+    }
+    let mut out = mesh.clone();
+    let mut pairs = vec![];
+    for &v in &slit_nodes {
+        let ts = &around[&v];
+        // Union-find over the tetrahedra around v, joined through shared faces not cut.
+        let mut parent: Vec<usize> = (0..ts.len()).collect();
+        fn find(p: &mut [usize], mut i: usize) -> usize {
+            while p[i] != i {
+                p[i] = p[p[i]];
+                i = p[i];
+            }
+            i
+        }
+        for a in 0..ts.len() {
+            for b in a + 1..ts.len() {
+                let (ta, tb) = (mesh.tets[ts[a]], mesh.tets[ts[b]]);
+                let shared: Vec<u32> = ta.iter().copied().filter(|x| tb.contains(x)).collect();
+                if shared.len() == 3 {
+                    let mut f = [shared[0], shared[1], shared[2]];
+                    f.sort_unstable();
+                    if !is_cut.contains(&f) {
+                        let (ra, rb) = (find(&mut parent, a), find(&mut parent, b));
+                        parent[ra.max(rb)] = ra.min(rb);
+                    }
+                }
+            }
+        }
+        let mut roots: Vec<usize> = (0..ts.len()).map(|i| find(&mut parent, i)).collect();
+        let first = roots.iter().copied().min().unwrap_or(0);
+        roots.sort_unstable();
+        roots.dedup();
+        for &r in roots.iter().filter(|&&r| r != first) {
+            out.nodes.push(mesh.nodes[v as usize]);
+            let copy = (out.nodes.len() - 1) as u32;
+            pairs.push((v, copy));
+            for (i, &t) in ts.iter().enumerate() {
+                if find(&mut parent, i) == r {
+                    for x in out.tets[t].iter_mut() {
+                        if *x == v {
+                            *x = copy;
+                        }
+                    }
+                }
+            }
+        }
+    }
+    Slit {
+        mesh: out,
+        pairs,
+        faces: cut.len(),
+    }
+}
+
+/// A point inside tetrahedron `t` of `mesh` with barycentric weights `w`.
+pub fn interpolate(mesh_nodes: &[[f64; 3]], tet: [u32; 4], w: [f64; 4]) -> [f64; 3] {
+    let mut p = [0.0; 3];
+    for (k, &v) in tet.iter().enumerate() {
+        for c in 0..3 {
+            p[c] += w[k] * mesh_nodes[v as usize][c];
+        }
+    }
+    p
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn volume(m: &TetMesh) -> f64 {
+        m.tets
+            .iter()
+            .map(|t| {
+                let p = |v: u32| m.nodes[v as usize];
+                signed_volume6(p(t[0]), p(t[1]), p(t[2]), p(t[3])) / 6.0
+            })
+            .sum()
+    }
+
+    #[test]
+    fn band_and_refinement_keep_volume_and_orientation() {
+        let band = TetMesh::band([0.1, 0.03, 0.004], [5, 3, 1]);
+        assert!((volume(&band) - 0.1 * 0.03 * 0.004).abs() < 1e-15);
+        let fine = band.refine();
+        assert_eq!(fine.tets.len(), 8 * band.tets.len());
+        assert!((volume(&fine) - volume(&band)).abs() < 1e-15);
+        assert!(fine.tets.iter().all(|t| {
+            let p = |v: u32| fine.nodes[v as usize];
+            signed_volume6(p(t[0]), p(t[1]), p(t[2]), p(t[3])) > 0.0
+        }));
+        // Same boundary area: no surface node moved.
+        assert_eq!(&fine.nodes[..band.nodes.len()], &band.nodes[..]);
+    }
+
+    #[test]
+    fn side_slit_duplicates_the_lips_but_not_the_front() {
+        // A 4 × 4 × 1 band, slit at x = 0.5 from y = 0 up to y = 0.5 (half the width).
+        let band = TetMesh::band([1.0, 1.0, 0.25], [4, 4, 1]);
+        let slit = cut_slit(
+            &band,
+            [0.5, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [[0.4, -0.1, -0.1], [0.6, 0.5, 1.0]],
+        );
+        // Faces on x = 0.5 with centroid y < 0.5: 2 cells × 2 triangles each.
+        assert_eq!(slit.faces, 4);
+        // Nodes on x = 0.5 with y in {0, 0.25} at z = 0 and 0.25 are split; y = 0.5 (the front)
+        // is not.
+        assert_eq!(slit.pairs.len(), 4);
+        assert!(
+            slit.pairs
+                .iter()
+                .all(|&(v, _)| band.nodes[v as usize][1] < 0.3)
+        );
+        assert_eq!(slit.mesh.nodes.len(), band.nodes.len() + 4);
+        assert!((volume(&slit.mesh) - volume(&band)).abs() < 1e-15);
+    }
+}

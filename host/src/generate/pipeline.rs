@@ -1,0 +1,464 @@
+//! `incise gen`: simulate the scenario's real object frame by frame and write the scene.
+
+use std::fmt;
+use std::path::{Component, Path, PathBuf};
+
+use incise_core::Camera;
+use incise_core::nalgebra::{Rotation3, Unit, Vector3};
+use indicatif::{ProgressBar, ProgressStyle};
+
+use crate::generate::object::{TetMesh, cut_slit, interpolate, signed_volume6};
+use crate::generate::scenario::{GraspSpec, Scenario};
+use crate::generate::sim::Simulator;
+use crate::generate::tracking::{DepthBuffer, observe_frame, sample_features};
+use crate::msh;
+use crate::rng::Rng;
+use crate::scene::{
+    CameraSection, GroundTruthSection, ModelSection, SceneFile, silhouette_path, write_obj,
+    write_tracks,
+};
+
+/// A failure of the generator, with what it was doing.
+#[derive(Debug)]
+pub struct GenError(pub String);
+
+impl fmt::Display for GenError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for GenError {}
+
+fn err(e: impl fmt::Display) -> GenError {
+    GenError(e.to_string())
+}
+
+/// What was generated.
+#[derive(Clone, Debug)]
+pub struct Generated {
+    /// The scene directory.
+    pub dir: PathBuf,
+    /// Frames written.
+    pub frames: u32,
+    /// Features sampled.
+    pub features: usize,
+    /// Nodes and tetrahedra of the real (fine) mesh.
+    pub fine_size: (usize, usize),
+    /// Nodes and tetrahedra of the model mesh.
+    pub model_size: (usize, usize),
+    /// First frame at which the slit has opened by a pixel.
+    pub cut_open_frame: Option<u32>,
+}
+
+/// The camera of a scenario.
+pub fn scenario_camera(s: &Scenario) -> Result<Camera<f64>, GenError> {
+    let c = &s.camera;
+    let eye = Vector3::from(c.eye);
+    let z = (Vector3::from(c.target) - eye).normalize();
+    let x = z.cross(&Vector3::from(c.up)).normalize();
+    let y = z.cross(&x);
+    let r =
+        incise_core::nalgebra::Matrix3::from_rows(&[x.transpose(), y.transpose(), z.transpose()]);
+    Camera::new(
+        incise_core::Intrinsics {
+            fx: c.focal,
+            fy: c.focal,
+            cx: f64::from(c.width) / 2.0,
+            cy: f64::from(c.height) / 2.0,
+            width: c.width,
+            height: c.height,
+        },
+        r,
+        -(r * eye),
+        1e-4,
+    )
+    .map_err(|e| GenError(format!("[camera]: {e}")))
+}
+
+fn in_box(p: [f64; 3], b: &[[f64; 3]; 2]) -> bool {
+    (0..3).all(|k| p[k] >= b[0][k] && p[k] <= b[1][k])
+}
+
+/// Cosine ramp from 0 at `start` to 1 at `end`.
+fn ramp(frame: u32, start: u32, end: u32) -> f64 {
+    if frame <= start {
+        0.0
+    } else if frame >= end {
+        1.0
+    } else {
+        let t = f64::from(frame - start) / f64::from(end - start);
+        0.5 * (1.0 - (std::f64::consts::PI * t).cos())
+    }
+}
+
+/// Where a grasped node at rest position `p` is at `frame`.
+fn grasped_position(g: &GraspSpec, p: [f64; 3], frame: u32) -> [f64; 3] {
+    let s = ramp(frame, g.start, g.end);
+    let c = [0, 1, 2].map(|k| (g.region[0][k] + g.region[1][k]) / 2.0);
+    let axis = Unit::new_normalize(Vector3::from(g.axis));
+    let rot = Rotation3::from_axis_angle(&axis, s * g.rotation_degrees.to_radians());
+    let q = rot * (Vector3::from(p) - Vector3::from(c)) + Vector3::from(c);
+    [0, 1, 2].map(|k| q[k] + s * g.displacement[k])
+}
+
+/// `target` relative to `base` (both existing paths or their parents), for scene.toml.
+fn relative_path(target: &Path, base: &Path) -> PathBuf {
+    let (t, b) = match (target.canonicalize(), base.canonicalize()) {
+        (Ok(t), Ok(b)) => (t, b),
+        _ => return target.to_path_buf(),
+    };
+    let tc: Vec<Component> = t.components().collect();
+    let bc: Vec<Component> = b.components().collect();
+    let common = tc.iter().zip(&bc).take_while(|(x, y)| x == y).count();
+    let mut out = PathBuf::new();
+    for _ in common..bc.len() {
+        out.push("..");
+    }
+    for c in &tc[common..] {
+        out.push(c.as_os_str());
+    }
+    out
+}
+
+/// Runs the scenario at `scenario_path` and writes the scene into `out`.
+///
+/// # Errors
+/// A [`GenError`] saying what failed: a bad scenario, a mesh that cannot be read, a
+/// simulation that does not converge, a file that cannot be written.
+pub fn generate(scenario_path: &Path, out: &Path, progress: bool) -> Result<Generated, GenError> {
+    let s = Scenario::load(scenario_path).map_err(err)?;
+    let base = scenario_path.parent().unwrap_or(Path::new("."));
+    std::fs::create_dir_all(out.join("gt").join("silhouettes")).map_err(err)?;
+    let mut rng = Rng::new(s.seed);
+
+    // The model mesh and the finer real mesh.
+    let (model, fine, model_mesh_ref) = match s.object.shape.as_str() {
+        "band" => {
+            let model = TetMesh::band(s.object.size, s.object.model_cells);
+            let fine = TetMesh::band(s.object.size, s.object.fine_cells);
+            (model, fine, None)
+        }
+        "mesh" => {
+            let path = base.join(&s.object.mesh);
+            let mut m = msh::read_msh(&path).map_err(err)?;
+            m.orient_positive();
+            let nodes = m
+                .nodes
+                .iter()
+                .map(|p| p.map(|c| c * s.object.scale))
+                .collect();
+            let model = TetMesh {
+                nodes,
+                tets: m.tets,
+            };
+            let fine = model.refine();
+            (model, fine, Some(path))
+        }
+        other => {
+            return Err(GenError(format!(
+                "[object] shape must be \"band\" or \"mesh\", not {other:?}"
+            )));
+        }
+    };
+    let (real, pairs) = match &s.slit {
+        Some(sl) => {
+            let cut = cut_slit(&fine, sl.point, sl.normal, sl.region);
+            if cut.faces == 0 {
+                return Err(GenError(
+                    "[slit] region holds no mesh face: nothing is cut".into(),
+                ));
+            }
+            (cut.mesh, cut.pairs)
+        }
+        None => (fine.clone(), vec![]),
+    };
+
+    // Held and grasped nodes of the real mesh; the model holds its nodes in the held boxes.
+    let mut prescribed = vec![];
+    let mut grasp_of = vec![];
+    for (v, &p) in real.nodes.iter().enumerate() {
+        if s.motion.held.iter().any(|b| in_box(p, b)) {
+            prescribed.push(v as u32);
+            grasp_of.push(None);
+        } else if let Some(g) = s.motion.grasp.iter().position(|g| in_box(p, &g.region)) {
+            prescribed.push(v as u32);
+            grasp_of.push(Some(g));
+        }
+    }
+    let model_fixed: Vec<u32> = (0..model.nodes.len() as u32)
+        .filter(|&v| {
+            s.motion
+                .held
+                .iter()
+                .any(|b| in_box(model.nodes[v as usize], b))
+        })
+        .collect();
+    if model_fixed.is_empty() {
+        return Err(GenError("[motion] no model node lies in a held box".into()));
+    }
+    if grasp_of.iter().all(Option::is_none) {
+        return Err(GenError("[motion] no node lies in a grasped box".into()));
+    }
+
+    let camera = scenario_camera(&s)?;
+    let mut sim = Simulator::new(
+        &real.nodes,
+        &real.tets,
+        &prescribed,
+        s.object.young,
+        s.object.poisson,
+    )
+    .map_err(|e| GenError(format!("simulator: {e}")))?;
+    let boundary = real.boundary();
+    let triangles: Vec<[u32; 3]> = boundary.iter().map(|b| b.0).collect();
+    // Depth tolerance: a fraction of the object's smallest extent.
+    let extent = (0..3)
+        .map(|k| {
+            let (lo, hi) = real
+                .nodes
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| {
+                    (lo.min(p[k]), hi.max(p[k]))
+                });
+            hi - lo
+        })
+        .fold(f64::INFINITY, f64::min);
+    let tolerance = 0.05 * extent;
+
+    let depth0 = DepthBuffer::render(&camera, &real.nodes, &triangles);
+    let t = &s.tracking;
+    let features = sample_features(
+        &real,
+        &boundary,
+        &camera,
+        &depth0,
+        tolerance,
+        t.features,
+        s.frames,
+        t.outlier_fraction,
+        t.outlier_jump_px,
+        &mut rng,
+    )
+    .map_err(err)?;
+    let targets = sample_targets(&real, s.object.targets, &mut rng);
+
+    // The true cut line: lips on the original surface, seen at rest, ordered along the slit.
+    let fine_boundary: std::collections::HashSet<u32> =
+        fine.boundary().iter().flat_map(|b| b.0).collect();
+    let mut lips: Vec<(u32, u32)> = pairs
+        .iter()
+        .copied()
+        .filter(|&(v, _)| fine_boundary.contains(&v))
+        .filter(|&(v, _)| {
+            depth0
+                .visible(&camera, real.nodes[v as usize], tolerance)
+                .is_some()
+        })
+        .collect();
+    order_along_image_line(&mut lips, &real.nodes, &camera);
+
+    let bar = if progress {
+        let b = ProgressBar::new(u64::from(s.frames));
+        b.set_style(
+            ProgressStyle::with_template("{prefix:>16} [{bar:30}] {pos}/{len} frames {msg}")
+                .map_err(err)?
+                .progress_chars("=> "),
+        );
+        b.set_prefix(s.name.clone());
+        b
+    } else {
+        ProgressBar::hidden()
+    };
+    let mut tracks = vec![];
+    let mut target_rows = String::from("frame,id,x,y,z\n");
+    let mut cut_rows = String::from("frame,u,v\n");
+    let mut cut_open_frame = None;
+    for frame in 0..s.frames {
+        if frame > 0 {
+            let goal: Vec<[f64; 3]> = prescribed
+                .iter()
+                .zip(&grasp_of)
+                .map(|(&v, g)| {
+                    let p = real.nodes[v as usize];
+                    match g {
+                        Some(g) => grasped_position(&s.motion.grasp[*g], p, frame),
+                        None => p,
+                    }
+                })
+                .collect();
+            sim.solve(&goal, 60)
+                .map_err(|e| GenError(format!("frame {frame}: simulation failed: {e}")))?;
+        }
+        let x = sim.positions().to_vec();
+        let depth = if frame == 0 {
+            None
+        } else {
+            Some(DepthBuffer::render(&camera, &x, &triangles))
+        };
+        let depth = depth.as_ref().unwrap_or(&depth0);
+        tracks.push(observe_frame(
+            frame, &features, &real, &x, &camera, depth, tolerance, t.noise_px, t.dropout, &mut rng,
+        ));
+        depth
+            .mask()
+            .save_png(&silhouette_path(out, frame as usize))
+            .map_err(err)?;
+        for (id, (tet, w)) in targets.iter().enumerate() {
+            let p = interpolate(&x, real.tets[*tet], *w);
+            target_rows.push_str(&format!(
+                "{frame},{id},{:.7},{:.7},{:.7}\n",
+                p[0], p[1], p[2]
+            ));
+        }
+        let mut opening: f64 = 0.0;
+        for &(a, b) in &pairs {
+            if let (Ok(pa), Ok(pb)) = (
+                camera.project(&Vector3::from(x[a as usize]), 0),
+                camera.project(&Vector3::from(x[b as usize]), 0),
+            ) {
+                opening = opening.max((pa - pb).norm());
+            }
+        }
+        if cut_open_frame.is_none() && opening >= 1.0 {
+            cut_open_frame = Some(frame);
+        }
+        for &(a, b) in &lips {
+            let m = [0, 1, 2].map(|k| (x[a as usize][k] + x[b as usize][k]) / 2.0);
+            if let Ok(uv) = camera.project(&Vector3::from(m), 0) {
+                cut_rows.push_str(&format!("{frame},{:.3},{:.3}\n", uv.x, uv.y));
+            }
+        }
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+
+    // The scene.
+    let mesh_field = match &model_mesh_ref {
+        Some(path) => relative_path(path, out).to_string_lossy().into_owned(),
+        None => {
+            msh::write_msh22(&out.join("model.msh"), &model.nodes, &model.tets).map_err(err)?;
+            "model.msh".into()
+        }
+    };
+    let r = camera.rotation();
+    let scene = SceneFile {
+        name: s.name.clone(),
+        description: s.description.clone(),
+        model: ModelSection {
+            mesh: mesh_field,
+            scale: if model_mesh_ref.is_some() {
+                s.object.scale
+            } else {
+                1.0
+            },
+            fixed: model_fixed,
+            young: s.model.young,
+            poisson: s.model.poisson,
+        },
+        camera: CameraSection {
+            fx: camera.intrinsics().fx,
+            fy: camera.intrinsics().fy,
+            cx: camera.intrinsics().cx,
+            cy: camera.intrinsics().cy,
+            width: camera.intrinsics().width,
+            height: camera.intrinsics().height,
+            rotation: [0, 1, 2].map(|i| [r[(i, 0)], r[(i, 1)], r[(i, 2)]]),
+            translation: [0, 1, 2].map(|k| camera.translation()[k]),
+            near: 1e-4,
+        },
+        solver: s.solver.clone(),
+        detection: s.detection.clone(),
+        capacities: s.capacities.clone(),
+        ground_truth: GroundTruthSection {
+            cut_open_frame,
+            frames: s.frames,
+        },
+    };
+    let header = format!(
+        "# Generated by `incise gen` from {}: edit the scenario, not this file.\n",
+        scenario_path.file_name().map_or_else(
+            || "the scenario".into(),
+            |n| n.to_string_lossy().into_owned()
+        )
+    );
+    let body = toml::to_string(&scene).map_err(err)?;
+    std::fs::write(out.join("scene.toml"), header + &body).map_err(err)?;
+    std::fs::write(out.join("tracks.csv"), write_tracks(&tracks)).map_err(err)?;
+    std::fs::write(out.join("gt").join("targets.csv"), target_rows).map_err(err)?;
+    std::fs::write(out.join("gt").join("cut.csv"), cut_rows).map_err(err)?;
+    std::fs::write(
+        out.join("gt").join("surface.obj"),
+        write_obj(sim.positions(), &triangles),
+    )
+    .map_err(err)?;
+    Ok(Generated {
+        dir: out.to_path_buf(),
+        frames: s.frames,
+        features: features.len(),
+        fine_size: (real.nodes.len(), real.tets.len()),
+        model_size: (model.nodes.len(), model.tets.len()),
+        cut_open_frame,
+    })
+}
+
+/// Random points inside the mesh (volume-weighted tetrahedron, uniform inside it).
+fn sample_targets(mesh: &TetMesh, count: usize, rng: &mut Rng) -> Vec<(usize, [f64; 4])> {
+    let mut cumulative = Vec::with_capacity(mesh.tets.len());
+    let mut total = 0.0;
+    for t in &mesh.tets {
+        let p = |v: u32| mesh.nodes[v as usize];
+        total += signed_volume6(p(t[0]), p(t[1]), p(t[2]), p(t[3])).abs();
+        cumulative.push(total);
+    }
+    (0..count)
+        .map(|_| {
+            let r = rng.uniform() * total;
+            let t = cumulative
+                .partition_point(|&c| c < r)
+                .min(mesh.tets.len() - 1);
+            // Uniform in a tetrahedron: normalised exponentials (Dirichlet(1, 1, 1, 1)).
+            let e: [f64; 4] = [0; 4].map(|_| -(1.0 - rng.uniform()).ln());
+            let sum: f64 = e.iter().sum();
+            (t, e.map(|x| x / sum))
+        })
+        .collect()
+}
+
+/// Orders lip pairs along the main direction of their projections at rest.
+fn order_along_image_line(lips: &mut [(u32, u32)], nodes: &[[f64; 3]], camera: &Camera<f64>) {
+    let uv: Vec<[f64; 2]> = lips
+        .iter()
+        .map(|&(v, _)| {
+            camera
+                .project(&Vector3::from(nodes[v as usize]), 0)
+                .map_or([0.0, 0.0], |p| [p.x, p.y])
+        })
+        .collect();
+    if uv.len() < 2 {
+        return;
+    }
+    let n = uv.len() as f64;
+    let mean = [
+        uv.iter().map(|p| p[0]).sum::<f64>() / n,
+        uv.iter().map(|p| p[1]).sum::<f64>() / n,
+    ];
+    let (mut sxx, mut sxy, mut syy) = (0.0, 0.0, 0.0);
+    for p in &uv {
+        let (dx, dy) = (p[0] - mean[0], p[1] - mean[1]);
+        sxx += dx * dx;
+        sxy += dx * dy;
+        syy += dy * dy;
+    }
+    let angle = 0.5 * (2.0 * sxy).atan2(sxx - syy);
+    let dir = [angle.cos(), angle.sin()];
+    let mut keyed: Vec<(f64, (u32, u32))> = lips
+        .iter()
+        .zip(&uv)
+        .map(|(&l, p)| ((p[0] - mean[0]) * dir[0] + (p[1] - mean[1]) * dir[1], l))
+        .collect();
+    keyed.sort_by(|a, b| a.0.total_cmp(&b.0));
+    for (slot, (_, l)) in lips.iter_mut().zip(keyed) {
+        *slot = l;
+    }
+}

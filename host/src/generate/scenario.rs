@@ -1,0 +1,190 @@
+//! `scenario.toml`: what `incise gen` simulates — the real object, its cut, its motion, the
+//! camera, the tracker's imperfections — and the model settings written into the scene.
+
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+
+use crate::scene::{CapacitySection, DetectionSection, SceneError, SolverSection};
+
+/// A whole scenario.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Scenario {
+    /// Scene name.
+    pub name: String,
+    /// One line on what the scene shows.
+    #[serde(default)]
+    pub description: String,
+    /// Seed of every random choice (features, noise, drop-outs, outliers).
+    pub seed: u64,
+    /// Frames, frame 0 (the rest state) included.
+    pub frames: u32,
+    /// The real object.
+    pub object: ObjectSection,
+    /// The pre-cut slit, if any.
+    #[serde(default)]
+    pub slit: Option<SlitSection>,
+    /// Scripted motion: held and grasped regions.
+    pub motion: MotionSection,
+    /// The camera.
+    pub camera: CameraSpec,
+    /// The tracker's output quality.
+    pub tracking: TrackingSection,
+    /// The model written into the scene.
+    pub model: ModelSpec,
+    /// The model's solver.
+    pub solver: SolverSection,
+    /// Cut detection.
+    #[serde(default)]
+    pub detection: DetectionSection,
+    /// Capacities.
+    #[serde(default)]
+    pub capacities: CapacitySection,
+}
+
+/// `[object]`: the shape and material of the real object.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct ObjectSection {
+    /// `"band"` (a box) or `"mesh"` (a Gmsh mesh, refined).
+    pub shape: String,
+    /// Band: size `[length x, width y, thickness z]`, metres; its corner at the origin.
+    #[serde(default)]
+    pub size: [f64; 3],
+    /// Band: cells of the fine (real) mesh along each axis.
+    #[serde(default)]
+    pub fine_cells: [usize; 3],
+    /// Band: cells of the coarse model mesh along each axis.
+    #[serde(default)]
+    pub model_cells: [usize; 3],
+    /// Mesh: the Gmsh file, relative to the scenario file; it is the model, and its uniform
+    /// refinement (each tetrahedron into eight) is the real object.
+    #[serde(default)]
+    pub mesh: String,
+    /// Mesh: metres per mesh unit.
+    #[serde(default = "one")]
+    pub scale: f64,
+    /// Young's modulus of the real object (Neo-Hookean), pascals.
+    pub young: f64,
+    /// Poisson ratio of the real object.
+    pub poisson: f64,
+    /// Internal targets: how many points inside the object to follow.
+    #[serde(default = "default_targets")]
+    pub targets: usize,
+}
+
+fn one() -> f64 {
+    1.0
+}
+
+fn default_targets() -> usize {
+    20
+}
+
+/// `[slit]`: a pre-cut through the object, the part of a plane inside a region.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct SlitSection {
+    /// A point of the plane, metres (after scaling).
+    pub point: [f64; 3],
+    /// Its normal.
+    pub normal: [f64; 3],
+    /// The slit is the part of the plane inside this axis-aligned box `[min, max]`, metres.
+    pub region: [[f64; 3]; 2],
+}
+
+/// `[motion]`: boxes of nodes held still and boxes grasped and moved.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct MotionSection {
+    /// Boxes `[min, max]` (metres) whose nodes are held at rest.
+    pub held: Vec<[[f64; 3]; 2]>,
+    /// Grasped regions.
+    pub grasp: Vec<GraspSpec>,
+}
+
+/// One grasped region and its displacement.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct GraspSpec {
+    /// Box `[min, max]` (metres) of the grasped nodes.
+    pub region: [[f64; 3]; 2],
+    /// Final displacement, metres.
+    pub displacement: [f64; 3],
+    /// Rotation about the box centre at the end, degrees about `axis`.
+    #[serde(default)]
+    pub rotation_degrees: f64,
+    /// Axis of that rotation.
+    #[serde(default = "z_axis")]
+    pub axis: [f64; 3],
+    /// Frame where the motion starts.
+    pub start: u32,
+    /// Frame where it ends (held afterwards). The motion is smooth (cosine ramp).
+    pub end: u32,
+}
+
+fn z_axis() -> [f64; 3] {
+    [0.0, 0.0, 1.0]
+}
+
+/// `[camera]`: a camera looking at a point.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct CameraSpec {
+    /// Camera centre, metres.
+    pub eye: [f64; 3],
+    /// Point looked at, metres.
+    pub target: [f64; 3],
+    /// Up in the image.
+    pub up: [f64; 3],
+    /// Focal length, pixels.
+    pub focal: f64,
+    /// Image width, pixels.
+    pub width: u32,
+    /// Image height, pixels.
+    pub height: u32,
+}
+
+/// `[tracking]`: features and their imperfections.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct TrackingSection {
+    /// Features sampled on the visible surface at frame 0.
+    pub features: usize,
+    /// Standard deviation of the Gaussian position noise, pixels.
+    pub noise_px: f64,
+    /// Probability that a feature is lost in a frame.
+    pub dropout: f64,
+    /// Fraction of features that jump once, to a wrong place, for a few frames.
+    pub outlier_fraction: f64,
+    /// Size of a jump, pixels.
+    pub outlier_jump_px: f64,
+}
+
+/// `[model]`: the model's material.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct ModelSpec {
+    /// Young's modulus of the model (SVK), pascals.
+    pub young: f64,
+    /// Poisson ratio of the model.
+    pub poisson: f64,
+}
+
+impl Scenario {
+    /// Reads a scenario file.
+    ///
+    /// # Errors
+    /// A [`SceneError`] naming the file and line.
+    pub fn load(path: &Path) -> Result<Scenario, SceneError> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| SceneError::new(path, 0, format!("cannot read: {e}")))?;
+        toml::from_str(&text).map_err(|e| {
+            let line = e.span().map_or(0, |s| {
+                text[..s.start.min(text.len())].matches('\n').count() + 1
+            });
+            SceneError::new(path, line, e.message().to_string())
+        })
+    }
+}

@@ -1,0 +1,512 @@
+//! `incise run`: drive the core frame by frame over a scene's tracks and measure it against
+//! the scene's ground truth.
+
+use std::fmt;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use incise_core::mesh::MeshCapacity;
+use incise_core::nalgebra::{Matrix3, Vector3};
+use incise_core::{
+    Capacities, Error as CoreError, Material, MeshInput, Model, ModelConfig, ModelSize,
+    Observation, Real,
+};
+use indicatif::{ProgressBar, ProgressStyle};
+use serde::Serialize;
+
+use crate::metrics::{dice, paired_rms, surface_rms};
+use crate::render::{Canvas, Mask, colour, silhouette};
+use crate::scene::{Scene, SceneError, Surface, read_cut_csv, read_obj, read_points_csv};
+use crate::vtu;
+
+/// A failure of a run.
+#[derive(Debug)]
+pub enum RunError {
+    /// A scene file is missing or malformed.
+    Scene(SceneError),
+    /// The core refused the scene or a frame.
+    Core {
+        /// What was being done.
+        context: String,
+        /// The core's error.
+        error: CoreError,
+    },
+    /// An output could not be written.
+    Output(String),
+}
+
+impl fmt::Display for RunError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            RunError::Scene(e) => write!(f, "{e}"),
+            RunError::Core { context, error } => write!(f, "{context}: {error}"),
+            RunError::Output(m) => write!(f, "{m}"),
+        }
+    }
+}
+
+impl std::error::Error for RunError {}
+
+impl From<SceneError> for RunError {
+    fn from(e: SceneError) -> Self {
+        RunError::Scene(e)
+    }
+}
+
+fn core(context: impl Into<String>) -> impl FnOnce(CoreError) -> RunError {
+    let context = context.into();
+    move |error| RunError::Core { context, error }
+}
+
+fn output(e: impl fmt::Display) -> RunError {
+    RunError::Output(e.to_string())
+}
+
+/// The storage of one model, sized by the core's own analysis: what a host does with the
+/// core's caller-sized API.
+pub struct ModelStorage<T> {
+    /// The sizes.
+    pub size: ModelSize,
+    reals: Vec<T>,
+    indices: Vec<u32>,
+    work: Vec<u32>,
+}
+
+impl<T: Real> ModelStorage<T> {
+    /// Sizes storage for `mesh` with room for `features` features and `headroom_percent` of
+    /// extra matrix and factor entries.
+    ///
+    /// # Errors
+    /// The core's error for a mesh it refuses.
+    pub fn new(
+        mesh: &MeshInput<'_, T>,
+        features: usize,
+        headroom_percent: usize,
+    ) -> Result<Self, CoreError> {
+        let caps = Capacities {
+            mesh: MeshCapacity::exact(mesh),
+            features,
+            factor_headroom_percent: headroom_percent,
+        };
+        let mut work = vec![0u32; ModelSize::work_len(&caps.mesh, features)];
+        let size = ModelSize::analyse(mesh, &caps, &mut work)?;
+        Ok(ModelStorage {
+            size,
+            reals: vec![T::zero(); size.real_len()],
+            indices: vec![0; size.index_len()],
+            work,
+        })
+    }
+
+    /// Builds the model in this storage.
+    ///
+    /// # Errors
+    /// The core's error.
+    pub fn model<'a>(
+        &'a mut self,
+        mesh: &MeshInput<'_, T>,
+        config: &ModelConfig<T>,
+    ) -> Result<Model<'a, T>, CoreError> {
+        Model::new(
+            mesh,
+            config,
+            &self.size,
+            &mut self.reals,
+            &mut self.indices,
+            &mut self.work,
+        )
+    }
+
+    /// Bytes of the model's storage (scalars and indices), what a firmware build would hold.
+    pub fn bytes(&self) -> usize {
+        self.reals.len() * std::mem::size_of::<T>() + self.indices.len() * 4
+    }
+}
+
+/// Options of a run.
+#[derive(Clone, Debug, Default)]
+pub struct RunOptions {
+    /// Write overlay pictures and VTU meshes here.
+    pub out: Option<PathBuf>,
+    /// Show a progress bar.
+    pub progress: bool,
+}
+
+/// What `incise run --json` prints.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct Summary {
+    /// Scene name.
+    pub scene: String,
+    /// Frames, frame 0 included.
+    pub frames: usize,
+    /// Features tracked at frame 0.
+    pub features: usize,
+    /// Features whose ray missed the model at frame 0 (left out).
+    pub features_missed: usize,
+    /// Neighbour pairs used for detection (0 until detection exists).
+    pub pairs: usize,
+    /// Pairs dropped by the temporal filter (0 until detection exists).
+    pub pairs_lost: usize,
+    /// Frame at which a cut was detected, if any.
+    pub cut_detected_frame: Option<u32>,
+    /// Frame at which the true cut opens (ground truth), if the scene has one.
+    pub cut_open_frame: Option<u32>,
+    /// Hausdorff distance of the final detected polyline to the true cut, pixels.
+    pub cut_hausdorff_px: Option<f64>,
+    /// Dice of the last frame with cutting switched off.
+    pub dice_final_uncut: f64,
+    /// Dice of the last frame.
+    pub dice_final: f64,
+    /// Mean Dice over the frames from the opening of the cut (all frames without a cut).
+    pub dice_mean_after_cut: f64,
+    /// Surface RMS distance at the last frame, millimetres.
+    pub surface_rmse_mm_final: f64,
+    /// Target registration error at the last frame, millimetres.
+    pub tre_mm_final: f64,
+    /// The same with cutting switched off.
+    pub tre_mm_final_uncut: f64,
+    /// Median time of `Model::step`, milliseconds.
+    pub ms_per_frame_median: f64,
+    /// Largest time of `Model::step`, milliseconds.
+    pub ms_per_frame_max: f64,
+    /// Image width, pixels.
+    pub image_width: u32,
+    /// Image height, pixels.
+    pub image_height: u32,
+    /// Bytes of the model's fixed storage.
+    pub model_bytes: usize,
+}
+
+/// Per-frame record of one run.
+#[derive(Clone, Debug, Serialize)]
+pub struct FrameRecord {
+    /// Frame number.
+    pub frame: usize,
+    /// Dice against the true silhouette.
+    pub dice: f64,
+    /// Target registration error, millimetres.
+    pub tre_mm: f64,
+    /// Time of the step, milliseconds.
+    pub ms: f64,
+    /// Features observed.
+    pub observed: usize,
+}
+
+/// One pass over a scene.
+#[derive(Clone, Debug)]
+pub struct Trace {
+    /// Per frame (frame 0 included, with no step time).
+    pub frames: Vec<FrameRecord>,
+    /// Dice of the last frame.
+    pub dice_final: f64,
+    /// Surface RMS distance at the last frame, metres.
+    pub surface_rms_final: f64,
+    /// TRE at the last frame, metres.
+    pub tre_final: f64,
+    /// Features embedded / missed.
+    pub embedded: usize,
+    /// Features missed.
+    pub missed: usize,
+    /// Storage bytes.
+    pub model_bytes: usize,
+}
+
+/// Ground truth of a scene, read once.
+struct Truth {
+    targets: Vec<Vec<[f64; 3]>>,
+    surface: Surface,
+    cut: Vec<Vec<[f64; 2]>>,
+}
+
+fn load_truth(scene: &Scene) -> Result<Truth, SceneError> {
+    let gt = scene.dir.join("gt");
+    let read = |name: &str| -> Result<(PathBuf, String), SceneError> {
+        let p = gt.join(name);
+        let text = std::fs::read_to_string(&p)
+            .map_err(|e| SceneError::new(&p, 0, format!("cannot read: {e}")))?;
+        Ok((p, text))
+    };
+    let (p, t) = read("targets.csv")?;
+    let targets = read_points_csv(&t, &p)?;
+    let (p, t) = read("surface.obj")?;
+    let surface = read_obj(&t, &p)?;
+    let (p, t) = read("cut.csv")?;
+    let cut = read_cut_csv(&t, &p)?;
+    Ok(Truth {
+        targets,
+        surface,
+        cut,
+    })
+}
+
+/// Barycentric embedding of `points` in the tetrahedra of a mesh at rest: the containing
+/// tetrahedron, or, for a point just outside, the one whose clamped weights land closest.
+fn embed_points(
+    points: &[[f64; 3]],
+    rest: &[[f64; 3]],
+    tets: &[[u32; 4]],
+) -> Vec<(usize, [f64; 4])> {
+    points
+        .iter()
+        .map(|&p| {
+            let mut best = (f64::INFINITY, 0, [0.25; 4]);
+            for (t, tet) in tets.iter().enumerate() {
+                let x = tet.map(|v| Vector3::from(rest[v as usize]));
+                let m = Matrix3::from_columns(&[x[1] - x[0], x[2] - x[0], x[3] - x[0]]);
+                let Some(inv) = m.try_inverse() else { continue };
+                let l = inv * (Vector3::from(p) - x[0]);
+                let w = [1.0 - l.x - l.y - l.z, l.x, l.y, l.z];
+                let outside = w.iter().map(|&wi| (-wi).max(0.0)).sum::<f64>();
+                if outside < best.0 {
+                    let clamped = w.map(|wi| wi.max(0.0));
+                    let s: f64 = clamped.iter().sum();
+                    best = (outside, t, clamped.map(|wi| wi / s));
+                }
+                if outside == 0.0 {
+                    break;
+                }
+            }
+            (best.1, best.2)
+        })
+        .collect()
+}
+
+fn interpolate(x: &[[f64; 3]], tet: [u32; 4], w: [f64; 4]) -> [f64; 3] {
+    let mut p = [0.0; 3];
+    for (k, &v) in tet.iter().enumerate() {
+        for c in 0..3 {
+            p[c] += w[k] * x[v as usize][c];
+        }
+    }
+    p
+}
+
+fn median(v: &[f64]) -> f64 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    let mut s = v.to_vec();
+    s.sort_by(|a, b| a.total_cmp(b));
+    s[s.len() / 2]
+}
+
+/// Runs the scene once, with cutting on or off; writes pictures and meshes into `out`.
+///
+/// # Errors
+/// A [`RunError`] for a scene the core refuses, a frame it rejects, or an output that cannot
+/// be written.
+pub fn run_once(
+    scene: &Scene,
+    cutting: bool,
+    out: Option<&Path>,
+    progress: bool,
+) -> Result<Trace, RunError> {
+    let _ = cutting; // cut detection and application are not built yet
+    let toml = scene.dir.join("scene.toml");
+    let camera = scene.file.camera(&toml)?;
+    let solver = scene.file.solver(&toml)?;
+    let config = ModelConfig {
+        material: Material {
+            young: scene.file.model.young,
+            poisson: scene.file.model.poisson,
+        },
+        camera,
+        solver,
+    };
+    let input = MeshInput {
+        rest: &scene.rest,
+        tets: &scene.tets,
+        fixed: &scene.file.model.fixed,
+    };
+    let caps = &scene.file.capacities;
+    let mut storage = ModelStorage::new(&input, caps.features, caps.factor_headroom_percent)
+        .map_err(core("sizing the model"))?;
+    let model_bytes = storage.bytes();
+    let mut model = storage
+        .model(&input, &config)
+        .map_err(core("building the model"))?;
+    let report = model
+        .embed_features(&scene.frames[0])
+        .map_err(core("placing the frame-0 features on the model"))?;
+    let truth = load_truth(scene)?;
+    let target_rest = truth.targets.first().cloned().unwrap_or_default();
+    let targets = embed_points(&target_rest, &scene.rest, &scene.tets);
+    let surface = model.mesh().surface().to_vec();
+    let tets = scene.tets.clone();
+
+    if let Some(dir) = out {
+        std::fs::create_dir_all(dir).map_err(output)?;
+    }
+    let bar = if progress {
+        let b = ProgressBar::new(scene.frames.len() as u64);
+        if let Ok(style) =
+            ProgressStyle::with_template("{prefix:>16} [{bar:30}] {pos}/{len} frames")
+        {
+            b.set_style(style.progress_chars("=> "));
+        }
+        b.set_prefix(scene.file.name.clone());
+        b
+    } else {
+        ProgressBar::hidden()
+    };
+    let mut frames = vec![];
+    let mut pvd = vec![];
+    let (mut last_dice, mut last_tre) = (0.0, 0.0);
+    for (f, obs) in scene.frames.iter().enumerate() {
+        let mut ms = 0.0;
+        let mut observed = obs.len();
+        if f > 0 {
+            // Features that missed the model at frame 0 are unknown to it.
+            let known: Vec<Observation<f64>> = obs
+                .iter()
+                .copied()
+                .filter(|o| model.features().slot_of(o.id).is_some())
+                .collect();
+            observed = known.len();
+            if known.is_empty() {
+                // Nothing seen: the model stays where it is.
+            } else {
+                let t0 = Instant::now();
+                model.step(&known).map_err(core(format!("frame {f}")))?;
+                ms = t0.elapsed().as_secs_f64() * 1e3;
+            }
+        }
+        let x = model.positions().to_vec();
+        let model_mask = silhouette(&camera, &x, &surface);
+        let truth_mask = Mask::load_png(&scene.silhouette_path(f))
+            .map_err(|m| SceneError::new(scene.silhouette_path(f), 0, m))?;
+        if (truth_mask.width, truth_mask.height) != (model_mask.width, model_mask.height) {
+            return Err(SceneError::new(
+                scene.silhouette_path(f),
+                0,
+                format!(
+                    "silhouette is {}×{}, the camera {}×{}",
+                    truth_mask.width, truth_mask.height, model_mask.width, model_mask.height
+                ),
+            )
+            .into());
+        }
+        let d = dice(&model_mask, &truth_mask);
+        let predicted: Vec<[f64; 3]> = targets
+            .iter()
+            .map(|&(t, w)| interpolate(&x, tets[t], w))
+            .collect();
+        let tre = truth.targets.get(f).map_or(0.0, |gt| {
+            if gt.len() == predicted.len() {
+                paired_rms(&predicted, gt)
+            } else {
+                0.0
+            }
+        });
+        if let Some(dir) = out {
+            let mut canvas = Canvas::new(model_mask.width, model_mask.height, colour::BACKGROUND);
+            canvas.tint(&truth_mask, colour::TRUTH, 1.0);
+            canvas.tint(&model_mask, colour::MODEL, 0.3);
+            canvas.front_wireframe(&camera, &x, &surface, colour::MODEL);
+            for o in obs {
+                canvas.dot(o.uv, 1.5, colour::FEATURE);
+            }
+            for slot in 0..model.features().len() {
+                if let Ok(uv) = model.projected_feature(slot) {
+                    canvas.cross_mark(uv, 1.5, colour::VIRTUAL);
+                }
+            }
+            if let Some(line) = truth.cut.get(f) {
+                canvas.polyline(line, colour::TRUE_CUT, 1);
+            }
+            for p in &predicted {
+                if let Ok(uv) = camera.project(&Vector3::from(*p), 0) {
+                    canvas.cross_mark([uv.x, uv.y], 3.0, colour::TARGET);
+                }
+            }
+            canvas
+                .save(&dir.join(format!("frame_{f:04}.png")))
+                .map_err(output)?;
+            let name = format!("mesh_{f:04}.vtu");
+            let disp: Vec<[f64; 3]> = x
+                .iter()
+                .zip(&scene.rest)
+                .map(|(a, b)| [a[0] - b[0], a[1] - b[1], a[2] - b[2]])
+                .collect();
+            vtu::write_vtu(&dir.join(&name), &x, &tets, &[("displacement", &disp)], &[])
+                .map_err(output)?;
+            pvd.push((f as f64, name));
+        }
+        frames.push(FrameRecord {
+            frame: f,
+            dice: d,
+            tre_mm: tre * 1e3,
+            ms,
+            observed,
+        });
+        last_dice = d;
+        last_tre = tre;
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    if let Some(dir) = out {
+        vtu::write_pvd(&dir.join("mesh.pvd"), &pvd).map_err(output)?;
+    }
+    // Surface distance, both ways: true surface points to the model, model nodes to the truth.
+    let x = model.positions().to_vec();
+    let (gt_pos, gt_tri) = (&truth.surface.positions, &truth.surface.triangles);
+    let mut surface_nodes: Vec<u32> = surface.iter().flatten().copied().collect();
+    surface_nodes.sort_unstable();
+    surface_nodes.dedup();
+    let model_points: Vec<[f64; 3]> = surface_nodes.iter().map(|&v| x[v as usize]).collect();
+    let a = surface_rms(gt_pos, &x, &surface);
+    let b = surface_rms(&model_points, gt_pos, gt_tri);
+    let (na, nb) = (gt_pos.len() as f64, model_points.len() as f64);
+    let surface_rms_final = ((a * a * na + b * b * nb) / (na + nb).max(1.0)).sqrt();
+    Ok(Trace {
+        frames,
+        dice_final: last_dice,
+        surface_rms_final,
+        tre_final: last_tre,
+        embedded: report.embedded,
+        missed: report.missed,
+        model_bytes,
+    })
+}
+
+/// Runs a scene and summarises it (with cutting on, and, for the `_uncut` figures, off).
+///
+/// # Errors
+/// As [`run_once`].
+pub fn run_scene(scene: &Scene, options: &RunOptions) -> Result<(Summary, Trace), RunError> {
+    let trace = run_once(scene, true, options.out.as_deref(), options.progress)?;
+    // Until cut detection exists, the run with cutting switched off is the same run.
+    let uncut = trace.clone();
+    let times: Vec<f64> = trace.frames.iter().skip(1).map(|r| r.ms).collect();
+    let open = scene.file.ground_truth.cut_open_frame;
+    let after: Vec<f64> = trace
+        .frames
+        .iter()
+        .filter(|r| open.is_none_or(|o| r.frame >= o as usize))
+        .map(|r| r.dice)
+        .collect();
+    let camera = &scene.file.camera;
+    let summary = Summary {
+        scene: scene.file.name.clone(),
+        frames: scene.frames.len(),
+        features: scene.frames[0].len(),
+        features_missed: trace.missed,
+        pairs: 0,
+        pairs_lost: 0,
+        cut_detected_frame: None,
+        cut_open_frame: open,
+        cut_hausdorff_px: None,
+        dice_final_uncut: uncut.dice_final,
+        dice_final: trace.dice_final,
+        dice_mean_after_cut: after.iter().sum::<f64>() / after.len().max(1) as f64,
+        surface_rmse_mm_final: trace.surface_rms_final * 1e3,
+        tre_mm_final: trace.tre_final * 1e3,
+        tre_mm_final_uncut: uncut.tre_final * 1e3,
+        ms_per_frame_median: median(&times),
+        ms_per_frame_max: times.iter().copied().fold(0.0, f64::max),
+        image_width: camera.width,
+        image_height: camera.height,
+        model_bytes: trace.model_bytes,
+    };
+    Ok((summary, trace))
+}
