@@ -38,6 +38,12 @@ pub enum Command {
         #[arg(long)]
         out: Option<PathBuf>,
     },
+    /// Run several scenes and print a Markdown table of their results (as in the README).
+    Table {
+        /// Scene directories.
+        #[arg(required = true)]
+        scenes: Vec<PathBuf>,
+    },
     /// Generate scenes: simulate each scenario's real object and write the scene beside it.
     Gen {
         /// Scenario files (scenario.toml).
@@ -67,6 +73,7 @@ pub fn run(cli: Cli) -> i32 {
         Command::Demo { out } => demo(&out),
         Command::Run { scene, json, out } => run_command(&scene, json, out),
         Command::Gen { scenarios, out } => gen_command(&scenarios, out),
+        Command::Table { scenes } => table_command(&scenes),
     };
     match result {
         Ok(()) => 0,
@@ -95,6 +102,17 @@ fn run_command(dir: &Path, json: bool, out: Option<PathBuf>) -> Result<(), Strin
             println!("pictures and meshes: {}", out.display());
         }
     }
+    Ok(())
+}
+
+fn table_command(dirs: &[PathBuf]) -> Result<(), String> {
+    let mut rows = vec![];
+    for dir in dirs {
+        let scene = Scene::load(dir).map_err(|e| e.to_string())?;
+        let (summary, _) = run_scene(&scene, &RunOptions::default()).map_err(|e| e.to_string())?;
+        rows.push(summary);
+    }
+    print!("{}", crate::report::markdown_table(&rows));
     Ok(())
 }
 

@@ -34,6 +34,35 @@ pub fn human_summary(s: &Summary) -> String {
     )
 }
 
+/// The results of several runs as a Markdown table.
+pub fn markdown_table(rows: &[Summary]) -> String {
+    let opt = |v: Option<u32>| v.map_or("–".to_string(), |f| f.to_string());
+    let optf = |v: Option<f64>| v.map_or("–".to_string(), |x| format!("{x:.1}"));
+    let mut out = String::from(
+        "| scene | features | cut opens | cut detected | Hausdorff px | Dice uncut | Dice | Dice after cut | surface mm | TRE mm | TRE uncut mm | ms/frame (median, max) |\n\
+         | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n",
+    );
+    for s in rows {
+        out.push_str(&format!(
+            "| {} | {} | {} | {} | {} | {:.3} | {:.3} | {:.3} | {:.2} | {:.2} | {:.2} | {:.1}, {:.1} |\n",
+            s.scene,
+            s.features,
+            opt(s.cut_open_frame),
+            opt(s.cut_detected_frame),
+            optf(s.cut_hausdorff_px),
+            s.dice_final_uncut,
+            s.dice_final,
+            s.dice_mean_after_cut,
+            s.surface_rmse_mm_final,
+            s.tre_mm_final,
+            s.tre_mm_final_uncut,
+            s.ms_per_frame_median,
+            s.ms_per_frame_max
+        ));
+    }
+    out
+}
+
 /// Four frames of a run side by side (first, a third, two thirds, last), from the overlay
 /// pictures in `frames_dir`.
 ///

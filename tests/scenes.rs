@@ -1,0 +1,199 @@
+//! The committed scenes: every one runs, the cut scenes leave the uncut model a real gap while
+//! the uncut band is followed closely, regenerating a scene gives the same bytes, and broken
+//! scene files are reported with their file and line.
+
+use std::path::{Path, PathBuf};
+
+use incise::generate::pipeline::generate;
+use incise::run::{RunOptions, Summary, run_scene};
+use incise::scene::Scene;
+
+const SCENES: [&str; 6] = [
+    "band-side-cut",
+    "band-middle-cut",
+    "band-no-cut",
+    "band-stiff",
+    "block-extreme",
+    "liver-lobe",
+];
+
+fn fixtures() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures")
+}
+
+fn run(name: &str) -> Summary {
+    let scene = Scene::load(&fixtures().join(name)).unwrap_or_else(|e| panic!("{e}"));
+    run_scene(&scene, &RunOptions::default())
+        .unwrap_or_else(|e| panic!("{name}: {e}"))
+        .0
+}
+
+#[test]
+fn every_committed_scene_runs_and_reports_the_json_fields() {
+    for name in SCENES {
+        let s = run(name);
+        let json = serde_json::to_value(&s).unwrap();
+        for key in [
+            "scene",
+            "frames",
+            "features",
+            "pairs",
+            "cut_detected_frame",
+            "dice_final_uncut",
+            "dice_final",
+            "dice_mean_after_cut",
+            "surface_rmse_mm_final",
+            "tre_mm_final",
+            "tre_mm_final_uncut",
+            "ms_per_frame_median",
+            "ms_per_frame_max",
+            "cut_open_frame",
+            "image_width",
+            "image_height",
+        ] {
+            assert!(json.get(key).is_some(), "{name}: no {key} in {json}");
+        }
+        assert_eq!(s.scene, name);
+        assert_eq!(s.frames, 40);
+        assert!((0.0..=1.0).contains(&s.dice_final), "{name}: {s:?}");
+        assert!(s.surface_rmse_mm_final.is_finite() && s.tre_mm_final.is_finite());
+        eprintln!(
+            "{name:16} dice uncut {:.3} final {:.3} surface {:.2} mm tre {:.2} mm",
+            s.dice_final_uncut, s.dice_final, s.surface_rmse_mm_final, s.tre_mm_final
+        );
+    }
+}
+
+#[test]
+fn the_uncut_model_leaves_a_gap_on_the_side_cut_and_follows_the_uncut_band() {
+    let side = run("band-side-cut");
+    assert!(side.dice_final_uncut <= 0.92, "{side:?}");
+    assert!(side.cut_open_frame.is_some());
+    let none = run("band-no-cut");
+    assert!(none.dice_final_uncut >= 0.97, "{none:?}");
+    assert_eq!(none.cut_open_frame, None);
+}
+
+/// Every file below `dir`, relative, sorted.
+fn files(dir: &Path) -> Vec<PathBuf> {
+    let mut out = vec![];
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d).unwrap() {
+            let p = e.unwrap().path();
+            if p.is_dir() {
+                stack.push(p);
+            } else {
+                out.push(p.strip_prefix(dir).unwrap().to_path_buf());
+            }
+        }
+    }
+    out.sort();
+    out
+}
+
+#[test]
+fn regenerating_a_scene_gives_the_committed_bytes() {
+    let committed = fixtures().join("band-no-cut");
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("band-no-cut");
+    std::fs::create_dir_all(&out).unwrap();
+    std::fs::copy(committed.join("scenario.toml"), out.join("scenario.toml")).unwrap();
+    generate(&out.join("scenario.toml"), &out, false).unwrap();
+    let (a, b) = (files(&committed), files(&out));
+    assert_eq!(a, b, "different file lists");
+    for f in &a {
+        let (x, y) = (
+            std::fs::read(committed.join(f)).unwrap(),
+            std::fs::read(out.join(f)).unwrap(),
+        );
+        assert!(x == y, "{} differs from the committed file", f.display());
+    }
+}
+
+/// A copy of a committed scene in a temporary directory, to break.
+fn scratch_scene(name: &str) -> tempfile::TempDir {
+    let tmp = tempfile::tempdir().unwrap();
+    let from = fixtures().join(name);
+    for f in files(&from) {
+        let to = tmp.path().join(&f);
+        std::fs::create_dir_all(to.parent().unwrap()).unwrap();
+        std::fs::copy(from.join(&f), &to).unwrap();
+    }
+    tmp
+}
+
+fn replace_in(path: &Path, from: &str, to: &str) {
+    let text = std::fs::read_to_string(path).unwrap();
+    assert!(text.contains(from), "{} has no {from:?}", path.display());
+    std::fs::write(path, text.replacen(from, to, 1)).unwrap();
+}
+
+fn line_of(path: &Path, needle: &str) -> usize {
+    std::fs::read_to_string(path)
+        .unwrap()
+        .lines()
+        .position(|l| l.contains(needle))
+        .unwrap()
+        + 1
+}
+
+#[test]
+fn malformed_scene_files_name_the_file_and_line() {
+    // A non-numeric value.
+    let dir = scratch_scene("band-no-cut");
+    let toml = dir.path().join("scene.toml");
+    replace_in(&toml, "young = 30000.0", "young = \"soft\"");
+    let err = Scene::load(dir.path()).unwrap_err();
+    assert_eq!(err.file, toml);
+    assert_eq!(err.line, line_of(&toml, "young = \"soft\""), "{err}");
+
+    // A missing key.
+    let dir = scratch_scene("band-no-cut");
+    let toml = dir.path().join("scene.toml");
+    replace_in(&toml, "poisson = 0.45\n", "");
+    let err = Scene::load(dir.path()).unwrap_err();
+    assert_eq!(err.file, toml);
+    assert!(err.line > 0 && err.message.contains("poisson"), "{err}");
+
+    // An id never seen at frame 0.
+    let dir = scratch_scene("band-no-cut");
+    let tracks = dir.path().join("tracks.csv");
+    let text = std::fs::read_to_string(&tracks).unwrap();
+    let first_row_of_frame_5 = text.lines().position(|l| l.starts_with("5,")).unwrap();
+    let mut lines: Vec<String> = text.lines().map(str::to_owned).collect();
+    let fields: Vec<&str> = lines[first_row_of_frame_5].split(',').collect();
+    lines[first_row_of_frame_5] = format!("5,99999,{},{}", fields[2], fields[3]);
+    std::fs::write(&tracks, lines.join("\n") + "\n").unwrap();
+    let err = Scene::load(dir.path()).unwrap_err();
+    assert_eq!(err.file, tracks);
+    assert_eq!(err.line, first_row_of_frame_5 + 1, "{err}");
+    assert!(err.message.contains("99999"), "{err}");
+
+    // A non-numeric coordinate in the tracks.
+    let dir = scratch_scene("band-no-cut");
+    let tracks = dir.path().join("tracks.csv");
+    let text = std::fs::read_to_string(&tracks).unwrap();
+    let mut lines: Vec<String> = text.lines().map(str::to_owned).collect();
+    lines[7] = "0,3,abc,1.0".into();
+    std::fs::write(&tracks, lines.join("\n") + "\n").unwrap();
+    let err = Scene::load(dir.path()).unwrap_err();
+    assert_eq!((err.file.clone(), err.line), (tracks, 8), "{err}");
+
+    // A truncated mesh.
+    let dir = scratch_scene("band-no-cut");
+    let mesh = dir.path().join("model.msh");
+    let text = std::fs::read_to_string(&mesh).unwrap();
+    let keep: Vec<&str> = text.lines().take(60).collect();
+    std::fs::write(&mesh, keep.join("\n") + "\n").unwrap();
+    let err = Scene::load(dir.path()).unwrap_err();
+    assert_eq!(err.file, mesh, "{err}");
+    assert!(err.line >= 59, "{err}");
+
+    // A fixed node that does not exist.
+    let dir = scratch_scene("band-no-cut");
+    let toml = dir.path().join("scene.toml");
+    replace_in(&toml, "fixed = [", "fixed = [100000, ");
+    let err = Scene::load(dir.path()).unwrap_err();
+    assert!(err.message.contains("100000"), "{err}");
+}
