@@ -108,6 +108,10 @@ fn config(cam: incise_core::Camera<f64>, strategy: Strategy) -> ModelConfig<f64>
             damping: 1e-3,
             image_margin: 50.0,
         },
+        detection: incise_core::DetectionConfig {
+            enabled: false,
+            ..incise_core::DetectionConfig::paper()
+        },
     }
 }
 

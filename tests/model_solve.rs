@@ -33,6 +33,10 @@ fn config(
             damping,
             image_margin: 50.0,
         },
+        detection: incise_core::DetectionConfig {
+            enabled: false,
+            ..incise_core::DetectionConfig::paper()
+        },
     }
 }
 

@@ -48,6 +48,8 @@ fn every_committed_scene_runs_and_reports_the_json_fields() {
             "ms_per_frame_median",
             "ms_per_frame_max",
             "cut_open_frame",
+            "cut_hausdorff_px",
+            "pairs_lost",
             "image_width",
             "image_height",
         ] {

@@ -38,6 +38,10 @@ pub enum Resource {
     Features,
     /// Observations of one frame.
     Observations,
+    /// Neighbour pairs of the cut detection.
+    Pairs,
+    /// Vertices of the cut line.
+    CutVertices,
 }
 
 impl fmt::Display for Resource {
@@ -57,6 +61,8 @@ impl fmt::Display for Resource {
             Resource::SurfaceTriangles => "surface triangles",
             Resource::Features => "features",
             Resource::Observations => "observations",
+            Resource::Pairs => "neighbour pairs",
+            Resource::CutVertices => "cut-line vertices",
         };
         f.write_str(s)
     }
@@ -82,6 +88,8 @@ pub enum Parameter {
     Iterations,
     /// Image margin beyond which an observation is rejected (non-negative).
     ImageMargin,
+    /// Cut detection parameters (positive thresholds, `α` in `(0, 90]` degrees, steps ordered).
+    Detection,
 }
 
 impl fmt::Display for Parameter {
@@ -97,6 +105,9 @@ impl fmt::Display for Parameter {
             Parameter::Pose => "camera pose must be finite with an orthonormal rotation",
             Parameter::Iterations => "iteration counts must be positive and within their bounds",
             Parameter::ImageMargin => "image margin must be non-negative and finite",
+            Parameter::Detection => {
+                "detection needs positive thresholds, an angle in (0, 90] degrees and min step <= max step"
+            }
         };
         f.write_str(s)
     }

@@ -88,6 +88,11 @@ impl<'a, T: Real> Features<'a, T> {
         self.len
     }
 
+    /// Forgets every feature.
+    pub fn clear(&mut self) {
+        self.len = 0;
+    }
+
     /// Whether no feature is embedded.
     pub fn is_empty(&self) -> bool {
         self.len == 0
@@ -277,7 +282,7 @@ fn check_observations<T: Real>(
 
 /// The first boundary triangle the ray through pixel `uv` meets, as (tetrahedron, barycentric
 /// weights of the hit point in it).
-fn first_hit<T: Real>(
+pub(crate) fn first_hit<T: Real>(
     mesh: &Mesh<'_, T>,
     x: &[[T; 3]],
     camera: &Camera<T>,

@@ -20,6 +20,9 @@
 //! - [`camera`]: the pinhole camera, projection, Jacobian and rays.
 //! - [`features`]: virtual features embedded in the surface, and the frame's observations.
 //! - [`solve`]: assembly, the `Refactor` and `Frozen` strategies, the line search.
+//! - [`detect`]: cut detection from motion discontinuities (the detector needs the `cut`
+//!   feature; its configuration is always there).
+//! - `cutline` (`cut` feature): the cut polyline, its fronts, and the separation surface.
 //! - [`material`]: Saint Venant–Kirchhoff elasticity on linear tetrahedra: Lamé parameters,
 //!   rest geometry, element energy, forces and the (optionally PSD-projected) 12 × 12 tangent.
 //! - [`sparse`]: symmetric sparse patterns, a minimum-degree ordering, the symbolic analysis and
@@ -36,6 +39,9 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod camera;
+#[cfg(feature = "cut")]
+pub mod cutline;
+pub mod detect;
 pub mod error;
 pub mod features;
 pub mod material;
@@ -53,6 +59,7 @@ pub use real::Real;
 pub use nalgebra;
 
 pub use camera::{Camera, Intrinsics};
+pub use detect::DetectionConfig;
 pub use features::{EmbedReport, Observation};
 pub use mesh::{MeshCapacity, MeshInput};
 pub use model::{Capacities, Linearization, Material, Model, ModelConfig, ModelSize, StepReport};

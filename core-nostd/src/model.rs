@@ -11,6 +11,11 @@
 use nalgebra::Vector3;
 
 use crate::camera::Camera;
+#[cfg(feature = "cut")]
+use crate::cutline::{CutLine, CutLineReport};
+use crate::detect::DetectionConfig;
+#[cfg(feature = "cut")]
+use crate::detect::{DetectionReport, Detector};
 use crate::error::{Error, Resource};
 use crate::features::{EmbedReport, Features, Observation};
 use crate::material::{Lame, TangentProjection, element_energy_gradient_tangent};
@@ -42,6 +47,8 @@ pub struct ModelConfig<T: Real> {
     pub camera: Camera<T>,
     /// The per-frame solve.
     pub solver: SolverConfig<T>,
+    /// Cut detection (used only when the crate is built with the `cut` feature).
+    pub detection: DetectionConfig<T>,
 }
 
 /// Capacities fixed at construction.
@@ -54,6 +61,10 @@ pub struct Capacities {
     /// Extra room, in percent, for the matrix and factor entries beyond what the initial mesh
     /// needs (a cut adds nodes and fill).
     pub factor_headroom_percent: usize,
+    /// Neighbour pairs of the cut detection (`cut` feature; the paper's liver had 18 503).
+    pub pairs: usize,
+    /// Vertices of the cut line (`cut` feature).
+    pub cut_vertices: usize,
 }
 
 /// The storage sizes of a model, from [`ModelSize::analyse`].
@@ -174,6 +185,32 @@ impl ModelSize {
             + LdlFactor::<f64>::storage_len(&self.symbolic_size())
             + 7 * dofs // gradient, step and the PCG vectors, solve work
             + Features::<f64>::real_len(self.capacities.features)
+            + self.detection_real_len()
+    }
+
+    #[cfg(feature = "cut")]
+    fn detection_real_len(&self) -> usize {
+        let c = &self.capacities;
+        Detector::<f64>::real_len(c.features, c.pairs)
+            + CutLine::<f64>::real_len(c.cut_vertices)
+            + 2 * c.features // residuals
+            + 2 * c.features.max(c.cut_vertices) // projections
+    }
+
+    #[cfg(not(feature = "cut"))]
+    fn detection_real_len(&self) -> usize {
+        0
+    }
+
+    #[cfg(feature = "cut")]
+    fn detection_index_len(&self) -> usize {
+        let c = &self.capacities;
+        Detector::<f64>::index_len(c.features, c.pairs) + CutLine::<f64>::index_len(c.cut_vertices)
+    }
+
+    #[cfg(not(feature = "cut"))]
+    fn detection_index_len(&self) -> usize {
+        0
     }
 
     /// Indices of storage [`Model::new`] needs.
@@ -186,6 +223,7 @@ impl ModelSize {
             + self.symbolic_size().index_len()
             + dofs // factorization cursor
             + Features::<f64>::index_len(self.capacities.features)
+            + self.detection_index_len()
     }
 }
 
@@ -262,6 +300,12 @@ pub struct StepReport<T> {
     pub min_step_length: T,
     /// Work done, per stage.
     pub work: WorkCount,
+    /// What the cut detection saw (zeros when it is switched off).
+    #[cfg(feature = "cut")]
+    pub detection: DetectionReport<T>,
+    /// The cut line.
+    #[cfg(feature = "cut")]
+    pub cut_line: CutLineReport,
 }
 
 /// The linear system of a Newton step, from [`Model::linearize`].
@@ -302,7 +346,20 @@ pub struct Model<'a, T: Real> {
     y: &'a mut [T],
     cursor: &'a mut [u32],
     features: Features<'a, T>,
+    #[cfg(feature = "cut")]
+    cut: CutState<'a, T>,
     frame: u32,
+}
+
+/// The detector, the cut line and their scratch.
+#[cfg(feature = "cut")]
+struct CutState<'a, T> {
+    detector: Detector<'a, T>,
+    line: CutLine<'a, T>,
+    /// Residual `d_i` per feature slot.
+    residuals: &'a mut [[T; 2]],
+    /// Projections of the virtual features, or of the cut line's vertices.
+    projections: &'a mut [[T; 2]],
 }
 
 impl<'a, T: Real> Model<'a, T> {
@@ -322,6 +379,7 @@ impl<'a, T: Real> Model<'a, T> {
         work: &mut [u32],
     ) -> Result<Self, Error> {
         config.solver.validate()?;
+        config.detection.validate()?;
         let lame = Lame::from_young_poisson(config.material.young, config.material.poisson)?;
         let caps = &size.capacities;
         ensure_len(reals, size.real_len(), Resource::RealStorage)?;
@@ -356,6 +414,16 @@ impl<'a, T: Real> Model<'a, T> {
         let sym_store = is.take(size.symbolic_size().index_len())?;
         let cursor = is.take(dofs)?;
         let features = Features::new(caps.features, &mut rs, &mut is)?;
+        #[cfg(feature = "cut")]
+        let cut = CutState {
+            detector: Detector::new(caps.features, caps.pairs, &mut rs, &mut is)?,
+            line: CutLine::new(caps.cut_vertices, &mut rs, &mut is)?,
+            residuals: rs.take(2 * caps.features)?.as_chunks_mut::<2>().0,
+            projections: rs
+                .take(2 * caps.features.max(caps.cut_vertices))?
+                .as_chunks_mut::<2>()
+                .0,
+        };
 
         // Pattern, ordering and symbolic factorization of the free nodes.
         let n_free = mesh.n_free();
@@ -426,6 +494,8 @@ impl<'a, T: Real> Model<'a, T> {
             y,
             cursor,
             features,
+            #[cfg(feature = "cut")]
+            cut,
             frame: 0,
         })
     }
@@ -508,6 +578,29 @@ impl<'a, T: Real> Model<'a, T> {
             return Err(Error::NoFeatures);
         }
         self.holds = FactorHolds::Nothing;
+        #[cfg(feature = "cut")]
+        {
+            self.frame = 0;
+            self.cut.line.reset();
+            let n = self.features.len();
+            for slot in 0..n {
+                let uv = self.projected_feature(slot)?;
+                let t = self.features.targets()[slot];
+                self.cut.projections[slot] = uv;
+                self.cut.residuals[slot] = [t[0] - uv[0], t[1] - uv[1]];
+            }
+            let init = self.cut.detector.init(
+                &self.cut.projections[..n],
+                &self.cut.residuals[..n],
+                &self.config.detection,
+            );
+            if let Err(e) = init {
+                // The features are placed but cannot be watched for a cut: refuse them all, so
+                // the caller sees a model as it was before any embedding.
+                self.features.clear();
+                return Err(e);
+            }
+        }
         // The frozen factor is part of setting up, not of the first frame, so that every frame
         // costs the same.
         if let Strategy::Frozen { .. } = self.config.solver.strategy {
@@ -557,6 +650,12 @@ impl<'a, T: Real> Model<'a, T> {
             Ok(mut report) => {
                 report.frame = self.frame;
                 report.observed = observed;
+                #[cfg(feature = "cut")]
+                if self.config.detection.enabled {
+                    let (detection, line) = self.detect();
+                    report.detection = detection;
+                    report.cut_line = line;
+                }
                 self.frame = self.frame.wrapping_add(1);
                 Ok(report)
             }
@@ -644,6 +743,10 @@ impl<'a, T: Real> Model<'a, T> {
             gradient_norm_after,
             min_step_length: min_step,
             work,
+            #[cfg(feature = "cut")]
+            detection: DetectionReport::default(),
+            #[cfg(feature = "cut")]
+            cut_line: CutLineReport::default(),
         })
     }
 
@@ -903,6 +1006,78 @@ impl<'a, T: Real> Model<'a, T> {
         }
         self.anchor[..n].copy_from_slice(&self.x[..n]);
         Ok(())
+    }
+
+    /// Residuals of the frame, the detector, then the cut line (after the frame's solve).
+    #[cfg(feature = "cut")]
+    fn detect(&mut self) -> (DetectionReport<T>, CutLineReport) {
+        let n = self.features.len();
+        for slot in 0..n {
+            let t = self.features.targets()[slot];
+            // A feature whose virtual point cannot be projected is treated as unobserved.
+            self.cut.residuals[slot] = match self.projected_feature(slot) {
+                Ok(uv) => [t[0] - uv[0], t[1] - uv[1]],
+                Err(_) => [T::zero(); 2],
+            };
+        }
+        let detection = self.cut.detector.update(
+            &self.cut.residuals[..n],
+            self.features.active(),
+            self.features.targets(),
+            &self.config.detection,
+        );
+        let line = self.cut.line.update(
+            self.frame,
+            self.cut.detector.points(),
+            self.features.targets(),
+            self.features.active(),
+            &self.config.detection,
+            self.cut.projections,
+        );
+        (detection, line)
+    }
+
+    /// The detected cut line in the image, as its anchoring features are seen now: writes up
+    /// to `out.len()` vertices (pixels), returns how many (0 before a cut is detected).
+    #[cfg(feature = "cut")]
+    pub fn cut_polyline(&self, out: &mut [[T; 2]]) -> usize {
+        self.cut.line.project(self.features.targets(), out)
+    }
+
+    /// The separation surface of the detected cut: one quadrilateral (metres) per segment of
+    /// the cut line, extruded along the depth direction by the size of the model. Writes up to
+    /// `out.len()`, returns how many.
+    #[cfg(feature = "cut")]
+    pub fn separation_surface(&self, out: &mut [[[T; 3]; 4]]) -> usize {
+        let n = self.mesh.n_nodes();
+        let x = &self.x[..n];
+        // Long enough to pass through the whole model: its bounding-box diagonal.
+        let (mut lo, mut hi) = ([T::zero(); 3], [T::zero(); 3]);
+        for (k, p) in x.iter().enumerate() {
+            for c in 0..3 {
+                lo[c] = if k == 0 { p[c] } else { lo[c].min(p[c]) };
+                hi[c] = if k == 0 { p[c] } else { hi[c].max(p[c]) };
+            }
+        }
+        let diagonal = ((hi[0] - lo[0]) * (hi[0] - lo[0])
+            + (hi[1] - lo[1]) * (hi[1] - lo[1])
+            + (hi[2] - lo[2]) * (hi[2] - lo[2]))
+            .sqrt();
+        self.cut.line.separation_surface(
+            self.features.targets(),
+            &self.mesh,
+            x,
+            &self.config.camera,
+            &self.config.detection,
+            diagonal,
+            out,
+        )
+    }
+
+    /// The cut detector (pairs, separation points).
+    #[cfg(feature = "cut")]
+    pub fn detector(&self) -> &Detector<'a, T> {
+        &self.cut.detector
     }
 
     /// Positions of node `v` as a vector (`None` out of range).

@@ -16,7 +16,9 @@ use serde::Serialize;
 
 use crate::metrics::{dice, paired_rms, surface_rms};
 use crate::render::{Canvas, Mask, colour, silhouette};
-use crate::scene::{Scene, SceneError, Surface, read_cut_csv, read_obj, read_points_csv};
+use crate::scene::{
+    CapacitySection, Scene, SceneError, Surface, read_cut_csv, read_obj, read_points_csv,
+};
 use crate::vtu;
 
 /// A failure of a run.
@@ -83,11 +85,32 @@ impl<T: Real> ModelStorage<T> {
         features: usize,
         headroom_percent: usize,
     ) -> Result<Self, CoreError> {
+        Self::with_capacities(
+            mesh,
+            &CapacitySection {
+                features,
+                factor_headroom_percent: headroom_percent,
+                ..CapacitySection::default()
+            },
+        )
+    }
+
+    /// Sizes storage for `mesh` with the scene's capacities.
+    ///
+    /// # Errors
+    /// The core's error for a mesh it refuses.
+    pub fn with_capacities(
+        mesh: &MeshInput<'_, T>,
+        c: &CapacitySection,
+    ) -> Result<Self, CoreError> {
         let caps = Capacities {
             mesh: MeshCapacity::exact(mesh),
-            features,
-            factor_headroom_percent: headroom_percent,
+            features: c.features,
+            factor_headroom_percent: c.factor_headroom_percent,
+            pairs: c.pairs,
+            cut_vertices: c.cut_vertices,
         };
+        let features = c.features;
         let mut work = vec![0u32; ModelSize::work_len(&caps.mesh, features)];
         let size = ModelSize::analyse(mesh, &caps, &mut work)?;
         Ok(ModelStorage {
@@ -143,10 +166,12 @@ pub struct Summary {
     pub features: usize,
     /// Features whose ray missed the model at frame 0 (left out).
     pub features_missed: usize,
-    /// Neighbour pairs used for detection (0 until detection exists).
+    /// Neighbour pairs used for detection.
     pub pairs: usize,
-    /// Pairs dropped by the temporal filter (0 until detection exists).
+    /// Pairs dropped by the temporal filter.
     pub pairs_lost: usize,
+    /// Features taken out of detection by the temporal filter.
+    pub features_filtered: usize,
     /// Frame at which a cut was detected, if any.
     pub cut_detected_frame: Option<u32>,
     /// Frame at which the true cut opens (ground truth), if the scene has one.
@@ -190,11 +215,36 @@ pub struct FrameRecord {
     pub ms: f64,
     /// Features observed.
     pub observed: usize,
+    /// Outlier pairs of the cut detection.
+    pub outlier_pairs: usize,
+    /// Separation points.
+    pub separation_points: usize,
+    /// Vertices of the cut line.
+    pub cut_vertices: usize,
+}
+
+/// What the cut detection did over a run.
+#[derive(Clone, Debug, Default)]
+pub struct DetectionTrace {
+    /// Frame at which the cut line started.
+    pub detected_frame: Option<u32>,
+    /// Neighbour pairs.
+    pub pairs: usize,
+    /// Pairs dropped by the temporal filter, by the end.
+    pub pairs_lost: usize,
+    /// Features taken out by the temporal filter, by the end.
+    pub features_filtered: usize,
+    /// The cut line at the last frame, pixels.
+    pub polyline: Vec<[f64; 2]>,
+    /// Its Hausdorff distance to the true cut at the last frame, pixels.
+    pub hausdorff_px: Option<f64>,
 }
 
 /// One pass over a scene.
 #[derive(Clone, Debug)]
 pub struct Trace {
+    /// The cut detection.
+    pub detection: DetectionTrace,
     /// Per frame (frame 0 included, with no step time).
     pub frames: Vec<FrameRecord>,
     /// Dice of the last frame.
@@ -301,7 +351,6 @@ pub fn run_once(
     out: Option<&Path>,
     progress: bool,
 ) -> Result<Trace, RunError> {
-    let _ = cutting; // cut detection and application are not built yet
     let toml = scene.dir.join("scene.toml");
     let camera = scene.file.camera(&toml)?;
     let solver = scene.file.solver(&toml)?;
@@ -312,15 +361,23 @@ pub fn run_once(
         },
         camera,
         solver,
+        detection: incise_core::DetectionConfig {
+            enabled: cutting && scene.file.detection.enabled,
+            ..scene.file.detection.config()
+        },
     };
+    config
+        .detection
+        .validate()
+        .map_err(|e| SceneError::new(&toml, 0, format!("[detection]: {e}")))?;
     let input = MeshInput {
         rest: &scene.rest,
         tets: &scene.tets,
         fixed: &scene.file.model.fixed,
     };
     let caps = &scene.file.capacities;
-    let mut storage = ModelStorage::new(&input, caps.features, caps.factor_headroom_percent)
-        .map_err(core("sizing the model"))?;
+    let mut storage =
+        ModelStorage::with_capacities(&input, caps).map_err(core("sizing the model"))?;
     let model_bytes = storage.bytes();
     let mut model = storage
         .model(&input, &config)
@@ -351,10 +408,13 @@ pub fn run_once(
     };
     let mut frames = vec![];
     let mut pvd = vec![];
+    let mut detection = DetectionTrace::default();
+    let mut polyline = vec![[0.0; 2]; caps.cut_vertices.max(1)];
     let (mut last_dice, mut last_tre) = (0.0, 0.0);
     for (f, obs) in scene.frames.iter().enumerate() {
         let mut ms = 0.0;
         let mut observed = obs.len();
+        let mut frame_detection = (0, 0, 0);
         if f > 0 {
             // Features that missed the model at frame 0 are unknown to it.
             let known: Vec<Observation<f64>> = obs
@@ -367,11 +427,24 @@ pub fn run_once(
                 // Nothing seen: the model stays where it is.
             } else {
                 let t0 = Instant::now();
-                model.step(&known).map_err(core(format!("frame {f}")))?;
+                let report = model.step(&known).map_err(core(format!("frame {f}")))?;
                 ms = t0.elapsed().as_secs_f64() * 1e3;
+                frame_detection = (
+                    report.detection.outliers,
+                    report.detection.separation_points,
+                    report.cut_line.vertices,
+                );
+                detection.pairs = report.detection.pairs;
+                detection.pairs_lost = report.detection.pairs_lost;
+                detection.features_filtered = report.detection.features_filtered;
+                if detection.detected_frame.is_none() {
+                    detection.detected_frame = report.cut_line.detected_frame.map(|_| f as u32);
+                }
             }
         }
         let x = model.positions().to_vec();
+        let n_line = model.cut_polyline(&mut polyline);
+        detection.polyline = polyline[..n_line].to_vec();
         let model_mask = silhouette(&camera, &x, &surface);
         let truth_mask = Mask::load_png(&scene.silhouette_path(f))
             .map_err(|m| SceneError::new(scene.silhouette_path(f), 0, m))?;
@@ -414,6 +487,10 @@ pub fn run_once(
             if let Some(line) = truth.cut.get(f) {
                 canvas.polyline(line, colour::TRUE_CUT, 1);
             }
+            for p in model.detector().points() {
+                canvas.dot(*p, 1.0, colour::CUT);
+            }
+            canvas.polyline(&detection.polyline, colour::CUT, 3);
             for p in &predicted {
                 if let Ok(uv) = camera.project(&Vector3::from(*p), 0) {
                     canvas.cross_mark([uv.x, uv.y], 3.0, colour::TARGET);
@@ -438,6 +515,9 @@ pub fn run_once(
             tre_mm: tre * 1e3,
             ms,
             observed,
+            outlier_pairs: frame_detection.0,
+            separation_points: frame_detection.1,
+            cut_vertices: frame_detection.2,
         });
         last_dice = d;
         last_tre = tre;
@@ -446,6 +526,23 @@ pub fn run_once(
     bar.finish_and_clear();
     if let Some(dir) = out {
         vtu::write_pvd(&dir.join("mesh.pvd"), &pvd).map_err(output)?;
+        let mut csv = String::from(
+            "frame,dice,tre_mm,step_ms,observed,outlier_pairs,separation_points,cut_vertices\n",
+        );
+        for r in &frames {
+            csv.push_str(&format!(
+                "{},{:.5},{:.4},{:.3},{},{},{},{}\n",
+                r.frame,
+                r.dice,
+                r.tre_mm,
+                r.ms,
+                r.observed,
+                r.outlier_pairs,
+                r.separation_points,
+                r.cut_vertices
+            ));
+        }
+        std::fs::write(dir.join("frames.csv"), csv).map_err(output)?;
     }
     // Surface distance, both ways: true surface points to the model, model nodes to the truth.
     let x = model.positions().to_vec();
@@ -458,7 +555,15 @@ pub fn run_once(
     let b = surface_rms(&model_points, gt_pos, gt_tri);
     let (na, nb) = (gt_pos.len() as f64, model_points.len() as f64);
     let surface_rms_final = ((a * a * na + b * b * nb) / (na + nb).max(1.0)).sqrt();
+    detection.hausdorff_px = match (detection.polyline.is_empty(), truth.cut.last()) {
+        (false, Some(line)) if !line.is_empty() => Some(crate::metrics::hausdorff_polyline(
+            &detection.polyline,
+            line,
+        )),
+        _ => None,
+    };
     Ok(Trace {
+        detection,
         frames,
         dice_final: last_dice,
         surface_rms_final,
@@ -475,8 +580,8 @@ pub fn run_once(
 /// As [`run_once`].
 pub fn run_scene(scene: &Scene, options: &RunOptions) -> Result<(Summary, Trace), RunError> {
     let trace = run_once(scene, true, options.out.as_deref(), options.progress)?;
-    // Until cut detection exists, the run with cutting switched off is the same run.
-    let uncut = trace.clone();
+    // The same run with cutting switched off, for the `_uncut` figures.
+    let uncut = run_once(scene, false, None, false)?;
     let times: Vec<f64> = trace.frames.iter().skip(1).map(|r| r.ms).collect();
     let open = scene.file.ground_truth.cut_open_frame;
     let after: Vec<f64> = trace
@@ -491,11 +596,12 @@ pub fn run_scene(scene: &Scene, options: &RunOptions) -> Result<(Summary, Trace)
         frames: scene.frames.len(),
         features: scene.frames[0].len(),
         features_missed: trace.missed,
-        pairs: 0,
-        pairs_lost: 0,
-        cut_detected_frame: None,
+        pairs: trace.detection.pairs,
+        pairs_lost: trace.detection.pairs_lost,
+        features_filtered: trace.detection.features_filtered,
+        cut_detected_frame: trace.detection.detected_frame,
         cut_open_frame: open,
-        cut_hausdorff_px: None,
+        cut_hausdorff_px: trace.detection.hausdorff_px,
         dice_final_uncut: uncut.dice_final,
         dice_final: trace.dice_final,
         dice_mean_after_cut: after.iter().sum::<f64>() / after.len().max(1) as f64,

@@ -164,60 +164,115 @@ fn default_margin() -> f64 {
     50.0
 }
 
-/// `[detection]`: the cut detection of the paper's §2.2–2.3.
+/// `[detection]`: the cut detection of the paper's §2.2–2.3 (see
+/// [`incise_core::DetectionConfig`] for each parameter).
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
+#[serde(deny_unknown_fields, default)]
 pub struct DetectionSection {
     /// Whether cutting is on for this scene.
-    #[serde(default = "yes")]
     pub enabled: bool,
     /// Neighbour radius, pixels (0: derived from the feature density).
-    #[serde(default)]
     pub radius: f64,
     /// Outlier threshold `ε` on `μ_ij / μ̄` (the paper used 7).
-    #[serde(default = "default_epsilon")]
     pub epsilon: f64,
-}
-
-fn yes() -> bool {
-    true
-}
-
-fn default_epsilon() -> f64 {
-    7.0
+    /// Temporal-filter threshold on `E_i / Ē`.
+    pub temporal_epsilon: f64,
+    /// Differences below this are never outliers, pixels.
+    pub min_difference: f64,
+    /// Frames in a row a pair must be an outlier to count as split.
+    pub persistence: u32,
+    /// Separation points needed to start the cut line.
+    pub init_points: u32,
+    /// Angular restriction of a front, degrees.
+    pub alpha: f64,
+    /// Shortest advance of a front, pixels.
+    pub min_step: f64,
+    /// Longest advance of a front, pixels.
+    pub max_step: f64,
+    /// Separation points ahead needed to advance a front.
+    pub min_support: u32,
+    /// Distance within which separation points support a candidate line, pixels.
+    pub line_tolerance: f64,
+    /// Largest spread across the fitted line, relative to along it, to start the cut line.
+    pub max_line_spread: f64,
+    /// Count only pairs whose residuals diverge (an opening cut).
+    pub opening_only: bool,
+    /// Largest fraction of a feature's pairs that may be outliers before the feature itself
+    /// is taken for a tracking failure in that frame.
+    pub max_outlier_fraction: f64,
+    /// Extrusion direction of the separation surface (world); absent: the camera's axis.
+    pub depth: Option<[f64; 3]>,
 }
 
 impl Default for DetectionSection {
     fn default() -> Self {
+        let p = incise_core::DetectionConfig::<f64>::paper();
         DetectionSection {
-            enabled: true,
-            radius: 0.0,
-            epsilon: default_epsilon(),
+            enabled: p.enabled,
+            radius: p.radius_px,
+            epsilon: p.epsilon,
+            temporal_epsilon: p.temporal_epsilon,
+            min_difference: p.min_difference_px,
+            persistence: p.persistence,
+            init_points: p.init_points,
+            alpha: p.alpha_degrees,
+            min_step: p.min_step_px,
+            max_step: p.max_step_px,
+            min_support: p.min_support,
+            line_tolerance: p.line_tolerance_px,
+            max_line_spread: p.max_line_spread,
+            opening_only: p.opening_only,
+            max_outlier_fraction: p.max_outlier_fraction,
+            depth: p.depth,
+        }
+    }
+}
+
+impl DetectionSection {
+    /// The core's configuration.
+    pub fn config(&self) -> incise_core::DetectionConfig<f64> {
+        incise_core::DetectionConfig {
+            enabled: self.enabled,
+            radius_px: self.radius,
+            epsilon: self.epsilon,
+            temporal_epsilon: self.temporal_epsilon,
+            min_difference_px: self.min_difference,
+            persistence: self.persistence,
+            init_points: self.init_points,
+            alpha_degrees: self.alpha,
+            min_step_px: self.min_step,
+            max_step_px: self.max_step,
+            min_support: self.min_support,
+            line_tolerance_px: self.line_tolerance,
+            max_line_spread: self.max_line_spread,
+            opening_only: self.opening_only,
+            max_outlier_fraction: self.max_outlier_fraction,
+            depth: self.depth,
         }
     }
 }
 
 /// `[capacities]`: the fixed storage of the core.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
+#[serde(deny_unknown_fields, default)]
 pub struct CapacitySection {
     /// Tracked features.
-    #[serde(default = "default_features")]
     pub features: usize,
     /// Extra room for matrix and factor entries, percent.
-    #[serde(default)]
     pub factor_headroom_percent: usize,
-}
-
-fn default_features() -> usize {
-    1024
+    /// Neighbour pairs of the cut detection.
+    pub pairs: usize,
+    /// Vertices of the cut line.
+    pub cut_vertices: usize,
 }
 
 impl Default for CapacitySection {
     fn default() -> Self {
         CapacitySection {
-            features: default_features(),
+            features: 1024,
             factor_headroom_percent: 0,
+            pairs: 32_768,
+            cut_vertices: 64,
         }
     }
 }

@@ -100,11 +100,14 @@ fn step() -> Result<bool, incise_core::Error> {
             damping: 1e-3,
             image_margin: 50.0,
         },
+        detection: incise_core::DetectionConfig::paper(),
     };
     let caps = Capacities {
         mesh: MeshCapacity { nodes: NN, tets: NT, surface_triangles: 4 * NT },
         features: 16,
         factor_headroom_percent: 0,
+        pairs: 256,
+        cut_vertices: 16,
     };
     let mut work = [0u32; 32768];
     let size = ModelSize::analyse(&mesh, &caps, &mut work)?;

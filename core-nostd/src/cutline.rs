@@ -1,0 +1,590 @@
+//! The cut line (paper §2.2, Fig. 2) and the separation surface it spans.
+//!
+//! Once enough separation points exist, a line is fitted to them — robustly first (the line
+//! through two points with the most points near it), then by total least squares on those
+//! points; its two ends become fronts that advance on their own, each only toward separation
+//! points inside an angle `α` of its direction, by a step between a minimum and a maximum, and
+//! only when enough points ahead support it.
+//!
+//! A vertex is anchored to the three tracked features around it when it is placed (an affine
+//! combination of their image positions), so the line moves with the real object rather than
+//! with the model, which, uncut, cannot follow the opening lips. The separation surface is made
+//! on demand: each vertex is carried onto the model surface along its camera ray and the line is
+//! extruded along the camera direction, or a configured depth vector, through the model.
+
+use nalgebra::Vector3;
+
+use crate::camera::Camera;
+use crate::detect::DetectionConfig;
+use crate::error::Error;
+use crate::features::first_hit;
+use crate::mesh::Mesh;
+use crate::real::Real;
+use crate::storage::Slab;
+
+/// What the cut line did in one frame.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct CutLineReport {
+    /// Frame at which the line was started (the cut detected), if it has been.
+    pub detected_frame: Option<u32>,
+    /// Vertices of the polyline.
+    pub vertices: usize,
+    /// Vertices added this frame (0, 1 or 2; 2 when the line was started).
+    pub added: usize,
+    /// Whether a front could not advance because the vertex capacity is full.
+    pub capped: bool,
+}
+
+/// Separation points considered when the line is started: bounds the robust fit's cost to
+/// `FIT_POINTS³ / 2` distance evaluations.
+pub const FIT_POINTS: usize = 64;
+
+/// The polyline in fixed storage: each vertex anchored to three feature slots.
+#[derive(Debug)]
+pub struct CutLine<'a, T> {
+    anchors: &'a mut [[u32; 3]],
+    weights: &'a mut [[T; 3]],
+    n: usize,
+    /// Directions of the two fronts in the image (start, end), unit length.
+    direction: [[T; 2]; 2],
+    detected_frame: Option<u32>,
+    capped: bool,
+}
+
+fn sub<T: Real>(a: [T; 2], b: [T; 2]) -> [T; 2] {
+    [a[0] - b[0], a[1] - b[1]]
+}
+
+fn length<T: Real>(a: [T; 2]) -> T {
+    (a[0] * a[0] + a[1] * a[1]).sqrt()
+}
+
+fn cross<T: Real>(a: [T; 2], b: [T; 2]) -> T {
+    a[0] * b[1] - a[1] * b[0]
+}
+
+impl<'a, T: Real> CutLine<'a, T> {
+    /// Scalars of storage for `capacity` vertices.
+    pub const fn real_len(capacity: usize) -> usize {
+        3 * capacity
+    }
+
+    /// Indices of storage for `capacity` vertices.
+    pub const fn index_len(capacity: usize) -> usize {
+        3 * capacity
+    }
+
+    /// An empty line with room for `capacity` vertices.
+    ///
+    /// # Errors
+    /// [`Error::Capacity`] if a slab is too short.
+    pub fn new(
+        capacity: usize,
+        reals: &mut Slab<'a, T>,
+        indices: &mut Slab<'a, u32>,
+    ) -> Result<Self, Error> {
+        Ok(CutLine {
+            anchors: indices.take(3 * capacity)?.as_chunks_mut::<3>().0,
+            weights: reals.take(3 * capacity)?.as_chunks_mut::<3>().0,
+            n: 0,
+            direction: [[T::zero(); 2]; 2],
+            detected_frame: None,
+            capped: false,
+        })
+    }
+
+    /// Forgets the line.
+    pub fn reset(&mut self) {
+        self.n = 0;
+        self.detected_frame = None;
+        self.capped = false;
+    }
+
+    /// Number of vertices.
+    pub fn len(&self) -> usize {
+        self.n
+    }
+
+    /// Whether the line has not started.
+    pub fn is_empty(&self) -> bool {
+        self.n == 0
+    }
+
+    /// Frame at which the line started.
+    pub fn detected_frame(&self) -> Option<u32> {
+        self.detected_frame
+    }
+
+    /// Pixel of vertex `k` given the features' latest image positions `features` (one per
+    /// slot).
+    pub fn vertex(&self, k: usize, features: &[[T; 2]]) -> Option<[T; 2]> {
+        if k >= self.n {
+            return None;
+        }
+        let mut p = [T::zero(); 2];
+        for (slot, w) in self.anchors[k].iter().zip(self.weights[k]) {
+            let f = features.get(*slot as usize)?;
+            p[0] += f[0] * w;
+            p[1] += f[1] * w;
+        }
+        Some(p)
+    }
+
+    /// The polyline in the image: writes up to `out.len()` vertices, returns how many.
+    pub fn project(&self, features: &[[T; 2]], out: &mut [[T; 2]]) -> usize {
+        let mut m = 0;
+        for k in 0..self.n {
+            if m == out.len() {
+                break;
+            }
+            if let Some(p) = self.vertex(k, features) {
+                out[m] = p;
+                m += 1;
+            }
+        }
+        m
+    }
+
+    /// The separation surface: one quadrilateral per polyline segment, `[a, b, b + L·e, a + L·e]`,
+    /// where `a` and `b` are the vertices carried onto the model surface along their camera
+    /// rays, `e` the unit depth direction (the configured one, else the camera's viewing
+    /// direction) and `L = length` metres. Writes up to `out.len()` quads, returns how many; a
+    /// segment with a vertex whose ray misses the model is left out.
+    #[allow(clippy::too_many_arguments)]
+    pub fn separation_surface(
+        &self,
+        features: &[[T; 2]],
+        mesh: &Mesh<'_, T>,
+        x: &[[T; 3]],
+        camera: &Camera<T>,
+        config: &DetectionConfig<T>,
+        length: T,
+        out: &mut [[[T; 3]; 4]],
+    ) -> usize {
+        let e = match config.depth {
+            Some(d) => {
+                let v = Vector3::new(d[0], d[1], d[2]);
+                v / v.norm()
+            }
+            None => camera.view_direction(),
+        } * length;
+        let on_surface = |k: usize| -> Option<Vector3<T>> {
+            let uv = self.vertex(k, features)?;
+            let (tet, w) = first_hit(mesh, x, camera, uv)?;
+            let nodes = mesh.tets().get(tet as usize)?;
+            let mut p = Vector3::zeros();
+            for (c, &v) in nodes.iter().enumerate() {
+                let q = x.get(v as usize)?;
+                p += Vector3::new(q[0], q[1], q[2]) * w[c];
+            }
+            Some(p)
+        };
+        let mut m = 0;
+        let mut previous = if self.n > 0 { on_surface(0) } else { None };
+        for k in 1..self.n {
+            if m == out.len() {
+                break;
+            }
+            let current = on_surface(k);
+            if let (Some(a), Some(b)) = (previous, current) {
+                out[m] = [a, b, b + e, a + e].map(|p| [p.x, p.y, p.z]);
+                m += 1;
+            }
+            previous = current;
+        }
+        m
+    }
+
+    /// One frame: starts the line from the separation `points` once there are enough, or
+    /// advances its fronts. `features` are the latest image positions of the feature slots
+    /// (vertices are anchored to them); `usable[i] != 0` marks slots that may anchor a new
+    /// vertex; `scratch` holds the projected vertices (at least the capacity).
+    pub fn update(
+        &mut self,
+        frame: u32,
+        points: &[[T; 2]],
+        features: &[[T; 2]],
+        usable: &[u32],
+        config: &DetectionConfig<T>,
+        scratch: &mut [[T; 2]],
+    ) -> CutLineReport {
+        let mut added = 0;
+        if self.n == 0 {
+            if points.len() >= config.init_points as usize && self.anchors.len() >= 2 {
+                added = self.start(frame, points, features, usable, config);
+            }
+        } else {
+            let m = self.project(features, scratch);
+            if m == self.n {
+                self.follow_points(points, features, usable, config, &scratch[..m]);
+                let m = self.project(features, scratch);
+                for end in 0..2 {
+                    let v = if end == 0 { scratch[0] } else { scratch[m - 1] };
+                    if let Some((p, dir)) = Self::advance(v, self.direction[end], points, config) {
+                        if self.n == self.anchors.len() {
+                            self.capped = true;
+                            continue;
+                        }
+                        if let Some((anchor, w)) = anchor_at(p, features, usable) {
+                            self.insert(end, anchor, w);
+                            self.direction[end] = dir;
+                            added += 1;
+                        }
+                    }
+                }
+            }
+        }
+        CutLineReport {
+            detected_frame: self.detected_frame,
+            vertices: self.n,
+            added,
+            capped: self.capped,
+        }
+    }
+
+    /// Fits the line (robustly, then by total least squares) and places its two ends.
+    fn start(
+        &mut self,
+        frame: u32,
+        points: &[[T; 2]],
+        features: &[[T; 2]],
+        usable: &[u32],
+        config: &DetectionConfig<T>,
+    ) -> usize {
+        // Of the lines through two separation points, the one with most points within the
+        // tolerance: spurious clusters (a tracking failure, a region where the model is poor)
+        // then do not tilt the line.
+        let pts = &points[..points.len().min(FIT_POINTS)];
+        let tol = config.line_tolerance_px;
+        let mut best = (0usize, 0usize, 0usize);
+        for i in 0..pts.len() {
+            for j in i + 1..pts.len() {
+                let d = sub(pts[j], pts[i]);
+                let len = length(d);
+                if !(len > T::EPS) {
+                    continue;
+                }
+                let inliers = pts
+                    .iter()
+                    .filter(|p| (cross(d, sub(**p, pts[i])) / len).abs() <= tol)
+                    .count();
+                if inliers > best.0 {
+                    best = (inliers, i, j);
+                }
+            }
+        }
+        if best.0 < config.init_points as usize {
+            return 0;
+        }
+        let (pi, d) = (pts[best.1], sub(pts[best.2], pts[best.1]));
+        let dl = length(d);
+        let inlier = |p: &&[T; 2]| (cross(d, sub(**p, pi)) / dl).abs() <= tol;
+        // Then total least squares on the inliers: the principal direction of their scatter.
+        let n = T::of(best.0 as f64);
+        let mut c = [T::zero(); 2];
+        for p in pts.iter().filter(inlier) {
+            c[0] += p[0] / n;
+            c[1] += p[1] / n;
+        }
+        let (mut sxx, mut sxy, mut syy) = (T::zero(), T::zero(), T::zero());
+        for p in pts.iter().filter(inlier) {
+            let d = sub(*p, c);
+            sxx += d[0] * d[0];
+            sxy += d[0] * d[1];
+            syy += d[1] * d[1];
+        }
+        // A cut is a line: refuse a cloud (one bad feature's pairs make a ring, noise a blob).
+        let half_trace = (sxx + syy) * T::of(0.5);
+        let root = ((sxx - syy) * (sxx - syy) * T::of(0.25) + sxy * sxy).sqrt();
+        let (major, minor) = (half_trace + root, (half_trace - root).max(T::zero()));
+        if !(major > T::zero()) || (minor / major).sqrt() > config.max_line_spread {
+            return 0;
+        }
+        let angle = T::of(0.5) * (T::of(2.0) * sxy).atan2(sxx - syy);
+        let e = [angle.cos(), angle.sin()];
+        let (mut lo, mut hi) = (T::zero(), T::zero());
+        for p in pts.iter().filter(inlier) {
+            let t = sub(*p, c)[0] * e[0] + sub(*p, c)[1] * e[1];
+            lo = lo.min(t);
+            hi = hi.max(t);
+        }
+        let a = [c[0] + e[0] * lo, c[1] + e[1] * lo];
+        let b = [c[0] + e[0] * hi, c[1] + e[1] * hi];
+        match (
+            anchor_at(a, features, usable),
+            anchor_at(b, features, usable),
+        ) {
+            (Some((aa, wa)), Some((ab, wb))) if hi > lo => {
+                self.anchors[0] = aa;
+                self.weights[0] = wa;
+                self.anchors[1] = ab;
+                self.weights[1] = wb;
+                self.n = 2;
+                self.direction = [[-e[0], -e[1]], e];
+                self.detected_frame = Some(frame);
+                2
+            }
+            _ => 0,
+        }
+    }
+
+    /// Keeps the line on its evidence. A vertex anchored while the cut was narrow stays at the
+    /// same fraction of the way between the lips as they part, which need not be the middle;
+    /// the separation points (midpoints of pairs across the cut) are. Each vertex with enough
+    /// of them within a maximum step moves across the line (not along it) to their mean and is
+    /// anchored again there. `projected` are the vertices' current pixels.
+    fn follow_points(
+        &mut self,
+        points: &[[T; 2]],
+        features: &[[T; 2]],
+        usable: &[u32],
+        config: &DetectionConfig<T>,
+        projected: &[[T; 2]],
+    ) {
+        let m = projected.len();
+        if m < 2 {
+            return;
+        }
+        for k in 0..m {
+            let (a, b) = (
+                projected[k.saturating_sub(1)],
+                projected[(k + 1).min(m - 1)],
+            );
+            let t = sub(b, a);
+            let len = length(t);
+            if !(len > T::EPS) {
+                continue;
+            }
+            let normal = [-t[1] / len, t[0] / len];
+            let v = projected[k];
+            let (mut offset, mut count) = (T::zero(), 0u32);
+            for p in points {
+                let w = sub(*p, v);
+                if length(w) <= config.max_step_px {
+                    offset += w[0] * normal[0] + w[1] * normal[1];
+                    count += 1;
+                }
+            }
+            if count < config.min_support {
+                continue;
+            }
+            let shift = offset / T::of(f64::from(count));
+            let target = [v[0] + normal[0] * shift, v[1] + normal[1] * shift];
+            if let Some((anchor, w)) = anchor_at(target, features, usable) {
+                self.anchors[k] = anchor;
+                self.weights[k] = w;
+            }
+        }
+    }
+
+    /// Where a front at `v` heading `u` moves, if enough points ahead, inside the angle `α`
+    /// and within three maximum steps, support it: toward their mean, by at most the maximum
+    /// step.
+    fn advance(
+        v: [T; 2],
+        u: [T; 2],
+        points: &[[T; 2]],
+        config: &DetectionConfig<T>,
+    ) -> Option<([T; 2], [T; 2])> {
+        let cos_alpha = (config.alpha_degrees * T::pi() / T::of(180.0)).cos();
+        let (mut sum, mut count) = ([T::zero(); 2], 0u32);
+        for p in points {
+            let w = sub(*p, v);
+            let d = length(w);
+            if d > T::EPS
+                && d <= T::of(3.0) * config.max_step_px
+                && (w[0] * u[0] + w[1] * u[1]) >= cos_alpha * d
+            {
+                sum[0] += w[0];
+                sum[1] += w[1];
+                count += 1;
+            }
+        }
+        if count < config.min_support {
+            return None;
+        }
+        let mean = [
+            sum[0] / T::of(f64::from(count)),
+            sum[1] / T::of(f64::from(count)),
+        ];
+        let len = length(mean);
+        if len < config.min_step_px || !(len > T::zero()) {
+            return None;
+        }
+        let dir = [mean[0] / len, mean[1] / len];
+        let step = len.min(config.max_step_px).max(config.min_step_px);
+        Some(([v[0] + dir[0] * step, v[1] + dir[1] * step], dir))
+    }
+
+    fn insert(&mut self, end: usize, anchor: [u32; 3], w: [T; 3]) {
+        if end == 0 {
+            for k in (0..self.n).rev() {
+                self.anchors[k + 1] = self.anchors[k];
+                self.weights[k + 1] = self.weights[k];
+            }
+            self.anchors[0] = anchor;
+            self.weights[0] = w;
+        } else {
+            self.anchors[self.n] = anchor;
+            self.weights[self.n] = w;
+        }
+        self.n += 1;
+    }
+}
+
+/// Anchors image point `p` to three usable features around it, as their affine combination
+/// (weights sum to one): of the triangles of its six nearest usable features, the one that
+/// contains `p` most centrally (largest smallest weight). A point on a cut is then held by
+/// features on both lips and stays between them as the cut opens. If no triangle contains
+/// `p`, the best-shaped one of the nearest is used. `None` with fewer than three usable
+/// features or only collinear ones.
+fn anchor_at<T: Real>(
+    p: [T; 2],
+    features: &[[T; 2]],
+    usable: &[u32],
+) -> Option<([u32; 3], [T; 3])> {
+    // The six nearest usable features, by insertion into a small sorted list.
+    const K: usize = 6;
+    let mut near: [(T, u32); K] = [(T::max_value().unwrap_or(T::one()), u32::MAX); K];
+    let mut found = 0;
+    for (i, f) in features.iter().enumerate() {
+        if usable.get(i).is_none_or(|&u| u == 0) {
+            continue;
+        }
+        let d = length(sub(*f, p));
+        if found < K || d < near[K - 1].0 {
+            let mut k = found.min(K - 1);
+            near[k] = (d, i as u32);
+            while k > 0 && near[k].0 < near[k - 1].0 {
+                near.swap(k, k - 1);
+                k -= 1;
+            }
+            found = (found + 1).min(K);
+        }
+    }
+    let mut best: Option<(T, [u32; 3], [T; 3])> = None;
+    for i in 0..found {
+        for j in i + 1..found {
+            for k in j + 1..found {
+                let idx = [near[i].1, near[j].1, near[k].1];
+                let [fa, fb, fc] = idx.map(|s| features[s as usize]);
+                let (ab, ac) = (sub(fb, fa), sub(fc, fa));
+                let det = cross(ab, ac);
+                let scale = (length(ab) + length(ac)) * (length(ab) + length(ac));
+                // Skip slivers: their weights blow up with the noise of the features.
+                if !(det.abs() > T::of(0.05) * scale) {
+                    continue;
+                }
+                let wb = cross(sub(p, fa), ac) / det;
+                let wc = cross(ab, sub(p, fa)) / det;
+                let w = [T::one() - wb - wc, wb, wc];
+                // Containment first (largest smallest weight), then closeness to containment.
+                let score = w[0].min(w[1]).min(w[2]);
+                if best.is_none_or(|(s, _, _)| score > s) {
+                    best = Some((score, idx, w));
+                }
+            }
+        }
+    }
+    best.map(|(_, idx, w)| (idx, w))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_anchored_point_follows_its_features_affinely() {
+        let features = [[0.0, 0.0], [10.0, 0.0], [0.0, 10.0], [50.0, 50.0]];
+        let usable = [1, 1, 1, 1];
+        let (anchor, w) = anchor_at([2.0, 3.0], &features, &usable).unwrap();
+        let place = |f: &[[f64; 2]]| -> [f64; 2] {
+            let mut p = [0.0; 2];
+            for k in 0..3 {
+                p[0] += w[k] * f[anchor[k] as usize][0];
+                p[1] += w[k] * f[anchor[k] as usize][1];
+            }
+            p
+        };
+        let here = place(&features);
+        assert!((here[0] - 2.0).abs() < 1e-12 && (here[1] - 3.0).abs() < 1e-12);
+        // Stretch the features by 2 along x and shift them: the point moves the same way.
+        let moved = features.map(|f| [2.0 * f[0] + 5.0, f[1] - 1.0]);
+        let there = place(&moved);
+        assert!((there[0] - 9.0).abs() < 1e-12 && (there[1] - 2.0).abs() < 1e-12);
+        // Unusable or collinear features cannot anchor.
+        assert!(anchor_at([1.0, 1.0], &features, &[1, 1, 0, 0]).is_none());
+        let line = [[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]];
+        assert!(anchor_at([1.0, 1.0], &line, &[1, 1, 1]).is_none());
+    }
+
+    #[test]
+    fn the_line_starts_on_collinear_points_and_grows_toward_new_ones() {
+        // Features on a grid; separation points along x = 50 from y = 20 to 60, then more up
+        // to y = 100.
+        let mut features = [[0.0; 2]; 121];
+        for k in 0..121 {
+            features[k] = [10.0 * (k % 11) as f64, 10.0 * (k / 11) as f64];
+        }
+        let usable = [1u32; 121];
+        let config = DetectionConfig::<f64>::paper();
+        let mut reals = [0.0; 64];
+        let mut indices = [0u32; 64];
+        let mut rs = Slab::new(&mut reals, crate::error::Resource::RealStorage);
+        let mut is = Slab::new(&mut indices, crate::error::Resource::IndexStorage);
+        let mut line = CutLine::new(16, &mut rs, &mut is).unwrap();
+        let mut scratch = [[0.0; 2]; 16];
+        let mut points = [[0.0; 2]; 20];
+        for k in 0..9 {
+            points[k] = [50.0, 20.0 + 5.0 * k as f64];
+        }
+        // A blob away from the line must not tilt it.
+        points[9] = [80.0, 80.0];
+        points[10] = [82.0, 81.0];
+        let r = line.update(3, &points[..11], &features, &usable, &config, &mut scratch);
+        assert_eq!((r.detected_frame, r.vertices, r.added), (Some(3), 2, 2));
+        let m = line.project(&features, &mut scratch);
+        assert_eq!(m, 2);
+        for p in &scratch[..2] {
+            assert!((p[0] - 50.0).abs() < 1e-9, "{p:?}");
+        }
+        // More points further along +y: the end front advances, by at most the maximum step.
+        for k in 0..8 {
+            points[k] = [50.0, 65.0 + 5.0 * k as f64];
+        }
+        let before = line.project(&features, &mut scratch);
+        let far_end = scratch[..before].iter().map(|p| p[1]).fold(0.0, f64::max);
+        let r = line.update(4, &points[..8], &features, &usable, &config, &mut scratch);
+        assert_eq!(r.added, 1);
+        let m = line.project(&features, &mut scratch);
+        let new_end = scratch[..m].iter().map(|p| p[1]).fold(0.0, f64::max);
+        assert!(new_end > far_end && new_end <= far_end + config.max_step_px + 1e-9);
+    }
+
+    #[test]
+    fn a_full_line_reports_its_cap_instead_of_growing() {
+        let mut features = [[0.0; 2]; 121];
+        for k in 0..121 {
+            features[k] = [10.0 * (k % 11) as f64, 10.0 * (k / 11) as f64];
+        }
+        let usable = [1u32; 121];
+        let config = DetectionConfig::<f64>::paper();
+        let (mut reals, mut indices) = ([0.0; 6], [0u32; 6]);
+        let mut rs = Slab::new(&mut reals, crate::error::Resource::RealStorage);
+        let mut is = Slab::new(&mut indices, crate::error::Resource::IndexStorage);
+        // Room for two vertices only: the start.
+        let mut line = CutLine::new(2, &mut rs, &mut is).unwrap();
+        let mut scratch = [[0.0; 2]; 2];
+        let mut points = [[0.0; 2]; 8];
+        for k in 0..8 {
+            points[k] = [50.0, 20.0 + 5.0 * k as f64];
+        }
+        let r = line.update(1, &points, &features, &usable, &config, &mut scratch);
+        assert_eq!((r.vertices, r.capped), (2, false));
+        for k in 0..8 {
+            points[k] = [50.0, 60.0 + 5.0 * k as f64];
+        }
+        let r = line.update(2, &points, &features, &usable, &config, &mut scratch);
+        assert_eq!((r.vertices, r.added, r.capped), (2, 0, true));
+    }
+}

@@ -1,0 +1,685 @@
+//! Detecting a cut from motion discontinuities (paper §2.2 and §2.3).
+//!
+//! While the model follows the real object, the residual `d_i = f_i − P(f_iᵛ)` of each feature
+//! varies smoothly over the image. Where the real object is cut and the model is not, features
+//! on the two lips pull the model in different directions and neighbouring residuals stop
+//! agreeing. The detector measures `μ_ij = ‖d_i − d_j‖` over the neighbour pairs fixed at frame
+//! 0, flags the pairs with `μ_ij > ε·μ̄`, and, once a pair has been flagged for a few frames in a
+//! row, records it as split: the midpoints of split pairs are the separation points the cut
+//! line is fitted to ([`crate::cutline`]).
+//!
+//! A temporal filter keeps tracker failures out: a feature whose residual jumps from one frame
+//! to the next far more than the others' (`E_i > ε_t·Ē`) is taken out of detection for good,
+//! with all its pairs.
+//!
+//! Cost per frame: one pass over the features and one over the pairs, both bounded by their
+//! capacities.
+
+use crate::error::Error;
+use crate::real::Real;
+
+/// Parameters of the detection and of the cut line.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DetectionConfig<T> {
+    /// Whether detection runs at all (a scene can switch it off at run time; the `cut` feature
+    /// removes it from the build).
+    pub enabled: bool,
+    /// Neighbour radius `r` in pixels; 0 derives it from the features' density at frame 0
+    /// (2.5 times their mean spacing).
+    pub radius_px: T,
+    /// Outlier threshold `ε` on `μ_ij / μ̄` (the paper used 7).
+    pub epsilon: T,
+    /// Temporal-filter threshold `ε_t` on `E_i / Ē`.
+    pub temporal_epsilon: T,
+    /// Differences below this many pixels are never outliers (so that a near-perfect fit, whose
+    /// mean is near zero, does not flag noise).
+    pub min_difference_px: T,
+    /// Frames in a row a pair must be an outlier before it counts as split.
+    pub persistence: u32,
+    /// Separation points needed to start the cut line.
+    pub init_points: u32,
+    /// Angular restriction `α` of a front's advance, degrees.
+    pub alpha_degrees: T,
+    /// Shortest advance of a front, pixels.
+    pub min_step_px: T,
+    /// Longest advance of a front, pixels.
+    pub max_step_px: T,
+    /// Separation points ahead of a front needed to advance it.
+    pub min_support: u32,
+    /// Separation points within this distance of a candidate line count for it when the line
+    /// is started (a robust fit), pixels.
+    pub line_tolerance_px: T,
+    /// The separation points must lie along a line to start the cut line: the spread across
+    /// the fitted line over the spread along it, `√(λ_min / λ_max)`, may not exceed this.
+    pub max_line_spread: T,
+    /// Count only pairs whose residuals diverge across the line joining them (the lips of an
+    /// opening cut), not those that converge or shear.
+    pub opening_only: bool,
+    /// A feature whose measured pairs are outliers in more than this fraction is taken as a
+    /// tracking failure in that frame, not as evidence of a cut (a cut separates a feature
+    /// from the neighbours on the far side only).
+    pub max_outlier_fraction: T,
+    /// Direction the cut line is extruded along into the model (world); `None` uses the
+    /// camera's viewing direction.
+    pub depth: Option<[T; 3]>,
+}
+
+impl<T: Real> DetectionConfig<T> {
+    /// The paper's settings (`ε = 7`) with the rest chosen for the shipped scenes.
+    pub fn paper() -> Self {
+        DetectionConfig {
+            enabled: true,
+            radius_px: T::zero(),
+            epsilon: T::of(7.0),
+            temporal_epsilon: T::of(10.0),
+            min_difference_px: T::of(1.0),
+            persistence: 2,
+            init_points: 6,
+            alpha_degrees: T::of(35.0),
+            min_step_px: T::of(2.0),
+            max_step_px: T::of(25.0),
+            min_support: 3,
+            line_tolerance_px: T::of(8.0),
+            max_line_spread: T::of(0.25),
+            max_outlier_fraction: T::of(0.85),
+            opening_only: true,
+            depth: None,
+        }
+    }
+
+    /// Checks the ranges.
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] with [`crate::Parameter::Detection`].
+    pub fn validate(&self) -> Result<(), Error> {
+        let pos = |x: T| x.finite() && x > T::zero();
+        let ok = self.radius_px.finite()
+            && self.radius_px >= T::zero()
+            && pos(self.epsilon)
+            && pos(self.temporal_epsilon)
+            && self.min_difference_px.finite()
+            && self.min_difference_px >= T::zero()
+            && self.persistence >= 1
+            && self.init_points >= 2
+            && self.alpha_degrees.finite()
+            && self.alpha_degrees > T::zero()
+            && self.alpha_degrees <= T::of(90.0)
+            && pos(self.max_step_px)
+            && self.min_step_px.finite()
+            && self.min_step_px >= T::zero()
+            && self.min_step_px <= self.max_step_px
+            && self.min_support >= 1
+            && self.line_tolerance_px.finite()
+            && self.line_tolerance_px > T::zero()
+            && self.max_line_spread.finite()
+            && self.max_line_spread > T::zero()
+            && self.max_outlier_fraction.finite()
+            && self.max_outlier_fraction > T::zero()
+            && self
+                .depth
+                .is_none_or(|d| d.iter().all(|c| c.finite()) && d.iter().any(|c| *c != T::zero()));
+        if ok {
+            Ok(())
+        } else {
+            Err(Error::InvalidParameter {
+                parameter: crate::error::Parameter::Detection,
+            })
+        }
+    }
+}
+
+/// What the detector saw in one frame.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct DetectionReport<T> {
+    /// Neighbour pairs built at frame 0.
+    pub pairs: usize,
+    /// Pairs measured this frame (both features observed and neither filtered out).
+    pub pairs_active: usize,
+    /// Pairs dropped so far because a feature was filtered out.
+    pub pairs_lost: usize,
+    /// Pairs whose `μ_ij` exceeded `ε·μ̄` this frame.
+    pub outliers: usize,
+    /// Pairs counted as split this frame (outliers for `persistence` frames in a row).
+    pub split: usize,
+    /// Features taken out by the temporal filter so far.
+    pub features_filtered: usize,
+    /// Mean `μ̄` over the active pairs, pixels.
+    pub mean_difference_px: T,
+    /// Separation points this frame.
+    pub separation_points: usize,
+}
+
+#[cfg(feature = "cut")]
+pub use detector::{Detector, GRID_CELLS};
+
+#[cfg(feature = "cut")]
+mod detector {
+    use super::{DetectionConfig, DetectionReport};
+    use crate::error::{Error, Resource};
+    use crate::real::Real;
+    use crate::storage::Slab;
+
+    const STREAK: u32 = 0xff;
+    const SPLIT: u32 = 1 << 8;
+    const DROPPED: u32 = 1 << 9;
+
+    const HAS_PREVIOUS: u32 = 1;
+    const FILTERED: u32 = 2;
+    const OBSERVED: u32 = 4;
+
+    /// Cells of the spatial grid that finds neighbours at frame 0.
+    pub const GRID_CELLS: usize = 4096;
+
+    /// The detector's state, in fixed storage.
+    #[derive(Debug)]
+    pub struct Detector<'a, T> {
+        pairs: &'a mut [[u32; 2]],
+        pair_state: &'a mut [u32],
+        n_pairs: usize,
+        previous: &'a mut [[T; 2]],
+        current: &'a mut [[T; 2]],
+        feature_state: &'a mut [u32],
+        /// Per feature, this frame: measured pairs and outlier pairs.
+        pair_counts: &'a mut [[u32; 2]],
+        points: &'a mut [[T; 2]],
+        n_points: usize,
+        grid: &'a mut [u32],
+        radius: T,
+        pairs_lost: usize,
+        features_filtered: usize,
+    }
+
+    impl<'a, T: Real> Detector<'a, T> {
+        /// Scalars of storage for `features` features and `pairs` pairs.
+        pub const fn real_len(features: usize, pairs: usize) -> usize {
+            4 * features + 2 * pairs
+        }
+
+        /// Indices of storage.
+        pub const fn index_len(features: usize, pairs: usize) -> usize {
+            3 * pairs + 3 * features + GRID_CELLS + 1 + features
+        }
+
+        /// Empty detector storage.
+        ///
+        /// # Errors
+        /// [`Error::Capacity`] if a slab is too short.
+        pub fn new(
+            features: usize,
+            pairs: usize,
+            reals: &mut Slab<'a, T>,
+            indices: &mut Slab<'a, u32>,
+        ) -> Result<Self, Error> {
+            Ok(Detector {
+                pairs: indices.take(2 * pairs)?.as_chunks_mut::<2>().0,
+                pair_state: indices.take(pairs)?,
+                n_pairs: 0,
+                feature_state: indices.take(features)?,
+                pair_counts: indices.take(2 * features)?.as_chunks_mut::<2>().0,
+                grid: indices.take(GRID_CELLS + 1 + features)?,
+                previous: reals.take(2 * features)?.as_chunks_mut::<2>().0,
+                current: reals.take(2 * features)?.as_chunks_mut::<2>().0,
+                points: reals.take(2 * pairs)?.as_chunks_mut::<2>().0,
+                n_points: 0,
+                radius: T::zero(),
+                pairs_lost: 0,
+                features_filtered: 0,
+            })
+        }
+
+        /// The neighbour pairs (feature slots).
+        pub fn pairs(&self) -> &[[u32; 2]] {
+            &self.pairs[..self.n_pairs]
+        }
+
+        /// Whether pair `k` has been counted as split.
+        pub fn is_split(&self, k: usize) -> bool {
+            self.pair_state.get(k).is_some_and(|s| s & SPLIT != 0)
+        }
+
+        /// The neighbour radius in use, pixels.
+        pub fn radius(&self) -> T {
+            self.radius
+        }
+
+        /// The separation points of the last frame, pixels.
+        pub fn points(&self) -> &[[T; 2]] {
+            &self.points[..self.n_points]
+        }
+
+        /// Builds the neighbour pairs from the frame-0 projections `uv` of the virtual features
+        /// (one per slot) and their residuals `d` there; forgets any earlier state.
+        ///
+        /// # Errors
+        /// [`Error::Capacity`] naming [`Resource::Pairs`] if more pairs lie within the radius than
+        /// the capacity holds (a smaller radius or a larger capacity is needed), or
+        /// [`Resource::Features`] for more slots than the storage holds; the detector is then empty.
+        pub fn init(
+            &mut self,
+            uv: &[[T; 2]],
+            d: &[[T; 2]],
+            config: &DetectionConfig<T>,
+        ) -> Result<(), Error> {
+            self.n_pairs = 0;
+            self.n_points = 0;
+            self.pairs_lost = 0;
+            self.features_filtered = 0;
+            let n = uv.len();
+            if n > self.feature_state.len() || d.len() != n {
+                return Err(Error::Capacity {
+                    resource: Resource::Features,
+                    needed: n,
+                    available: self.feature_state.len(),
+                });
+            }
+            if n == 0 {
+                return Ok(());
+            }
+            let (mut lo, mut hi) = ([uv[0][0], uv[0][1]], [uv[0][0], uv[0][1]]);
+            for p in uv {
+                for c in 0..2 {
+                    lo[c] = lo[c].min(p[c]);
+                    hi[c] = hi[c].max(p[c]);
+                }
+            }
+            let (w, h) = (hi[0] - lo[0], hi[1] - lo[1]);
+            self.radius = if config.radius_px > T::zero() {
+                config.radius_px
+            } else {
+                // 2.5 times the mean spacing of the features over their bounding box.
+                let area = (w * h).max(T::one());
+                T::of(2.5) * (area / T::of(n as f64)).sqrt()
+            };
+            let r = self.radius;
+            // Cells at least `r` wide, no more than the grid holds.
+            let side = T::of(libm::floor(libm::sqrt(GRID_CELLS as f64)));
+            let cell = r.max(w / side).max(h / side).max(T::EPS);
+            let nx = (libm::floor((w / cell).to_f64()) as usize + 1).min(64);
+            let ny = (libm::floor((h / cell).to_f64()) as usize + 1).min(64);
+            let cell_of = |p: &[T; 2]| -> (usize, usize) {
+                let cx = (libm::floor(((p[0] - lo[0]) / cell).to_f64()) as usize).min(nx - 1);
+                let cy = (libm::floor(((p[1] - lo[1]) / cell).to_f64()) as usize).min(ny - 1);
+                (cx, cy)
+            };
+            // Counting sort of the features into cells.
+            let (start, items) = self.grid.split_at_mut(GRID_CELLS + 1);
+            start.fill(0);
+            for p in uv {
+                let (cx, cy) = cell_of(p);
+                start[cy * nx + cx + 1] += 1;
+            }
+            for c in 0..nx * ny {
+                start[c + 1] += start[c];
+            }
+            for (i, p) in uv.iter().enumerate() {
+                let (cx, cy) = cell_of(p);
+                let slot = &mut start[cy * nx + cx];
+                items[*slot as usize] = i as u32;
+                *slot += 1;
+            }
+            // `start[c]` now ends cell c; shift back to starts.
+            for c in (1..=nx * ny).rev() {
+                start[c] = start[c - 1];
+            }
+            start[0] = 0;
+            let r2 = r * r;
+            for (i, p) in uv.iter().enumerate() {
+                let (cx, cy) = cell_of(p);
+                for gy in cy.saturating_sub(1)..(cy + 2).min(ny) {
+                    for gx in cx.saturating_sub(1)..(cx + 2).min(nx) {
+                        let c = gy * nx + gx;
+                        for &j in &items[start[c] as usize..start[c + 1] as usize] {
+                            if (j as usize) <= i {
+                                continue;
+                            }
+                            let q = &uv[j as usize];
+                            let (dx, dy) = (q[0] - p[0], q[1] - p[1]);
+                            if dx * dx + dy * dy < r2 {
+                                if self.n_pairs == self.pairs.len() {
+                                    let needed = self.n_pairs + 1;
+                                    self.n_pairs = 0;
+                                    return Err(Error::Capacity {
+                                        resource: Resource::Pairs,
+                                        needed,
+                                        available: self.pairs.len(),
+                                    });
+                                }
+                                self.pairs[self.n_pairs] = [i as u32, j];
+                                self.pair_state[self.n_pairs] = 0;
+                                self.n_pairs += 1;
+                            }
+                        }
+                    }
+                }
+            }
+            for i in 0..n {
+                self.previous[i] = d[i];
+                self.feature_state[i] = HAS_PREVIOUS;
+            }
+            Ok(())
+        }
+
+        /// One frame: `d` are the residuals of the slots (meaningful where `observed[i] != 0`),
+        /// `targets` the tracked positions (for the separation points).
+        pub fn update(
+            &mut self,
+            d: &[[T; 2]],
+            observed: &[u32],
+            targets: &[[T; 2]],
+            config: &DetectionConfig<T>,
+        ) -> DetectionReport<T> {
+            let n = d
+                .len()
+                .min(observed.len())
+                .min(targets.len())
+                .min(self.feature_state.len());
+            let norm = |a: [T; 2], b: [T; 2]| {
+                ((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1])).sqrt()
+            };
+
+            // Temporal filter: the frame-to-frame change of each residual against the mean change.
+            let (mut sum, mut count) = (T::zero(), 0usize);
+            for i in 0..n {
+                let s = &mut self.feature_state[i];
+                *s = (*s & !OBSERVED) | if observed[i] != 0 { OBSERVED } else { 0 };
+                self.current[i] = d[i];
+                if *s & (OBSERVED | HAS_PREVIOUS | FILTERED) == OBSERVED | HAS_PREVIOUS {
+                    sum += norm(d[i], self.previous[i]);
+                    count += 1;
+                }
+            }
+            let mean_change = if count > 0 {
+                sum / T::of(count as f64)
+            } else {
+                T::zero()
+            };
+            let limit = (config.temporal_epsilon * mean_change).max(config.min_difference_px);
+            let mut newly_filtered = false;
+            for i in 0..n {
+                let s = self.feature_state[i];
+                if s & (OBSERVED | HAS_PREVIOUS | FILTERED) == OBSERVED | HAS_PREVIOUS
+                    && norm(d[i], self.previous[i]) > limit
+                {
+                    self.feature_state[i] |= FILTERED;
+                    self.features_filtered += 1;
+                    newly_filtered = true;
+                }
+            }
+            for i in 0..n {
+                if self.feature_state[i] & OBSERVED != 0 {
+                    self.previous[i] = d[i];
+                    self.feature_state[i] |= HAS_PREVIOUS;
+                }
+            }
+
+            // Pairs: drop those of filtered features, then the mean difference over the rest.
+            let usable = |s: &[u32], i: u32| {
+                s.get(i as usize)
+                    .is_some_and(|&f| f & (OBSERVED | FILTERED) == OBSERVED)
+            };
+            let (mut sum, mut active) = (T::zero(), 0usize);
+            for k in 0..self.n_pairs {
+                let [i, j] = self.pairs[k];
+                if newly_filtered
+                    && self.pair_state[k] & DROPPED == 0
+                    && [i, j].iter().any(|&f| {
+                        self.feature_state
+                            .get(f as usize)
+                            .is_some_and(|s| s & FILTERED != 0)
+                    })
+                {
+                    self.pair_state[k] |= DROPPED;
+                    self.pairs_lost += 1;
+                }
+                if self.pair_state[k] & DROPPED == 0
+                    && usable(self.feature_state, i)
+                    && usable(self.feature_state, j)
+                {
+                    sum += norm(self.current[i as usize], self.current[j as usize]);
+                    active += 1;
+                }
+            }
+            let mean = if active > 0 {
+                sum / T::of(active as f64)
+            } else {
+                T::zero()
+            };
+            let threshold = (config.epsilon * mean).max(config.min_difference_px);
+            let is_outlier = |k: usize,
+                              s: &[u32],
+                              cur: &[[T; 2]],
+                              pairs: &[[u32; 2]],
+                              st: &[u32]|
+             -> Option<bool> {
+                let [i, j] = pairs[k];
+                if st[k] & DROPPED != 0 || !(usable(s, i) && usable(s, j)) {
+                    return None;
+                }
+                let (di, dj) = (cur[i as usize], cur[j as usize]);
+                let mu = norm(di, dj);
+                if !(mu > threshold) {
+                    return Some(false);
+                }
+                if !config.opening_only {
+                    return Some(true);
+                }
+                // An opening cut leaves the model behind on both lips: across it, the residuals
+                // diverge along the line joining the two features.
+                let (a, b) = (targets[i as usize], targets[j as usize]);
+                let (ux, uy) = (b[0] - a[0], b[1] - a[1]);
+                let len = (ux * ux + uy * uy).sqrt();
+                let opening = ((dj[0] - di[0]) * ux + (dj[1] - di[1]) * uy) / len.max(T::EPS);
+                Some(opening >= T::of(0.5) * mu)
+            };
+            // Per feature: how many of its measured pairs are outliers.
+            for c in self.pair_counts[..n].iter_mut() {
+                *c = [0, 0];
+            }
+            let mut outliers = 0;
+            for k in 0..self.n_pairs {
+                if let Some(out) = is_outlier(
+                    k,
+                    self.feature_state,
+                    self.current,
+                    self.pairs,
+                    self.pair_state,
+                ) {
+                    for f in self.pairs[k] {
+                        if let Some(c) = self.pair_counts.get_mut(f as usize) {
+                            c[0] += 1;
+                            c[1] += u32::from(out);
+                        }
+                    }
+                    outliers += usize::from(out);
+                }
+            }
+            let trusted = |c: &[[u32; 2]], f: u32| {
+                c.get(f as usize).is_some_and(|&[all, bad]| {
+                    T::of(f64::from(bad)) <= config.max_outlier_fraction * T::of(f64::from(all))
+                })
+            };
+            let mut split = 0;
+            self.n_points = 0;
+            for k in 0..self.n_pairs {
+                let Some(out) = is_outlier(
+                    k,
+                    self.feature_state,
+                    self.current,
+                    self.pairs,
+                    self.pair_state,
+                ) else {
+                    continue;
+                };
+                let [i, j] = self.pairs[k];
+                let state = self.pair_state[k];
+                // An outlier pair only counts between two features that agree with most of their other
+                // neighbours.
+                let counts = out && trusted(self.pair_counts, i) && trusted(self.pair_counts, j);
+                let streak = if counts {
+                    ((state & STREAK) + 1).min(STREAK)
+                } else {
+                    0
+                };
+                let mut next = (state & !STREAK) | streak;
+                if streak >= config.persistence {
+                    next |= SPLIT;
+                    split += 1;
+                    // The separation point: between the two tracked features, where the cut runs.
+                    if self.n_points < self.points.len() {
+                        let (a, b) = (targets[i as usize], targets[j as usize]);
+                        self.points[self.n_points] =
+                            [(a[0] + b[0]) * T::of(0.5), (a[1] + b[1]) * T::of(0.5)];
+                        self.n_points += 1;
+                    }
+                }
+                self.pair_state[k] = next;
+            }
+            DetectionReport {
+                pairs: self.n_pairs,
+                pairs_active: active,
+                pairs_lost: self.pairs_lost,
+                outliers,
+                split,
+                features_filtered: self.features_filtered,
+                mean_difference_px: mean,
+                separation_points: self.n_points,
+            }
+        }
+    }
+
+    #[cfg(test)]
+    mod tests {
+        use super::*;
+
+        /// Features on a grid, `n × n`, `spacing` pixels apart.
+        fn grid(n: usize, spacing: f64) -> [[f64; 2]; 400] {
+            let mut uv = [[0.0; 2]; 400];
+            for k in 0..n * n {
+                uv[k] = [spacing * (k % n) as f64, spacing * (k / n) as f64];
+            }
+            uv
+        }
+
+        struct Store {
+            reals: [f64; 8192],
+            indices: [u32; 16384],
+        }
+
+        fn store() -> Store {
+            Store {
+                reals: [0.0; 8192],
+                indices: [0; 16384],
+            }
+        }
+
+        fn detector(s: &mut Store, features: usize, pairs: usize) -> Detector<'_, f64> {
+            let mut rs = Slab::new(&mut s.reals, Resource::RealStorage);
+            let mut is = Slab::new(&mut s.indices, Resource::IndexStorage);
+            Detector::new(features, pairs, &mut rs, &mut is).unwrap()
+        }
+
+        fn config() -> DetectionConfig<f64> {
+            DetectionConfig {
+                radius_px: 15.0,
+                ..DetectionConfig::paper()
+            }
+        }
+
+        #[test]
+        fn grid_pairs_are_the_close_ones() {
+            let mut s = store();
+            let mut det = detector(&mut s, 400, 2000);
+            let uv = grid(20, 10.0);
+            det.init(&uv, &[[0.0; 2]; 400], &config()).unwrap();
+            // Within 15 px of a grid point 10 px apart: 4 axis and 4 diagonal neighbours (14.1 px):
+            // 2·19·20 axis pairs and 2·19·19 diagonal ones.
+            assert_eq!(det.pairs().len(), 2 * 19 * 20 + 2 * 19 * 19);
+            assert!(det.pairs().iter().all(|&[i, j]| i < j));
+        }
+
+        #[test]
+        fn rigid_motion_gives_no_outlier() {
+            let mut s = store();
+            let mut det = detector(&mut s, 400, 2000);
+            let uv = grid(20, 10.0);
+            det.init(&uv, &[[0.0; 2]; 400], &config()).unwrap();
+            // Every residual the same (the model lags a rigid shift by the same amount everywhere).
+            let d = [[3.0, -2.0]; 400];
+            for _ in 0..5 {
+                let r = det.update(&d, &[1; 400], &uv, &config());
+                assert_eq!(r.outliers, 0);
+                assert_eq!(r.split, 0);
+            }
+        }
+
+        #[test]
+        fn a_clean_jump_across_a_line_gives_separation_points_on_it() {
+            let mut s = store();
+            let mut det = detector(&mut s, 400, 2000);
+            let uv = grid(20, 10.0);
+            det.init(&uv, &[[0.0; 2]; 400], &config()).unwrap();
+            // Residuals jump across the vertical line x = 95 (between columns 9 and 10), with a
+            // small smooth variation elsewhere.
+            let mut d = [[0.0; 2]; 400];
+            for k in 0..400 {
+                let x = uv[k][0];
+                d[k] = if x > 95.0 { [6.0, 0.0] } else { [-6.0, 0.0] };
+                d[k][1] = 0.01 * uv[k][1];
+            }
+            let mut last = DetectionReport::default();
+            for frame in 0..3 {
+                // Reach the final residuals in one step then hold: the temporal filter sees the
+                // same change everywhere, so nothing is filtered.
+                let dd = if frame == 0 { [[0.0; 2]; 400] } else { d };
+                last = det.update(&dd, &[1; 400], &uv, &config());
+            }
+            assert_eq!(last.features_filtered, 0);
+            assert!(last.split > 0);
+            for p in det.points() {
+                assert!((p[0] - 95.0).abs() <= 5.0 + 1e-12, "{p:?}");
+            }
+        }
+
+        #[test]
+        fn a_single_jumping_feature_is_filtered_and_cuts_nothing() {
+            let mut s = store();
+            let mut det = detector(&mut s, 400, 2000);
+            let uv = grid(20, 10.0);
+            det.init(&uv, &[[0.0; 2]; 400], &config()).unwrap();
+            let mut d = [[0.0; 2]; 400];
+            // Small noise-like residuals, then feature 210 jumps by 20 px for three frames.
+            for frame in 0..8 {
+                for k in 0..400 {
+                    let phase = (k * 7 + frame * 13) % 11;
+                    d[k] = [0.1 * phase as f64 - 0.5, 0.05 * phase as f64 - 0.25];
+                }
+                if (2..5).contains(&frame) {
+                    d[210][0] += 20.0;
+                }
+                let r = det.update(&d, &[1; 400], &uv, &config());
+                assert_eq!(r.split, 0, "frame {frame}");
+            }
+            let r = det.update(&d, &[1; 400], &uv, &config());
+            assert_eq!(r.features_filtered, 1);
+            // Feature 210 had 8 neighbours within 15 px.
+            assert_eq!(r.pairs_lost, 8);
+        }
+
+        #[test]
+        fn too_many_pairs_is_a_capacity_error() {
+            let mut s = store();
+            let mut det = detector(&mut s, 400, 100);
+            let uv = grid(20, 10.0);
+            let err = det.init(&uv, &[[0.0; 2]; 400], &config()).unwrap_err();
+            assert!(matches!(
+                err,
+                Error::Capacity {
+                    resource: Resource::Pairs,
+                    available: 100,
+                    ..
+                }
+            ));
+            assert!(det.pairs().is_empty());
+        }
+    }
+}
