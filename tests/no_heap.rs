@@ -18,7 +18,14 @@ fn root() -> PathBuf {
 
 /// Builds the no_std program and returns the path of its static library.
 fn build(features: &[&str]) -> PathBuf {
-    let target_dir = root().join("target").join("nostd-check");
+    // One target directory per feature set: both tests build the same library name, and
+    // cargo copies its output to the same place, so they would race in one directory.
+    let flavour = if features.is_empty() {
+        "plain".to_string()
+    } else {
+        features.join("-")
+    };
+    let target_dir = root().join("target").join("nostd-check").join(flavour);
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
     let mut cmd = Command::new(cargo);
     cmd.current_dir(root().join("nostd-check"))
@@ -88,7 +95,7 @@ fn the_core_links_and_runs_without_a_heap() {
     assert!(syms.is_empty(), "allocator symbols linked: {syms:?}");
 
     // Link with a C main and run: the core's computation must check out.
-    let dir = root().join("target").join("nostd-check");
+    let dir = lib.parent().expect("library directory").to_path_buf();
     let main_c = dir.join("main.c");
     std::fs::write(
         &main_c,

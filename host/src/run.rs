@@ -5,6 +5,7 @@ use std::fmt;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+use image::RgbImage;
 use incise_core::mesh::MeshCapacity;
 use incise_core::nalgebra::{Matrix3, Vector3};
 use incise_core::{
@@ -243,6 +244,8 @@ pub struct DetectionTrace {
 /// One pass over a scene.
 #[derive(Clone, Debug)]
 pub struct Trace {
+    /// The observations of every frame, as used (to replay the run).
+    pub observations: Vec<Vec<Observation<f64>>>,
     /// The cut detection.
     pub detection: DetectionTrace,
     /// Per frame (frame 0 included, with no step time).
@@ -340,7 +343,67 @@ fn median(v: &[f64]) -> f64 {
     s[s.len() / 2]
 }
 
-/// Runs the scene once, with cutting on or off; writes pictures and meshes into `out`.
+/// One frame of input: the tracked features and, when the input is a video, its picture.
+#[derive(Clone, Debug, Default)]
+pub struct SourceFrame {
+    /// Tracked features (undistorted pixels).
+    pub observations: Vec<Observation<f64>>,
+    /// The camera's picture, if any (drawn under the overlay).
+    pub image: Option<RgbImage>,
+}
+
+/// Where the frames of a run come from: a scene's `tracks.csv`, or a video tracked on the fly
+/// (the `opencv` feature). Frames are pulled one at a time, so a video is never held whole.
+pub trait FrameSource {
+    /// Number of frames, if known in advance (for the progress bar).
+    fn len_hint(&self) -> Option<usize>;
+    /// The next frame, `None` at the end. `model_silhouette` is the model's silhouette at rest
+    /// (where a tracker should look for features at frame 0).
+    ///
+    /// # Errors
+    /// A [`RunError`] if the input cannot be read.
+    fn next_frame(&mut self, model_silhouette: &Mask) -> Result<Option<SourceFrame>, RunError>;
+}
+
+/// Frames from observations held in memory (a scene's `tracks.csv`, or a recorded run).
+pub struct TrackSource<'s> {
+    frames: &'s [Vec<Observation<f64>>],
+    next: usize,
+}
+
+impl<'s> TrackSource<'s> {
+    /// Frames from `frames`, frame 0 first.
+    pub fn new(frames: &'s [Vec<Observation<f64>>]) -> Self {
+        TrackSource { frames, next: 0 }
+    }
+}
+
+impl FrameSource for TrackSource<'_> {
+    fn len_hint(&self) -> Option<usize> {
+        Some(self.frames.len())
+    }
+
+    fn next_frame(&mut self, _: &Mask) -> Result<Option<SourceFrame>, RunError> {
+        let frame = self.frames.get(self.next).map(|obs| SourceFrame {
+            observations: obs.clone(),
+            image: None,
+        });
+        self.next += 1;
+        Ok(frame)
+    }
+}
+
+/// Where overlay pictures go besides PNG stills: an overlay video (the `opencv` feature).
+pub trait FrameSink {
+    /// Appends one overlay picture.
+    ///
+    /// # Errors
+    /// A [`RunError`] if it cannot be written.
+    fn write(&mut self, picture: &RgbImage) -> Result<(), RunError>;
+}
+
+/// Runs the scene once over its `tracks.csv`, with cutting on or off; writes pictures and
+/// meshes into `out`.
 ///
 /// # Errors
 /// A [`RunError`] for a scene the core refuses, a frame it rejects, or an output that cannot
@@ -349,6 +412,30 @@ pub fn run_once(
     scene: &Scene,
     cutting: bool,
     out: Option<&Path>,
+    progress: bool,
+) -> Result<Trace, RunError> {
+    run_with(
+        scene,
+        &mut TrackSource::new(&scene.frames),
+        cutting,
+        out,
+        None,
+        progress,
+    )
+}
+
+/// Runs the scene once over frames from `source`, with cutting on or off; writes pictures,
+/// meshes and `frames.csv` into `out` and overlay pictures to `sink`. The trace records the
+/// observations used, so that a second pass (cutting off) can replay them.
+///
+/// # Errors
+/// As [`run_once`], and the source's or the sink's errors.
+pub fn run_with(
+    scene: &Scene,
+    source: &mut dyn FrameSource,
+    cutting: bool,
+    out: Option<&Path>,
+    mut sink: Option<&mut dyn FrameSink>,
     progress: bool,
 ) -> Result<Trace, RunError> {
     let toml = scene.dir.join("scene.toml");
@@ -382,9 +469,14 @@ pub fn run_once(
     let mut model = storage
         .model(&input, &config)
         .map_err(core("building the model"))?;
+    let rest_silhouette = silhouette(&camera, &scene.rest, model.mesh().surface());
+    let first = source
+        .next_frame(&rest_silhouette)?
+        .ok_or_else(|| RunError::Output("the input holds no frame".into()))?;
     let report = model
-        .embed_features(&scene.frames[0])
+        .embed_features(&first.observations)
         .map_err(core("placing the frame-0 features on the model"))?;
+    let mut pending = Some(first);
     let truth = load_truth(scene)?;
     let target_rest = truth.targets.first().cloned().unwrap_or_default();
     let targets = embed_points(&target_rest, &scene.rest, &scene.tets);
@@ -395,7 +487,7 @@ pub fn run_once(
         std::fs::create_dir_all(dir).map_err(output)?;
     }
     let bar = if progress {
-        let b = ProgressBar::new(scene.frames.len() as u64);
+        let b = ProgressBar::new(source.len_hint().unwrap_or(0) as u64);
         if let Ok(style) =
             ProgressStyle::with_template("{prefix:>16} [{bar:30}] {pos}/{len} frames")
         {
@@ -411,7 +503,16 @@ pub fn run_once(
     let mut detection = DetectionTrace::default();
     let mut polyline = vec![[0.0; 2]; caps.cut_vertices.max(1)];
     let (mut last_dice, mut last_tre) = (0.0, 0.0);
-    for (f, obs) in scene.frames.iter().enumerate() {
+    let mut recorded = vec![];
+    for f in 0.. {
+        let frame = match pending.take() {
+            Some(frame) => frame,
+            None => match source.next_frame(&rest_silhouette)? {
+                Some(frame) => frame,
+                None => break,
+            },
+        };
+        let obs = &frame.observations;
         let mut ms = 0.0;
         let mut observed = obs.len();
         let mut frame_detection = (0, 0, 0);
@@ -471,9 +572,18 @@ pub fn run_once(
                 0.0
             }
         });
-        if let Some(dir) = out {
-            let mut canvas = Canvas::new(model_mask.width, model_mask.height, colour::BACKGROUND);
-            canvas.tint(&truth_mask, colour::TRUTH, 1.0);
+        if out.is_some() || sink.is_some() {
+            let mut canvas = match &frame.image {
+                Some(image) => Canvas {
+                    image: image.clone(),
+                },
+                None => {
+                    let mut c =
+                        Canvas::new(model_mask.width, model_mask.height, colour::BACKGROUND);
+                    c.tint(&truth_mask, colour::TRUTH, 1.0);
+                    c
+                }
+            };
             canvas.tint(&model_mask, colour::MODEL, 0.3);
             canvas.front_wireframe(&camera, &x, &surface, colour::MODEL);
             for o in obs {
@@ -496,9 +606,16 @@ pub fn run_once(
                     canvas.cross_mark([uv.x, uv.y], 3.0, colour::TARGET);
                 }
             }
-            canvas
-                .save(&dir.join(format!("frame_{f:04}.png")))
-                .map_err(output)?;
+            if let Some(sink) = sink.as_deref_mut() {
+                sink.write(&canvas.image)?;
+            }
+            if let Some(dir) = out {
+                canvas
+                    .save(&dir.join(format!("frame_{f:04}.png")))
+                    .map_err(output)?;
+            }
+        }
+        if let Some(dir) = out {
             let name = format!("mesh_{f:04}.vtu");
             let disp: Vec<[f64; 3]> = x
                 .iter()
@@ -521,6 +638,7 @@ pub fn run_once(
         });
         last_dice = d;
         last_tre = tre;
+        recorded.push(frame.observations);
         bar.inc(1);
     }
     bar.finish_and_clear();
@@ -563,6 +681,7 @@ pub fn run_once(
         _ => None,
     };
     Ok(Trace {
+        observations: recorded,
         detection,
         frames,
         dice_final: last_dice,
@@ -579,9 +698,37 @@ pub fn run_once(
 /// # Errors
 /// As [`run_once`].
 pub fn run_scene(scene: &Scene, options: &RunOptions) -> Result<(Summary, Trace), RunError> {
-    let trace = run_once(scene, true, options.out.as_deref(), options.progress)?;
-    // The same run with cutting switched off, for the `_uncut` figures.
-    let uncut = run_once(scene, false, None, false)?;
+    run_scene_with(scene, &mut TrackSource::new(&scene.frames), None, options)
+}
+
+/// Runs a scene over frames from `source` (a video, say), writing overlays to `sink`, and
+/// summarises it; the `_uncut` figures replay the same observations with cutting off.
+///
+/// # Errors
+/// As [`run_with`].
+pub fn run_scene_with(
+    scene: &Scene,
+    source: &mut dyn FrameSource,
+    sink: Option<&mut dyn FrameSink>,
+    options: &RunOptions,
+) -> Result<(Summary, Trace), RunError> {
+    let trace = run_with(
+        scene,
+        source,
+        true,
+        options.out.as_deref(),
+        sink,
+        options.progress,
+    )?;
+    // The same observations with cutting switched off, for the `_uncut` figures.
+    let uncut = run_with(
+        scene,
+        &mut TrackSource::new(&trace.observations),
+        false,
+        None,
+        None,
+        false,
+    )?;
     let times: Vec<f64> = trace.frames.iter().skip(1).map(|r| r.ms).collect();
     let open = scene.file.ground_truth.cut_open_frame;
     let after: Vec<f64> = trace
@@ -593,8 +740,8 @@ pub fn run_scene(scene: &Scene, options: &RunOptions) -> Result<(Summary, Trace)
     let camera = &scene.file.camera;
     let summary = Summary {
         scene: scene.file.name.clone(),
-        frames: scene.frames.len(),
-        features: scene.frames[0].len(),
+        frames: trace.frames.len(),
+        features: trace.observations.first().map_or(0, Vec::len),
         features_missed: trace.missed,
         pairs: trace.detection.pairs,
         pairs_lost: trace.detection.pairs_lost,

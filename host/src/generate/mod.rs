@@ -10,6 +10,7 @@
 //! - [`tracking`]: what a tracker would report: features on the visible surface, hidden when
 //!   occluded, with noise, drop-outs and jumps.
 //! - [`scenario`]: the `scenario.toml` a scene is generated from.
+//! - [`texture`]: the textured pictures of the real object (the video the OpenCV path tracks).
 //! - [`pipeline`]: `incise gen` itself, frame by frame, and the files it writes.
 
 pub mod neohookean;
@@ -17,4 +18,5 @@ pub mod object;
 pub mod pipeline;
 pub mod scenario;
 pub mod sim;
+pub mod texture;
 pub mod tracking;

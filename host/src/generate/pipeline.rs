@@ -121,17 +121,95 @@ fn relative_path(target: &Path, base: &Path) -> PathBuf {
     out
 }
 
-/// Runs the scenario at `scenario_path` and writes the scene into `out`.
+/// The real object simulated over every frame, in memory: what the scene's files, its
+/// pictures and its video are made from.
+#[derive(Clone, Debug)]
+pub struct Simulation {
+    /// The scenario.
+    pub scenario: Scenario,
+    /// The camera.
+    pub camera: Camera<f64>,
+    /// The model mesh (coarse, uncut).
+    pub model: TetMesh,
+    /// Nodes of the model held at rest.
+    pub model_fixed: Vec<u32>,
+    /// The model's Gmsh file, for a scenario made from a mesh file.
+    pub model_mesh_file: Option<PathBuf>,
+    /// The real mesh (fine, with the slit's nodes duplicated).
+    pub real: TetMesh,
+    /// The fine mesh before the slit (its boundary is the object's outer surface).
+    pub fine: TetMesh,
+    /// `(original, duplicate)` nodes along the slit's lips.
+    pub lips: Vec<(u32, u32)>,
+    /// Boundary triangles of the real mesh (outward) with their tetrahedra.
+    pub boundary: Vec<([u32; 3], usize)>,
+    /// Node positions of the real mesh, every frame (frame 0 is rest).
+    pub positions: Vec<Vec<[f64; 3]>>,
+    /// Depth tolerance of the visibility test, metres.
+    pub tolerance: f64,
+}
+
+impl Simulation {
+    /// Boundary triangles of the real mesh.
+    pub fn triangles(&self) -> Vec<[u32; 3]> {
+        self.boundary.iter().map(|b| b.0).collect()
+    }
+
+    /// The material point of the real surface seen at pixel `uv` in frame 0, as (tetrahedron,
+    /// barycentric weights): where a tracked feature found at `uv` really is.
+    pub fn material_point(&self, uv: [f64; 2]) -> Option<(usize, [f64; 4])> {
+        let (origin, dir) = self.camera.ray(uv[0], uv[1]);
+        let x = &self.positions[0];
+        let mut best: Option<(f64, usize)> = None;
+        for &(tri, t) in &self.boundary {
+            let p = tri.map(|v| Vector3::from(x[v as usize]));
+            let (e1, e2) = (p[1] - p[0], p[2] - p[0]);
+            let h = dir.cross(&e2);
+            let det = e1.dot(&h);
+            if det.abs() < 1e-18 {
+                continue;
+            }
+            let sv = origin - p[0];
+            let u = sv.dot(&h) / det;
+            let q = sv.cross(&e1);
+            let v = dir.dot(&q) / det;
+            let dist = e2.dot(&q) / det;
+            if u >= 0.0
+                && v >= 0.0
+                && u + v <= 1.0
+                && dist > 0.0
+                && best.is_none_or(|(b, _)| dist < b)
+            {
+                best = Some((dist, t));
+            }
+        }
+        let (dist, t) = best?;
+        let hit = origin + dir * dist;
+        let tet = self.real.tets[t];
+        let q = tet.map(|v| Vector3::from(x[v as usize]));
+        let m =
+            incise_core::nalgebra::Matrix3::from_columns(&[q[1] - q[0], q[2] - q[0], q[3] - q[0]]);
+        let l = m.try_inverse()? * (hit - q[0]);
+        Some((t, [1.0 - l.x - l.y - l.z, l.x, l.y, l.z]))
+    }
+
+    /// Pixel of a material point in `frame`.
+    pub fn project(&self, frame: usize, point: (usize, [f64; 4])) -> Option<[f64; 2]> {
+        let x = self.positions.get(frame)?;
+        let p = interpolate(x, self.real.tets[point.0], point.1);
+        let uv = self.camera.project(&Vector3::from(p), 0).ok()?;
+        Some([uv.x, uv.y])
+    }
+}
+
+/// Builds the real object of the scenario at `scenario_path` and simulates every frame.
 ///
 /// # Errors
-/// A [`GenError`] saying what failed: a bad scenario, a mesh that cannot be read, a
-/// simulation that does not converge, a file that cannot be written.
-pub fn generate(scenario_path: &Path, out: &Path, progress: bool) -> Result<Generated, GenError> {
+/// A [`GenError`] for a bad scenario, a mesh that cannot be read, or a simulation that does
+/// not converge.
+pub fn simulate(scenario_path: &Path, progress: bool) -> Result<Simulation, GenError> {
     let s = Scenario::load(scenario_path).map_err(err)?;
     let base = scenario_path.parent().unwrap_or(Path::new("."));
-    std::fs::create_dir_all(out.join("gt").join("silhouettes")).map_err(err)?;
-    let mut rng = Rng::new(s.seed);
-
     // The model mesh and the finer real mesh.
     let (model, fine, model_mesh_ref) = match s.object.shape.as_str() {
         "band" => {
@@ -202,7 +280,7 @@ pub fn generate(scenario_path: &Path, out: &Path, progress: bool) -> Result<Gene
     }
 
     let camera = scenario_camera(&s)?;
-    let mut sim = Simulator::new(
+    let mut simulator = Simulator::new(
         &real.nodes,
         &real.tets,
         &prescribed,
@@ -226,12 +304,94 @@ pub fn generate(scenario_path: &Path, out: &Path, progress: bool) -> Result<Gene
         .fold(f64::INFINITY, f64::min);
     let tolerance = 0.05 * extent;
 
-    let depth0 = DepthBuffer::render(&camera, &real.nodes, &triangles);
+    let bar = progress_bar(progress, &s.name, "simulating")?;
+    let mut positions = vec![real.nodes.clone()];
+    for frame in 1..s.frames {
+        let goal: Vec<[f64; 3]> = prescribed
+            .iter()
+            .zip(&grasp_of)
+            .map(|(&v, g)| {
+                let p = real.nodes[v as usize];
+                match g {
+                    Some(g) => grasped_position(&s.motion.grasp[*g], p, frame),
+                    None => p,
+                }
+            })
+            .collect();
+        simulator
+            .solve(&goal, 60)
+            .map_err(|e| GenError(format!("frame {frame}: simulation failed: {e}")))?;
+        positions.push(simulator.positions().to_vec());
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    let _ = triangles;
+    Ok(Simulation {
+        scenario: s,
+        camera,
+        model,
+        model_fixed,
+        model_mesh_file: model_mesh_ref,
+        real,
+        fine,
+        lips: pairs,
+        boundary,
+        positions,
+        tolerance,
+    })
+}
+
+fn progress_bar(progress: bool, name: &str, what: &str) -> Result<ProgressBar, GenError> {
+    if !progress {
+        return Ok(ProgressBar::hidden());
+    }
+    let b = ProgressBar::new(0);
+    b.set_style(
+        ProgressStyle::with_template("{prefix:>16} [{bar:30}] {pos}/{len} frames {msg}")
+            .map_err(err)?
+            .progress_chars("=> "),
+    );
+    b.set_prefix(name.to_string());
+    b.set_message(what.to_string());
+    Ok(b)
+}
+
+/// Runs the scenario at `scenario_path` and writes the scene into `out`.
+///
+/// # Errors
+/// A [`GenError`] saying what failed: a bad scenario, a mesh that cannot be read, a
+/// simulation that does not converge, a file that cannot be written.
+pub fn generate(scenario_path: &Path, out: &Path, progress: bool) -> Result<Generated, GenError> {
+    let sim = simulate(scenario_path, progress)?;
+    write_scene(&sim, scenario_path, out, progress)
+}
+
+/// Writes the scene of a simulation into `out`: `scene.toml`, the model mesh, `tracks.csv`
+/// and the ground truth.
+///
+/// # Errors
+/// A [`GenError`] if a file cannot be written.
+pub fn write_scene(
+    sim: &Simulation,
+    scenario_path: &Path,
+    out: &Path,
+    progress: bool,
+) -> Result<Generated, GenError> {
+    let s = &sim.scenario;
+    let (real, fine, camera, tolerance) = (&sim.real, &sim.fine, &sim.camera, sim.tolerance);
+    let (boundary, pairs) = (&sim.boundary, &sim.lips);
+    let triangles = sim.triangles();
+    let model = &sim.model;
+    let model_fixed = sim.model_fixed.clone();
+    let model_mesh_ref = &sim.model_mesh_file;
+    std::fs::create_dir_all(out.join("gt").join("silhouettes")).map_err(err)?;
+    let mut rng = Rng::new(s.seed);
+    let depth0 = DepthBuffer::render(camera, &real.nodes, &triangles);
     let t = &s.tracking;
     let features = sample_features(
-        &real,
-        &boundary,
-        &camera,
+        real,
+        boundary,
+        camera,
         &depth0,
         tolerance,
         t.features,
@@ -241,7 +401,7 @@ pub fn generate(scenario_path: &Path, out: &Path, progress: bool) -> Result<Gene
         &mut rng,
     )
     .map_err(err)?;
-    let targets = sample_targets(&real, s.object.targets, &mut rng);
+    let targets = sample_targets(real, s.object.targets, &mut rng);
 
     // The true cut line: lips on the original surface, seen at rest, ordered along the slit.
     let fine_boundary: std::collections::HashSet<u32> =
@@ -252,49 +412,24 @@ pub fn generate(scenario_path: &Path, out: &Path, progress: bool) -> Result<Gene
         .filter(|&(v, _)| fine_boundary.contains(&v))
         .filter(|&(v, _)| {
             depth0
-                .visible(&camera, real.nodes[v as usize], tolerance)
+                .visible(camera, real.nodes[v as usize], tolerance)
                 .is_some()
         })
         .collect();
-    order_along_image_line(&mut lips, &real.nodes, &camera);
+    order_along_image_line(&mut lips, &real.nodes, camera);
 
-    let bar = if progress {
-        let b = ProgressBar::new(u64::from(s.frames));
-        b.set_style(
-            ProgressStyle::with_template("{prefix:>16} [{bar:30}] {pos}/{len} frames {msg}")
-                .map_err(err)?
-                .progress_chars("=> "),
-        );
-        b.set_prefix(s.name.clone());
-        b
-    } else {
-        ProgressBar::hidden()
-    };
+    let bar = progress_bar(progress, &s.name, "writing")?;
+    bar.set_length(u64::from(s.frames));
     let mut tracks = vec![];
     let mut target_rows = String::from("frame,id,x,y,z\n");
     let mut cut_rows = String::from("frame,u,v\n");
     let mut cut_open_frame = None;
     for frame in 0..s.frames {
-        if frame > 0 {
-            let goal: Vec<[f64; 3]> = prescribed
-                .iter()
-                .zip(&grasp_of)
-                .map(|(&v, g)| {
-                    let p = real.nodes[v as usize];
-                    match g {
-                        Some(g) => grasped_position(&s.motion.grasp[*g], p, frame),
-                        None => p,
-                    }
-                })
-                .collect();
-            sim.solve(&goal, 60)
-                .map_err(|e| GenError(format!("frame {frame}: simulation failed: {e}")))?;
-        }
-        let x = sim.positions().to_vec();
+        let x = &sim.positions[frame as usize];
         let depth = if frame == 0 {
             None
         } else {
-            Some(DepthBuffer::render(&camera, &x, &triangles))
+            Some(DepthBuffer::render(camera, x, &triangles))
         };
         let depth = depth.as_ref().unwrap_or(&depth0);
         tracks.push(observe_frame(
@@ -312,7 +447,7 @@ pub fn generate(scenario_path: &Path, out: &Path, progress: bool) -> Result<Gene
             ));
         }
         let mut opening: f64 = 0.0;
-        for &(a, b) in &pairs {
+        for &(a, b) in pairs {
             if let (Ok(pa), Ok(pb)) = (
                 camera.project(&Vector3::from(x[a as usize]), 0),
                 camera.project(&Vector3::from(x[b as usize]), 0),
@@ -389,7 +524,7 @@ pub fn generate(scenario_path: &Path, out: &Path, progress: bool) -> Result<Gene
     std::fs::write(out.join("gt").join("cut.csv"), cut_rows).map_err(err)?;
     std::fs::write(
         out.join("gt").join("surface.obj"),
-        write_obj(sim.positions(), &triangles),
+        write_obj(&sim.positions[sim.positions.len() - 1], &triangles),
     )
     .map_err(err)?;
     Ok(Generated {
