@@ -2,62 +2,13 @@
 
 use crate::rng::Rng;
 
-/// A tetrahedral mesh: node positions and tetrahedra (node indices, positively oriented).
-#[derive(Clone, Debug)]
-pub struct TetMesh {
-    /// Node positions.
-    pub nodes: Vec<[f64; 3]>,
-    /// Tetrahedra.
-    pub tets: Vec<[u32; 4]>,
-}
+pub use incise::generate::object::TetMesh;
 
 /// The box `[0, lx] × [0, ly] × [0, lz]` cut into `nx × ny × nz` cells, each split into six
 /// tetrahedra around its main diagonal (Kuhn's subdivision, conforming across cells), node
-/// `(i, j, k)` at index `i + (nx + 1)·(j + (ny + 1)·k)`.
+/// `(i, j, k)` at index `i + (nx + 1)·(j + (ny + 1)·k)`: the generator's band.
 pub fn box_mesh(n: [usize; 3], l: [f64; 3]) -> TetMesh {
-    let [nx, ny, nz] = n;
-    let id = |i: usize, j: usize, k: usize| (i + (nx + 1) * (j + (ny + 1) * k)) as u32;
-    let mut nodes = Vec::new();
-    for k in 0..=nz {
-        for j in 0..=ny {
-            for i in 0..=nx {
-                nodes.push([
-                    l[0] * i as f64 / nx as f64,
-                    l[1] * j as f64 / ny as f64,
-                    l[2] * k as f64 / nz as f64,
-                ]);
-            }
-        }
-    }
-    let mut tets = Vec::new();
-    // The six monotone paths from corner 000 to corner 111, one tetrahedron each.
-    const PATHS: [[usize; 3]; 6] = [
-        [0, 1, 2],
-        [0, 2, 1],
-        [1, 0, 2],
-        [1, 2, 0],
-        [2, 0, 1],
-        [2, 1, 0],
-    ];
-    for k in 0..nz {
-        for j in 0..ny {
-            for i in 0..nx {
-                for path in PATHS {
-                    let mut c = [i, j, k];
-                    let mut t = [id(c[0], c[1], c[2]); 4];
-                    for (s, &axis) in path.iter().enumerate() {
-                        c[axis] += 1;
-                        t[s + 1] = id(c[0], c[1], c[2]);
-                    }
-                    if signed_volume(&nodes, t) < 0.0 {
-                        t.swap(2, 3);
-                    }
-                    tets.push(t);
-                }
-            }
-        }
-    }
-    TetMesh { nodes, tets }
+    TetMesh::band(l, n)
 }
 
 /// Six times the signed volume of tetrahedron `t`.

@@ -432,11 +432,9 @@ fn positive_part<T: Real>(s: &Matrix3<T>) -> Matrix3<T> {
 
 #[cfg(test)]
 mod tests {
-    extern crate std;
 
     use super::*;
     use nalgebra::{SMatrix, SymmetricEigen, UnitQuaternion};
-    use std::println;
 
     type K12 = SMatrix<f64, 12, 12>;
 
@@ -638,7 +636,6 @@ mod tests {
             worst = worst.max(err);
             assert!(err <= 1e-6, "{kind:?} nu={nu}: relative error {err:e}");
         });
-        println!("gradient vs energy FD: worst relative error {worst:e}");
     }
 
     #[test]
@@ -664,7 +661,6 @@ mod tests {
             assert_eq!(eval.gradient, element_gradient(l, rest, g, x));
             assert_eq!(k, k.transpose());
         });
-        println!("exact tangent vs gradient FD: worst relative error {worst:e}");
     }
 
     fn min_eig_ratio(k: &K12) -> f64 {
@@ -708,9 +704,6 @@ mod tests {
         assert!(
             indefinite_seen > 20,
             "only {indefinite_seen} indefinite exact tangents"
-        );
-        println!(
-            "projected tangent: worst smallest/largest eigenvalue {worst_psd:e}; {indefinite_seen} exact tangents indefinite"
         );
     }
 
@@ -927,11 +920,10 @@ mod tests {
     #[test]
     fn jacobi_is_accurate_after_fixed_sweeps() {
         let mut rng = Rng(11);
-        let mut cases: std::vec::Vec<Matrix3<f64>> = std::vec::Vec::new();
-        cases.push(Matrix3::zeros());
-        cases.push(Matrix3::from_diagonal(&Vector3::new(3.0, -1.0, 2.0)));
-        cases.push(Matrix3::identity() * 5.0);
-        for _ in 0..2000 {
+        let mut cases = [Matrix3::<f64>::zeros(); 2003];
+        cases[1] = Matrix3::from_diagonal(&Vector3::new(3.0, -1.0, 2.0));
+        cases[2] = Matrix3::identity() * 5.0;
+        for case in cases.iter_mut().skip(3) {
             let q = rng.rotation();
             let scale = 10f64.powf(rng.range(-6.0, 6.0));
             let d = match rng.next_u64() % 4 {
@@ -950,7 +942,7 @@ mod tests {
                 _ => Vector3::new(1.0, rng.range(-1e-8, 1e-8), rng.range(-1e-3, 1e-3)),
             };
             let a = q * Matrix3::from_diagonal(&(d * scale)) * q.transpose();
-            cases.push((a + a.transpose()) * 0.5);
+            *case = (a + a.transpose()) * 0.5;
         }
         let mut worst_rec: f64 = 0.0;
         let mut worst_orth: f64 = 0.0;
@@ -971,9 +963,6 @@ mod tests {
                 assert!((ours[i] - reference[i]).abs() <= 1e-13 * norm);
             }
         }
-        println!(
-            "Jacobi ({JACOBI_SWEEPS} sweeps): worst reconstruction {worst_rec:e}, orthogonality {worst_orth:e}"
-        );
         // Already diagonal: no rotation, exact, no division.
         let d = Matrix3::from_diagonal(&Vector3::new(3.0, -1.0, 0.0));
         assert_eq!(
@@ -1014,7 +1003,6 @@ mod tests {
                 .unwrap_or_else(|| panic!("not converged in {JACOBI_SWEEPS} sweeps: {a}"));
             histogram[needed] += 1;
         }
-        println!("Jacobi: matrices needing k sweeps, k = 0..={JACOBI_SWEEPS}: {histogram:?}");
         assert_eq!(histogram[JACOBI_SWEEPS], 0, "no margin left");
     }
 

@@ -898,52 +898,10 @@ mod tests {
     use super::*;
     use std::time::Instant;
 
-    /// The box `[0, l]` cut into `n` cells, each split into six tetrahedra around its main
-    /// diagonal (Kuhn, as `src/testmesh.rs` of the validation package), node `(i, j, k)` at
-    /// `i + (nx + 1)(j + (ny + 1) k)`.
+    /// The box `[0, l]` cut into `n` cells of six tetrahedra (the generator's own band).
     fn box_mesh(n: [usize; 3], l: [f64; 3]) -> (Vec<[f64; 3]>, Vec<[u32; 4]>) {
-        let [nx, ny, nz] = n;
-        let id = |i: usize, j: usize, k: usize| (i + (nx + 1) * (j + (ny + 1) * k)) as u32;
-        let mut nodes = Vec::new();
-        for k in 0..=nz {
-            for j in 0..=ny {
-                for i in 0..=nx {
-                    nodes.push([
-                        l[0] * i as f64 / nx as f64,
-                        l[1] * j as f64 / ny as f64,
-                        l[2] * k as f64 / nz as f64,
-                    ]);
-                }
-            }
-        }
-        const PATHS: [[usize; 3]; 6] = [
-            [0, 1, 2],
-            [0, 2, 1],
-            [1, 0, 2],
-            [1, 2, 0],
-            [2, 0, 1],
-            [2, 1, 0],
-        ];
-        let mut tets = Vec::new();
-        for k in 0..nz {
-            for j in 0..ny {
-                for i in 0..nx {
-                    for path in PATHS {
-                        let mut c = [i, j, k];
-                        let mut t = [id(i, j, k); 4];
-                        for (s, &axis) in path.iter().enumerate() {
-                            c[axis] += 1;
-                            t[s + 1] = id(c[0], c[1], c[2]);
-                        }
-                        if det(&nodes, t) < 0.0 {
-                            t.swap(2, 3);
-                        }
-                        tets.push(t);
-                    }
-                }
-            }
-        }
-        (nodes, tets)
+        let m = crate::generate::object::TetMesh::band(l, n);
+        (m.nodes, m.tets)
     }
 
     /// `det [x1 − x0, x2 − x0, x3 − x0]` of tetrahedron `t`.
