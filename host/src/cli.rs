@@ -34,10 +34,38 @@ pub enum Command {
         /// Print one JSON object with the results.
         #[arg(long)]
         json: bool,
-        /// Write overlay pictures (PNG) and the deformed mesh per frame (VTU) here.
+        /// Write overlay pictures (PNG) and the deformed mesh per frame (VTU) here; with
+        /// --video, the overlay video (overlay.avi, Motion-JPEG) too.
         #[arg(long)]
         out: Option<PathBuf>,
+        // --- OpenCV video driver (options present in every build; they need `opencv`) ---
+        /// Track this video (KLT) instead of reading the scene's tracks.csv, in one streaming
+        /// pass (needs the `opencv` feature).
+        #[arg(long)]
+        video: Option<PathBuf>,
+        /// Camera calibration (OpenCV YAML/XML: camera_matrix, dist_coeffs) of the video: its
+        /// points are undistorted and its intrinsics replace the scene's.
+        #[arg(long, requires = "video")]
+        calibration: Option<PathBuf>,
+        // --- end OpenCV video driver ---
     },
+    // --- OpenCV video driver (present in every build; needs `opencv`) ---
+    /// Track features of a video (KLT) inside the scene model's silhouette and write them as
+    /// tracks.csv (needs the `opencv` feature).
+    Track {
+        /// The video (anything OpenCV reads; Motion-JPEG AVI always works).
+        video: PathBuf,
+        /// The scene directory (scene.toml and the model; tracks.csv may be missing).
+        #[arg(long)]
+        scene: PathBuf,
+        /// Where to write the tracks.
+        #[arg(short, long, default_value = "tracks.csv")]
+        out: PathBuf,
+        /// Camera calibration (OpenCV YAML/XML: camera_matrix, dist_coeffs) of the video.
+        #[arg(long)]
+        calibration: Option<PathBuf>,
+    },
+    // --- end OpenCV video driver ---
     /// Run several scenes and print a Markdown table of their results (as in the README).
     Table {
         /// Scene directories.
@@ -71,7 +99,26 @@ fn fixtures_dir() -> PathBuf {
 pub fn run(cli: Cli) -> i32 {
     let result = match cli.command {
         Command::Demo { out } => demo(&out),
-        Command::Run { scene, json, out } => run_command(&scene, json, out),
+        Command::Run {
+            scene,
+            json,
+            out,
+            video: None,
+            calibration: _,
+        } => run_command(&scene, json, out),
+        Command::Run {
+            scene,
+            json,
+            out,
+            video: Some(video),
+            calibration,
+        } => run_video_command(&scene, &video, calibration.as_deref(), json, out),
+        Command::Track {
+            video,
+            scene,
+            out,
+            calibration,
+        } => track_command(&video, &scene, &out, calibration.as_deref()),
         Command::Gen { scenarios, out } => gen_command(&scenarios, out),
         Command::Table { scenes } => table_command(&scenes),
     };
@@ -91,13 +138,22 @@ fn run_command(dir: &Path, json: bool, out: Option<PathBuf>) -> Result<(), Strin
         progress: !json,
     };
     let (summary, _) = run_scene(&scene, &options).map_err(|e| e.to_string())?;
+    print_summary(&summary, json, out.as_deref())
+}
+
+/// Prints what `incise run` found: one JSON object, or a human summary.
+fn print_summary(
+    summary: &crate::run::Summary,
+    json: bool,
+    out: Option<&Path>,
+) -> Result<(), String> {
     if json {
         println!(
             "{}",
-            serde_json::to_string_pretty(&summary).map_err(|e| e.to_string())?
+            serde_json::to_string_pretty(summary).map_err(|e| e.to_string())?
         );
     } else {
-        print!("{}", crate::report::human_summary(&summary));
+        print!("{}", crate::report::human_summary(summary));
         if let Some(out) = out {
             println!("pictures and meshes: {}", out.display());
         }
@@ -169,3 +225,141 @@ fn demo(out: &Path) -> Result<(), String> {
     );
     Ok(())
 }
+
+// --- OpenCV video driver: `incise track` and `incise run --video` ---
+
+#[cfg(not(feature = "opencv"))]
+const NO_OPENCV: &str = "built without the opencv feature; rebuild with --features opencv";
+
+#[cfg(not(feature = "opencv"))]
+fn run_video_command(
+    _: &Path,
+    video: &Path,
+    _: Option<&Path>,
+    _: bool,
+    _: Option<PathBuf>,
+) -> Result<(), String> {
+    Err(format!("--video {}: {NO_OPENCV}", video.display()))
+}
+
+#[cfg(not(feature = "opencv"))]
+fn track_command(video: &Path, _: &Path, _: &Path, _: Option<&Path>) -> Result<(), String> {
+    Err(format!("track {}: {NO_OPENCV}", video.display()))
+}
+
+/// The scene for a video (tracks.csv optional) with the calibration's intrinsics, if any.
+#[cfg(feature = "opencv")]
+fn video_scene(
+    dir: &Path,
+    calibration: Option<&Path>,
+) -> Result<(Scene, Option<crate::track::Calibration>), String> {
+    let mut scene = crate::track::load_scene_for_video(dir).map_err(|e| e.to_string())?;
+    let Some(path) = calibration else {
+        return Ok((scene, None));
+    };
+    let calibration = crate::track::Calibration::load(path).map_err(|e| e.to_string())?;
+    let before = scene.file.camera.clone();
+    calibration
+        .apply_to(&mut scene.file.camera)
+        .map_err(|e| e.to_string())?;
+    let c = &scene.file.camera;
+    eprintln!(
+        "incise: {} replaces the scene's intrinsics: fx {:.1} fy {:.1} cx {:.1} cy {:.1} (scene: {:.1} {:.1} {:.1} {:.1})",
+        path.display(),
+        c.fx,
+        c.fy,
+        c.cx,
+        c.cy,
+        before.fx,
+        before.fy,
+        before.cx,
+        before.cy
+    );
+    Ok((scene, Some(calibration)))
+}
+
+#[cfg(feature = "opencv")]
+fn run_video_command(
+    dir: &Path,
+    video: &Path,
+    calibration: Option<&Path>,
+    json: bool,
+    out: Option<PathBuf>,
+) -> Result<(), String> {
+    use crate::run::{FrameSink, run_scene_with};
+    use crate::track::VideoFrames;
+    use crate::video::VideoSink;
+
+    let (scene, calibration) = video_scene(dir, calibration)?;
+    let mut frames = VideoFrames::open(video, &scene, calibration).map_err(|e| e.to_string())?;
+    let mut sink = match &out {
+        Some(dir) => {
+            std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+            let (w, h) = frames.source().size();
+            let fps = frames.source().fps();
+            let fps = if fps > 0.0 { fps } else { 25.0 };
+            Some(
+                VideoSink::create(&dir.join("overlay.avi"), w, h, fps)
+                    .map_err(|e| e.to_string())?,
+            )
+        }
+        None => None,
+    };
+    let options = RunOptions {
+        out: out.clone(),
+        progress: !json,
+    };
+    let (summary, _) = run_scene_with(
+        &scene,
+        &mut frames,
+        sink.as_mut().map(|s| s as &mut dyn FrameSink),
+        &options,
+    )
+    .map_err(|e| e.to_string())?;
+    if let Some(sink) = sink {
+        sink.finish().map_err(|e| e.to_string())?;
+    }
+    print_summary(&summary, json, out.as_deref())?;
+    if let (Some(out), false) = (&out, json) {
+        println!("overlay video: {}", out.join("overlay.avi").display());
+    }
+    Ok(())
+}
+
+#[cfg(feature = "opencv")]
+fn track_command(
+    video: &Path,
+    dir: &Path,
+    out: &Path,
+    calibration: Option<&Path>,
+) -> Result<(), String> {
+    use crate::run::FrameSource;
+    use crate::track::{VideoFrames, rest_silhouette};
+    use indicatif::{ProgressBar, ProgressStyle};
+
+    let (scene, calibration) = video_scene(dir, calibration)?;
+    let mask = rest_silhouette(&scene).map_err(|e| e.to_string())?;
+    let mut frames = VideoFrames::open(video, &scene, calibration).map_err(|e| e.to_string())?;
+    let bar = ProgressBar::new(frames.len_hint().unwrap_or(0) as u64);
+    if let Ok(style) = ProgressStyle::with_template("{prefix:>16} [{bar:30}] {pos}/{len} frames") {
+        bar.set_style(style.progress_chars("=> "));
+    }
+    bar.set_prefix("tracking");
+    let mut tracks = vec![];
+    while let Some(frame) = frames.next(&mask).map_err(|e| e.to_string())? {
+        tracks.push(frame.observations);
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    std::fs::write(out, crate::scene::write_tracks(&tracks))
+        .map_err(|e| format!("{}: {e}", out.display()))?;
+    let (found, alive) = frames.tracker().map_or((0, 0), |t| (t.len(), t.alive()));
+    println!(
+        "{}: {} frames, {found} features at frame 0, {alive} tracked to the last frame",
+        out.display(),
+        tracks.len()
+    );
+    Ok(())
+}
+
+// --- end OpenCV video driver ---

@@ -15,6 +15,8 @@
 //! - [`rng`]: a small seeded random generator, so that everything generated is reproducible.
 //! - [`report`]: human summaries, overview pictures, plots.
 //! - [`cli`]: the `incise` command line.
+//! - `video`, `track` (the `opencv` feature): video input and output, KLT tracking, camera
+//!   calibration.
 #![forbid(unsafe_code)]
 // Geometry and image loops index several arrays with one variable; `!(x > 0.0)` is meant to
 // be true for NaN.
@@ -30,3 +32,9 @@ pub mod rng;
 pub mod run;
 pub mod scene;
 pub mod vtu;
+
+// The OpenCV video driver.
+#[cfg(feature = "opencv")]
+pub mod track;
+#[cfg(feature = "opencv")]
+pub mod video;

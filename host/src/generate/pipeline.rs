@@ -433,14 +433,14 @@ pub fn write_scene(
         };
         let depth = depth.as_ref().unwrap_or(&depth0);
         tracks.push(observe_frame(
-            frame, &features, &real, &x, &camera, depth, tolerance, t.noise_px, t.dropout, &mut rng,
+            frame, &features, real, x, camera, depth, tolerance, t.noise_px, t.dropout, &mut rng,
         ));
         depth
             .mask()
             .save_png(&silhouette_path(out, frame as usize))
             .map_err(err)?;
         for (id, (tet, w)) in targets.iter().enumerate() {
-            let p = interpolate(&x, real.tets[*tet], *w);
+            let p = interpolate(x, real.tets[*tet], *w);
             target_rows.push_str(&format!(
                 "{frame},{id},{:.7},{:.7},{:.7}\n",
                 p[0], p[1], p[2]
