@@ -4,7 +4,6 @@ use std::path::{Path, PathBuf};
 
 use clap::{Parser, Subcommand};
 
-use crate::generate::pipeline::generate;
 use crate::run::{RunOptions, run_scene};
 use crate::scene::Scene;
 
@@ -80,6 +79,10 @@ pub enum Command {
         /// Write the scene here instead of the scenario's directory (one scenario only).
         #[arg(long)]
         out: Option<PathBuf>,
+        /// Also render the textured video of the real object, `video.avi` in the scene
+        /// (MJPG, 25 frames per second; needs the opencv feature).
+        #[arg(long)]
+        video: bool,
     },
 }
 
@@ -119,7 +122,11 @@ pub fn run(cli: Cli) -> i32 {
             out,
             calibration,
         } => track_command(&video, &scene, &out, calibration.as_deref()),
-        Command::Gen { scenarios, out } => gen_command(&scenarios, out),
+        Command::Gen {
+            scenarios,
+            out,
+            video,
+        } => gen_command(&scenarios, out, video),
         Command::Table { scenes } => table_command(&scenes),
     };
     match result {
@@ -172,9 +179,13 @@ fn table_command(dirs: &[PathBuf]) -> Result<(), String> {
     Ok(())
 }
 
-fn gen_command(scenarios: &[PathBuf], out: Option<PathBuf>) -> Result<(), String> {
+fn gen_command(scenarios: &[PathBuf], out: Option<PathBuf>, video: bool) -> Result<(), String> {
     if out.is_some() && scenarios.len() > 1 {
         return Err("--out takes one scenario at a time".into());
+    }
+    #[cfg(not(feature = "opencv"))]
+    if video {
+        return Err(NO_OPENCV.into());
     }
     for path in scenarios {
         let dir = match &out {
@@ -183,7 +194,16 @@ fn gen_command(scenarios: &[PathBuf], out: Option<PathBuf>) -> Result<(), String
                 .parent()
                 .map_or_else(|| PathBuf::from("."), Path::to_path_buf),
         };
-        let g = generate(path, &dir, true).map_err(|e| format!("{}: {e}", path.display()))?;
+        let sim = crate::generate::pipeline::simulate(path, true)
+            .map_err(|e| format!("{}: {e}", path.display()))?;
+        let g = crate::generate::pipeline::write_scene(&sim, path, &dir, true)
+            .map_err(|e| format!("{}: {e}", path.display()))?;
+        #[cfg(feature = "opencv")]
+        if video {
+            let file = dir.join("video.avi");
+            write_video(&sim, &file)?;
+            println!("{}: textured video", file.display());
+        }
         println!(
             "{}: {} frames, {} features, real mesh {} nodes / {} tets, model {} nodes / {} tets, cut opens at frame {}",
             g.dir.display(),
@@ -197,6 +217,19 @@ fn gen_command(scenarios: &[PathBuf], out: Option<PathBuf>) -> Result<(), String
         );
     }
     Ok(())
+}
+
+/// Renders every frame of a simulation into an MJPG video.
+#[cfg(feature = "opencv")]
+fn write_video(sim: &crate::generate::pipeline::Simulation, file: &Path) -> Result<(), String> {
+    let cam = sim.camera.intrinsics();
+    let mut sink = crate::video::VideoSink::create(file, cam.width, cam.height, 25.0)
+        .map_err(|e| e.to_string())?;
+    for f in 0..sim.positions.len() {
+        sink.write(&crate::generate::texture::render_frame(sim, f))
+            .map_err(|e| e.to_string())?;
+    }
+    sink.finish().map_err(|e| e.to_string())
 }
 
 fn demo(out: &Path) -> Result<(), String> {
@@ -253,7 +286,7 @@ fn video_scene(
     dir: &Path,
     calibration: Option<&Path>,
 ) -> Result<(Scene, Option<crate::track::Calibration>), String> {
-    let mut scene = crate::track::load_scene_for_video(dir).map_err(|e| e.to_string())?;
+    let mut scene = crate::scene::Scene::load_model(dir).map_err(|e| e.to_string())?;
     let Some(path) = calibration else {
         return Ok((scene, None));
     };

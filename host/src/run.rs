@@ -34,6 +34,8 @@ pub enum RunError {
         /// The core's error.
         error: CoreError,
     },
+    /// The input (a video, its tracking) could not be read.
+    Input(String),
     /// An output could not be written.
     Output(String),
 }
@@ -43,7 +45,7 @@ impl fmt::Display for RunError {
         match self {
             RunError::Scene(e) => write!(f, "{e}"),
             RunError::Core { context, error } => write!(f, "{context}: {error}"),
-            RunError::Output(m) => write!(f, "{m}"),
+            RunError::Input(m) | RunError::Output(m) => write!(f, "{m}"),
         }
     }
 }
@@ -271,8 +273,13 @@ struct Truth {
     cut: Vec<Vec<[f64; 2]>>,
 }
 
-fn load_truth(scene: &Scene) -> Result<Truth, SceneError> {
+/// The scene's ground truth, or `None` for a scene without a `gt/` directory (a real video):
+/// the run then reports no metric.
+fn load_truth(scene: &Scene) -> Result<Option<Truth>, SceneError> {
     let gt = scene.dir.join("gt");
+    if !gt.is_dir() {
+        return Ok(None);
+    }
     let read = |name: &str| -> Result<(PathBuf, String), SceneError> {
         let p = gt.join(name);
         let text = std::fs::read_to_string(&p)
@@ -285,11 +292,11 @@ fn load_truth(scene: &Scene) -> Result<Truth, SceneError> {
     let surface = read_obj(&t, &p)?;
     let (p, t) = read("cut.csv")?;
     let cut = read_cut_csv(&t, &p)?;
-    Ok(Truth {
+    Ok(Some(Truth {
         targets,
         surface,
         cut,
-    })
+    }))
 }
 
 /// Barycentric embedding of `points` in the tetrahedra of a mesh at rest: the containing
@@ -322,6 +329,23 @@ fn embed_points(
             (best.1, best.2)
         })
         .collect()
+}
+
+/// The true silhouette of `frame`, checked against the camera's size.
+fn load_silhouette(scene: &Scene, frame: usize, model_mask: &Mask) -> Result<Mask, SceneError> {
+    let path = scene.silhouette_path(frame);
+    let mask = Mask::load_png(&path).map_err(|m| SceneError::new(&path, 0, m))?;
+    if (mask.width, mask.height) != (model_mask.width, model_mask.height) {
+        return Err(SceneError::new(
+            &path,
+            0,
+            format!(
+                "silhouette is {}×{}, the camera {}×{}",
+                mask.width, mask.height, model_mask.width, model_mask.height
+            ),
+        ));
+    }
+    Ok(mask)
 }
 
 fn interpolate(x: &[[f64; 3]], tet: [u32; 4], w: [f64; 4]) -> [f64; 3] {
@@ -472,13 +496,16 @@ pub fn run_with(
     let rest_silhouette = silhouette(&camera, &scene.rest, model.mesh().surface());
     let first = source
         .next_frame(&rest_silhouette)?
-        .ok_or_else(|| RunError::Output("the input holds no frame".into()))?;
+        .ok_or_else(|| RunError::Input("the input holds no frame".into()))?;
     let report = model
         .embed_features(&first.observations)
         .map_err(core("placing the frame-0 features on the model"))?;
     let mut pending = Some(first);
     let truth = load_truth(scene)?;
-    let target_rest = truth.targets.first().cloned().unwrap_or_default();
+    let target_rest = truth
+        .as_ref()
+        .and_then(|t| t.targets.first().cloned())
+        .unwrap_or_default();
     let targets = embed_points(&target_rest, &scene.rest, &scene.tets);
     let surface = model.mesh().surface().to_vec();
     let tets = scene.tets.clone();
@@ -547,31 +574,27 @@ pub fn run_with(
         let n_line = model.cut_polyline(&mut polyline);
         detection.polyline = polyline[..n_line].to_vec();
         let model_mask = silhouette(&camera, &x, &surface);
-        let truth_mask = Mask::load_png(&scene.silhouette_path(f))
-            .map_err(|m| SceneError::new(scene.silhouette_path(f), 0, m))?;
-        if (truth_mask.width, truth_mask.height) != (model_mask.width, model_mask.height) {
-            return Err(SceneError::new(
-                scene.silhouette_path(f),
-                0,
-                format!(
-                    "silhouette is {}×{}, the camera {}×{}",
-                    truth_mask.width, truth_mask.height, model_mask.width, model_mask.height
-                ),
-            )
-            .into());
-        }
-        let d = dice(&model_mask, &truth_mask);
+        let truth_mask = match &truth {
+            Some(_) => Some(load_silhouette(scene, f, &model_mask)?),
+            None => None,
+        };
+        let d = truth_mask
+            .as_ref()
+            .map_or(f64::NAN, |t| dice(&model_mask, t));
         let predicted: Vec<[f64; 3]> = targets
             .iter()
             .map(|&(t, w)| interpolate(&x, tets[t], w))
             .collect();
-        let tre = truth.targets.get(f).map_or(0.0, |gt| {
-            if gt.len() == predicted.len() {
-                paired_rms(&predicted, gt)
-            } else {
-                0.0
-            }
-        });
+        let tre = truth
+            .as_ref()
+            .and_then(|t| t.targets.get(f))
+            .map_or(f64::NAN, |gt| {
+                if gt.len() == predicted.len() {
+                    paired_rms(&predicted, gt)
+                } else {
+                    0.0
+                }
+            });
         if out.is_some() || sink.is_some() {
             let mut canvas = match &frame.image {
                 Some(image) => Canvas {
@@ -580,7 +603,9 @@ pub fn run_with(
                 None => {
                     let mut c =
                         Canvas::new(model_mask.width, model_mask.height, colour::BACKGROUND);
-                    c.tint(&truth_mask, colour::TRUTH, 1.0);
+                    if let Some(t) = &truth_mask {
+                        c.tint(t, colour::TRUTH, 1.0);
+                    }
                     c
                 }
             };
@@ -594,7 +619,7 @@ pub fn run_with(
                     canvas.cross_mark(uv, 1.5, colour::VIRTUAL);
                 }
             }
-            if let Some(line) = truth.cut.get(f) {
+            if let Some(line) = truth.as_ref().and_then(|t| t.cut.get(f)) {
                 canvas.polyline(line, colour::TRUE_CUT, 1);
             }
             for p in model.detector().points() {
@@ -663,17 +688,26 @@ pub fn run_with(
         std::fs::write(dir.join("frames.csv"), csv).map_err(output)?;
     }
     // Surface distance, both ways: true surface points to the model, model nodes to the truth.
-    let x = model.positions().to_vec();
-    let (gt_pos, gt_tri) = (&truth.surface.positions, &truth.surface.triangles);
-    let mut surface_nodes: Vec<u32> = surface.iter().flatten().copied().collect();
-    surface_nodes.sort_unstable();
-    surface_nodes.dedup();
-    let model_points: Vec<[f64; 3]> = surface_nodes.iter().map(|&v| x[v as usize]).collect();
-    let a = surface_rms(gt_pos, &x, &surface);
-    let b = surface_rms(&model_points, gt_pos, gt_tri);
-    let (na, nb) = (gt_pos.len() as f64, model_points.len() as f64);
-    let surface_rms_final = ((a * a * na + b * b * nb) / (na + nb).max(1.0)).sqrt();
-    detection.hausdorff_px = match (detection.polyline.is_empty(), truth.cut.last()) {
+    let surface_rms_final = match &truth {
+        Some(t) => {
+            let x = model.positions().to_vec();
+            let (gt_pos, gt_tri) = (&t.surface.positions, &t.surface.triangles);
+            let mut surface_nodes: Vec<u32> = surface.iter().flatten().copied().collect();
+            surface_nodes.sort_unstable();
+            surface_nodes.dedup();
+            let model_points: Vec<[f64; 3]> =
+                surface_nodes.iter().map(|&v| x[v as usize]).collect();
+            let a = surface_rms(gt_pos, &x, &surface);
+            let b = surface_rms(&model_points, gt_pos, gt_tri);
+            let (na, nb) = (gt_pos.len() as f64, model_points.len() as f64);
+            ((a * a * na + b * b * nb) / (na + nb).max(1.0)).sqrt()
+        }
+        None => f64::NAN,
+    };
+    detection.hausdorff_px = match (
+        detection.polyline.is_empty(),
+        truth.as_ref().and_then(|t| t.cut.last()),
+    ) {
         (false, Some(line)) if !line.is_empty() => Some(crate::metrics::hausdorff_polyline(
             &detection.polyline,
             line,

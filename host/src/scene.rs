@@ -649,6 +649,37 @@ impl Scene {
     /// invalid parameter, a fixed node out of range, a truncated mesh, a track id absent from
     /// frame 0.
     pub fn load(dir: &Path) -> Result<Scene, SceneError> {
+        let mut scene = Self::load_model(dir)?;
+        let tracks_path = dir.join("tracks.csv");
+        let text = read_text(&tracks_path)?;
+        let frames = read_tracks(&text, &tracks_path)?;
+        // Every id must have been seen at frame 0, where features are placed on the model.
+        let known: std::collections::HashSet<u32> = frames[0].iter().map(|o| o.id).collect();
+        for (i, line) in text.lines().enumerate().skip(1) {
+            let id = line
+                .split(',')
+                .nth(1)
+                .and_then(|s| s.trim().parse::<u32>().ok());
+            if let Some(id) = id
+                && !known.contains(&id)
+            {
+                return Err(SceneError::new(
+                    &tracks_path,
+                    i + 1,
+                    format!("feature id {id} was not tracked at frame 0"),
+                ));
+            }
+        }
+        scene.frames = frames;
+        Ok(scene)
+    }
+
+    /// Loads `scene.toml` and the model mesh only, with no tracks (`frames` is empty): what
+    /// a video run needs, whose features come from the video.
+    ///
+    /// # Errors
+    /// As [`Scene::load`], for `scene.toml` and the mesh.
+    pub fn load_model(dir: &Path) -> Result<Scene, SceneError> {
         let toml_path = dir.join("scene.toml");
         let file = SceneFile::parse(&read_text(&toml_path)?, &toml_path)?;
         file.camera(&toml_path)?;
@@ -676,32 +707,12 @@ impl Scene {
                 ),
             ));
         }
-        let tracks_path = dir.join("tracks.csv");
-        let text = read_text(&tracks_path)?;
-        let frames = read_tracks(&text, &tracks_path)?;
-        // Every id must have been seen at frame 0, where features are placed on the model.
-        let known: std::collections::HashSet<u32> = frames[0].iter().map(|o| o.id).collect();
-        for (i, line) in text.lines().enumerate().skip(1) {
-            let id = line
-                .split(',')
-                .nth(1)
-                .and_then(|s| s.trim().parse::<u32>().ok());
-            if let Some(id) = id
-                && !known.contains(&id)
-            {
-                return Err(SceneError::new(
-                    &tracks_path,
-                    i + 1,
-                    format!("feature id {id} was not tracked at frame 0"),
-                ));
-            }
-        }
         Ok(Scene {
             dir: dir.to_path_buf(),
             file,
             rest,
             tets: mesh.tets,
-            frames,
+            frames: vec![],
         })
     }
 

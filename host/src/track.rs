@@ -21,7 +21,7 @@ use opencv::{calib3d, imgproc, video};
 
 use crate::render::{Mask, silhouette};
 use crate::run::{FrameSource, ModelStorage, RunError, SourceFrame};
-use crate::scene::{CameraSection, Scene, SceneError};
+use crate::scene::{CameraSection, Scene};
 use crate::video::{VideoError, VideoSource, rgb_mat};
 
 /// A failure of tracking.
@@ -105,7 +105,7 @@ impl From<VideoError> for TrackError {
 
 impl From<TrackError> for RunError {
     fn from(e: TrackError) -> Self {
-        RunError::Output(e.to_string())
+        RunError::Input(e.to_string())
     }
 }
 
@@ -724,7 +724,8 @@ impl VideoFrames {
     }
 
     /// Opens the video at `path` for `scene` (with the calibration's intrinsics already
-    /// applied to it, if any): the tracker takes at most the scene's feature capacity.
+    /// applied to it, if any): the tracker takes the default number of features (about the
+    /// paper's 438), never more than the scene's feature capacity.
     ///
     /// # Errors
     /// As [`VideoSource::open`] and [`VideoFrames::new`].
@@ -735,7 +736,9 @@ impl VideoFrames {
     ) -> Result<Self, TrackError> {
         let source = VideoSource::open(path)?;
         let config = TrackerConfig {
-            max_features: scene.file.capacities.features,
+            max_features: TrackerConfig::default()
+                .max_features
+                .min(scene.file.capacities.features),
             ..TrackerConfig::default()
         };
         let camera = &scene.file.camera;
@@ -795,42 +798,6 @@ impl FrameSource for VideoFrames {
     fn next_frame(&mut self, model_silhouette: &Mask) -> Result<Option<SourceFrame>, RunError> {
         Ok(self.next(model_silhouette)?)
     }
-}
-
-/// Loads a scene for tracking a video: `scene.toml` and the model mesh, as
-/// [`Scene::load`] does, but `tracks.csv` may be missing (the video replaces it).
-///
-/// # Errors
-/// [`Scene::load`]'s errors, except a missing `tracks.csv`.
-pub fn load_scene_for_video(dir: &Path) -> Result<Scene, SceneError> {
-    if dir.join("tracks.csv").exists() {
-        return Scene::load(dir);
-    }
-    let toml_path = dir.join("scene.toml");
-    let text = std::fs::read_to_string(&toml_path)
-        .map_err(|e| SceneError::new(&toml_path, 0, format!("cannot read: {e}")))?;
-    let file = crate::scene::SceneFile::parse(&text, &toml_path)?;
-    file.camera(&toml_path)?;
-    file.solver(&toml_path)?;
-    let scale = file.model.scale;
-    if !(scale.is_finite() && scale > 0.0) {
-        return Err(SceneError::new(
-            &toml_path,
-            0,
-            "[model] scale must be positive",
-        ));
-    }
-    let mut mesh = crate::msh::read_msh(&dir.join(&file.model.mesh))
-        .map_err(|e| SceneError::new(&e.file, e.line, e.message.clone()))?;
-    mesh.orient_positive();
-    let rest = mesh.nodes.iter().map(|p| p.map(|c| c * scale)).collect();
-    Ok(Scene {
-        dir: dir.to_path_buf(),
-        file,
-        rest,
-        tets: mesh.tets,
-        frames: vec![],
-    })
 }
 
 /// The model's silhouette at rest in the scene's camera: where features are looked for at

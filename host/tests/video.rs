@@ -340,7 +340,7 @@ mod with_opencv {
         for (b, i) in back.iter().zip(&ideal) {
             assert!((b[0] - i[0]).hypot(b[1] - i[1]) < 1e-3, "{b:?} vs {i:?}");
         }
-        let mut camera = incise::track::load_scene_for_video(Path::new(SCENE))
+        let mut camera = incise::scene::Scene::load_model(Path::new(SCENE))
             .unwrap()
             .file
             .camera;
