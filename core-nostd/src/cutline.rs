@@ -518,14 +518,16 @@ mod tests {
         assert!(anchor_at([1.0, 1.0], &line, &[1, 1, 1]).is_none());
     }
 
+    /// Features on an 11 × 11 grid, 10 px apart.
+    fn grid() -> [[f64; 2]; 121] {
+        core::array::from_fn(|k| [10.0 * (k % 11) as f64, 10.0 * (k / 11) as f64])
+    }
+
     #[test]
     fn the_line_starts_on_collinear_points_and_grows_toward_new_ones() {
         // Features on a grid; separation points along x = 50 from y = 20 to 60, then more up
         // to y = 100.
-        let mut features = [[0.0; 2]; 121];
-        for k in 0..121 {
-            features[k] = [10.0 * (k % 11) as f64, 10.0 * (k / 11) as f64];
-        }
+        let features = grid();
         let usable = [1u32; 121];
         let config = DetectionConfig::<f64>::paper();
         let mut reals = [0.0; 64];
@@ -563,10 +565,7 @@ mod tests {
 
     #[test]
     fn a_full_line_reports_its_cap_instead_of_growing() {
-        let mut features = [[0.0; 2]; 121];
-        for k in 0..121 {
-            features[k] = [10.0 * (k % 11) as f64, 10.0 * (k / 11) as f64];
-        }
+        let features = grid();
         let usable = [1u32; 121];
         let config = DetectionConfig::<f64>::paper();
         let (mut reals, mut indices) = ([0.0; 6], [0u32; 6]);

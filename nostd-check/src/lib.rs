@@ -42,55 +42,44 @@ fn step() -> Result<bool, incise_core::Error> {
     const NN: usize = (CX + 1) * 3 * 3;
     const NT: usize = 6 * CX * 2 * 2;
     let (lx, ly, lz) = (0.04f64, 0.01, 0.01);
-    let id = |i: usize, j: usize, k: usize| (i + (CX + 1) * (j + 3 * k)) as u32;
     let mut rest = [[0.0f64; 3]; NN];
-    for k in 0..3 {
-        for j in 0..3 {
-            for i in 0..=CX {
-                rest[id(i, j, k) as usize] =
-                    [lx * i as f64 / CX as f64, ly * j as f64 / 2.0, lz * k as f64 / 2.0];
-            }
-        }
-    }
     let mut tets = [[0u32; 4]; NT];
-    let mut t = 0;
-    for k in 0..2 {
-        for j in 0..2 {
-            for i in 0..CX {
-                for path in [[0, 1, 2], [0, 2, 1], [1, 0, 2], [1, 2, 0], [2, 0, 1], [2, 1, 0]] {
-                    let mut c = [i, j, k];
-                    tets[t][0] = id(i, j, k);
-                    for (s, axis) in path.into_iter().enumerate() {
-                        c[axis] += 1;
-                        tets[t][s + 1] = id(c[0], c[1], c[2]);
-                    }
-                    // Kuhn paths alternate in orientation: make every tetrahedron positive.
-                    let p = |v: u32| rest[v as usize];
-                    let (a, b, cc, d) = (p(tets[t][0]), p(tets[t][1]), p(tets[t][2]), p(tets[t][3]));
-                    let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
-                    let v = [cc[0] - a[0], cc[1] - a[1], cc[2] - a[2]];
-                    let w = [d[0] - a[0], d[1] - a[1], d[2] - a[2]];
-                    let vol = u[0] * (v[1] * w[2] - v[2] * w[1]) - u[1] * (v[0] * w[2] - v[2] * w[0])
-                        + u[2] * (v[0] * w[1] - v[1] * w[0]);
-                    if vol < 0.0 {
-                        tets[t].swap(2, 3);
-                    }
-                    t += 1;
-                }
-            }
-        }
-    }
-    let fixed = [id(0, 0, 0), id(0, 1, 0), id(0, 2, 0), id(0, 0, 1), id(0, 1, 1), id(0, 2, 1),
-        id(0, 0, 2), id(0, 1, 2), id(0, 2, 2)];
-    let mesh = MeshInput { rest: &rest, tets: &tets, fixed: &fixed };
+    box_mesh([CX, 2, 2], [lx, ly, lz], &mut rest, &mut tets);
+    let id = |i: usize, j: usize, k: usize| (i + (CX + 1) * (j + 3 * k)) as u32;
+    let fixed = [
+        id(0, 0, 0),
+        id(0, 1, 0),
+        id(0, 2, 0),
+        id(0, 0, 1),
+        id(0, 1, 1),
+        id(0, 2, 1),
+        id(0, 0, 2),
+        id(0, 1, 2),
+        id(0, 2, 2),
+    ];
+    let mesh = MeshInput {
+        rest: &rest,
+        tets: &tets,
+        fixed: &fixed,
+    };
 
     // A camera 0.2 m above the box, looking down.
     let r = Matrix3::new(1.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, -1.0);
     let eye = Vector3::new(0.02, 0.005, 0.2);
-    let intr = Intrinsics { fx: 2000.0, fy: 2000.0, cx: 320.0, cy: 240.0, width: 640, height: 480 };
+    let intr = Intrinsics {
+        fx: 2000.0,
+        fy: 2000.0,
+        cx: 320.0,
+        cy: 240.0,
+        width: 640,
+        height: 480,
+    };
     let camera = Camera::new(intr, r, -(r * eye), 1e-4)?;
     let config = ModelConfig {
-        material: Material { young: 3.0e4, poisson: 0.3 },
+        material: Material {
+            young: 3.0e4,
+            poisson: 0.3,
+        },
         camera,
         solver: SolverConfig {
             strategy: Strategy::Refactor,
@@ -103,7 +92,11 @@ fn step() -> Result<bool, incise_core::Error> {
         detection: incise_core::DetectionConfig::paper(),
     };
     let caps = Capacities {
-        mesh: MeshCapacity { nodes: NN, tets: NT, surface_triangles: 4 * NT },
+        mesh: MeshCapacity {
+            nodes: NN,
+            tets: NT,
+            surface_triangles: 4 * NT,
+        },
         features: 16,
         factor_headroom_percent: 0,
         pairs: 256,
@@ -116,11 +109,21 @@ fn step() -> Result<bool, incise_core::Error> {
     let mut model = Model::new(&mesh, &config, &size, &mut reals, &mut indices, &mut work)?;
 
     // Nine features on the top face near the free end.
-    let mut frame = [Observation { id: 0, uv: [0.0; 2] }; 9];
+    let mut frame = [Observation {
+        id: 0,
+        uv: [0.0; 2],
+    }; 9];
     for (n, o) in frame.iter_mut().enumerate() {
-        let p = Vector3::new(0.034 + 0.002 * (n % 3) as f64, 0.003 + 0.002 * (n / 3) as f64, lz);
+        let p = Vector3::new(
+            0.034 + 0.002 * (n % 3) as f64,
+            0.003 + 0.002 * (n / 3) as f64,
+            lz,
+        );
         let uv = camera.project(&p, n)?;
-        *o = Observation { id: n as u32, uv: [uv.x, uv.y] };
+        *o = Observation {
+            id: n as u32,
+            uv: [uv.x, uv.y],
+        };
     }
     if model.embed_features(&frame)?.embedded != 9 {
         return Ok(false);
@@ -150,24 +153,9 @@ pub extern "C" fn incise_nostd_check_sparse() -> i32 {
 }
 
 fn sparse() -> Result<bool, incise_core::Error> {
-    let id = |i: usize, j: usize, k: usize| (i + (C + 1) * (j + (C + 1) * k)) as u32;
+    let mut rest = [[0.0f64; 3]; NODES];
     let mut tets = [[0u32; 4]; TETS];
-    let mut t = 0;
-    for k in 0..C {
-        for j in 0..C {
-            for i in 0..C {
-                for path in [[0, 1, 2], [0, 2, 1], [1, 0, 2], [1, 2, 0], [2, 0, 1], [2, 1, 0]] {
-                    let mut c = [i, j, k];
-                    tets[t][0] = id(i, j, k);
-                    for (s, axis) in path.into_iter().enumerate() {
-                        c[axis] += 1;
-                        tets[t][s + 1] = id(c[0], c[1], c[2]);
-                    }
-                    t += 1;
-                }
-            }
-        }
-    }
+    box_mesh([C, C, C], [1.0, 1.0, 1.0], &mut rest, &mut tets);
     let mut free = [0u32; NODES];
     for (v, f) in free.iter_mut().enumerate() {
         *f = v as u32;
@@ -190,7 +178,11 @@ fn sparse() -> Result<bool, incise_core::Error> {
     let mut values = [0.0f64; 2048];
     for j in 0..a.n() {
         for p in a.column_range(j) {
-            values[p] = if a.row_idx()[p] as usize == j { 64.0 } else { -0.5 };
+            values[p] = if a.row_idx()[p] as usize == j {
+                64.0
+            } else {
+                -0.5
+            };
         }
     }
     let values = &values[..nnz];
@@ -231,5 +223,59 @@ mod heap_control {
     #[unsafe(no_mangle)]
     pub extern "C" fn incise_nostd_check_heap(n: usize) -> usize {
         alloc::vec![1u8; n].len()
+    }
+}
+
+/// A box of `nx × ny × nz` cells, six positive tetrahedra per cell (Kuhn), into fixed arrays:
+/// `rest` needs `(nx + 1)(ny + 1)(nz + 1)` entries, `tets` `6 nx ny nz`.
+fn box_mesh(n: [usize; 3], size: [f64; 3], rest: &mut [[f64; 3]], tets: &mut [[u32; 4]]) {
+    let [nx, ny, nz] = n;
+    let id = |i: usize, j: usize, k: usize| (i + (nx + 1) * (j + (ny + 1) * k)) as u32;
+    for k in 0..=nz {
+        for j in 0..=ny {
+            for i in 0..=nx {
+                rest[id(i, j, k) as usize] = [
+                    size[0] * i as f64 / nx as f64,
+                    size[1] * j as f64 / ny as f64,
+                    size[2] * k as f64 / nz as f64,
+                ];
+            }
+        }
+    }
+    let mut t = 0;
+    for k in 0..nz {
+        for j in 0..ny {
+            for i in 0..nx {
+                for path in [
+                    [0, 1, 2],
+                    [0, 2, 1],
+                    [1, 0, 2],
+                    [1, 2, 0],
+                    [2, 0, 1],
+                    [2, 1, 0],
+                ] {
+                    let mut c = [i, j, k];
+                    tets[t][0] = id(i, j, k);
+                    for (s, axis) in path.into_iter().enumerate() {
+                        c[axis] += 1;
+                        tets[t][s + 1] = id(c[0], c[1], c[2]);
+                    }
+                    // Kuhn paths alternate in orientation: make every tetrahedron positive.
+                    let p = |v: u32| rest[v as usize];
+                    let (a, b, cc, d) =
+                        (p(tets[t][0]), p(tets[t][1]), p(tets[t][2]), p(tets[t][3]));
+                    let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+                    let v = [cc[0] - a[0], cc[1] - a[1], cc[2] - a[2]];
+                    let w = [d[0] - a[0], d[1] - a[1], d[2] - a[2]];
+                    let vol = u[0] * (v[1] * w[2] - v[2] * w[1])
+                        - u[1] * (v[0] * w[2] - v[2] * w[0])
+                        + u[2] * (v[0] * w[1] - v[1] * w[0]);
+                    if vol < 0.0 {
+                        tets[t].swap(2, 3);
+                    }
+                    t += 1;
+                }
+            }
+        }
     }
 }
