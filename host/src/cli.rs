@@ -71,6 +71,16 @@ pub enum Command {
         #[arg(required = true)]
         scenes: Vec<PathBuf>,
     },
+    /// Error against run time: run a scene under several solver settings (strategy, Newton
+    /// steps, PCG steps) and report Dice, target error and step time for each, as a table and
+    /// as plots (`--out DIR`: error_vs_time.svg).
+    Sweep {
+        /// The scene directory.
+        scene: PathBuf,
+        /// Write the plots here.
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
     /// Generate scenes: simulate each scenario's real object and write the scene beside it.
     Gen {
         /// Scenario files (scenario.toml).
@@ -128,6 +138,7 @@ pub fn run(cli: Cli) -> i32 {
             video,
         } => gen_command(&scenarios, out, video),
         Command::Table { scenes } => table_command(&scenes),
+        Command::Sweep { scene, out } => sweep_command(&scene, out.as_deref()),
     };
     match result {
         Ok(()) => 0,
@@ -176,6 +187,29 @@ fn table_command(dirs: &[PathBuf]) -> Result<(), String> {
         rows.push(summary);
     }
     print!("{}", crate::report::markdown_table(&rows));
+    Ok(())
+}
+
+fn sweep_command(dir: &Path, out: Option<&Path>) -> Result<(), String> {
+    let base = Scene::load(dir).map_err(|e| e.to_string())?;
+    let settings = crate::report::sweep_settings();
+    let bar = indicatif::ProgressBar::new(settings.len() as u64);
+    let mut rows = vec![];
+    for setting in settings {
+        let mut scene = base.clone();
+        setting.apply(&mut scene.file.solver);
+        let (summary, _) = run_scene(&scene, &RunOptions::default()).map_err(|e| e.to_string())?;
+        rows.push((setting, summary));
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    print!("{}", crate::report::sweep_table(&rows));
+    if let Some(out) = out {
+        std::fs::create_dir_all(out).map_err(|e| e.to_string())?;
+        let plot = out.join("error_vs_time.svg");
+        crate::report::plot_sweep(&base.file.name, &rows, &plot)?;
+        println!("plot: {}", plot.display());
+    }
     Ok(())
 }
 

@@ -6,6 +6,7 @@ use image::{RgbImage, imageops};
 use plotters::prelude::*;
 
 use crate::run::{Summary, Trace};
+use crate::scene::SolverSection;
 
 /// A few lines a person reads after a run.
 pub fn human_summary(s: &Summary) -> String {
@@ -150,5 +151,144 @@ pub fn plot_dice(trace: &Trace, summary: &Summary, out: &Path) -> Result<(), Str
         .background_style(WHITE.mix(0.8))
         .draw()
         .map_err(|e| e.to_string())?;
+    root.present().map_err(|e| e.to_string())
+}
+
+/// One solver setting of an error-against-run-time sweep.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SweepSetting {
+    /// `"refactor"` or `"frozen"`.
+    pub strategy: &'static str,
+    /// Newton steps per frame.
+    pub newton: u32,
+    /// PCG steps per Newton step (`"frozen"` only).
+    pub pcg: u32,
+}
+
+impl SweepSetting {
+    /// Puts this setting into a scene's solver section.
+    pub fn apply(&self, solver: &mut SolverSection) {
+        solver.strategy = self.strategy.to_string();
+        solver.newton_iterations = self.newton;
+        solver.pcg_iterations = self.pcg;
+    }
+
+    /// A short label.
+    pub fn label(&self) -> String {
+        match self.strategy {
+            "frozen" => format!("frozen, {} Newton × {} PCG", self.newton, self.pcg),
+            _ => format!("refactor, {} Newton", self.newton),
+        }
+    }
+}
+
+/// The settings a sweep tries: `Refactor` with 1 to 4 Newton steps, `Frozen` with 1 to 3
+/// Newton steps of 3, 10 or 30 PCG steps.
+pub fn sweep_settings() -> Vec<SweepSetting> {
+    let mut v: Vec<SweepSetting> = (1..=4)
+        .map(|newton| SweepSetting {
+            strategy: "refactor",
+            newton,
+            pcg: 10,
+        })
+        .collect();
+    for newton in 1..=3 {
+        for pcg in [3, 10, 30] {
+            v.push(SweepSetting {
+                strategy: "frozen",
+                newton,
+                pcg,
+            });
+        }
+    }
+    v
+}
+
+/// The sweep as a Markdown table.
+pub fn sweep_table(rows: &[(SweepSetting, Summary)]) -> String {
+    let mut out = String::from(
+        "| solver | ms/frame median | ms/frame max | Dice last | Dice after cut | TRE mm | surface mm | cut detected |\n\
+         | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n",
+    );
+    for (setting, s) in rows {
+        out.push_str(&format!(
+            "| {} | {:.2} | {:.2} | {:.3} | {:.3} | {:.2} | {:.2} | {} |\n",
+            setting.label(),
+            s.ms_per_frame_median,
+            s.ms_per_frame_max,
+            s.dice_final,
+            s.dice_mean_after_cut,
+            s.tre_mm_final,
+            s.surface_rmse_mm_final,
+            s.cut_detected_frame
+                .map_or("–".to_string(), |f| f.to_string())
+        ));
+    }
+    out
+}
+
+/// Two plots side by side: mean Dice after the cut and target error against the median step
+/// time, one point per setting (refactor blue, frozen red).
+///
+/// # Errors
+/// If the plot cannot be written.
+pub fn plot_sweep(scene: &str, rows: &[(SweepSetting, Summary)], out: &Path) -> Result<(), String> {
+    let root = SVGBackend::new(out, (960, 400)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| e.to_string())?;
+    let (left, right) = root.split_horizontally(480);
+    let t_max = rows
+        .iter()
+        .map(|r| r.1.ms_per_frame_median)
+        .fold(0.0, f64::max)
+        * 1.1
+        + 1e-3;
+    let panels: [(&str, fn(&Summary) -> f64); 2] = [
+        ("mean Dice after the cut", |s| s.dice_mean_after_cut),
+        ("target error at the last frame, mm", |s| s.tre_mm_final),
+    ];
+    for (area, (name, metric)) in [left, right].iter().zip(panels) {
+        let values: Vec<f64> = rows
+            .iter()
+            .map(|r| metric(&r.1))
+            .filter(|v| v.is_finite())
+            .collect();
+        let lo = values.iter().copied().fold(f64::INFINITY, f64::min);
+        let hi = values.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        let pad = ((hi - lo) * 0.1).max(1e-3);
+        let (lo, hi) = if lo.is_finite() {
+            (lo - pad, hi + pad)
+        } else {
+            (0.0, 1.0)
+        };
+        let mut chart = ChartBuilder::on(area)
+            .caption(format!("{scene}: {name}"), ("sans-serif", 15))
+            .margin(12)
+            .x_label_area_size(36)
+            .y_label_area_size(52)
+            .build_cartesian_2d(0.0..t_max, lo..hi)
+            .map_err(|e| e.to_string())?;
+        chart
+            .configure_mesh()
+            .x_desc("step time, ms (median)")
+            .draw()
+            .map_err(|e| e.to_string())?;
+        for (setting, s) in rows {
+            let colour = if setting.strategy == "frozen" {
+                RED
+            } else {
+                BLUE
+            };
+            let v = metric(s);
+            if v.is_finite() {
+                chart
+                    .draw_series(std::iter::once(Circle::new(
+                        (s.ms_per_frame_median, v),
+                        4,
+                        colour.filled(),
+                    )))
+                    .map_err(|e| e.to_string())?;
+            }
+        }
+    }
     root.present().map_err(|e| e.to_string())
 }
