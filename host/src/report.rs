@@ -242,7 +242,8 @@ pub fn plot_sweep(scene: &str, rows: &[(SweepSetting, Summary)], out: &Path) -> 
         .fold(0.0, f64::max)
         * 1.1
         + 1e-3;
-    let panels: [(&str, fn(&Summary) -> f64); 2] = [
+    type Metric = fn(&Summary) -> f64;
+    let panels: [(&str, Metric); 2] = [
         ("mean Dice after the cut", |s| s.dice_mean_after_cut),
         ("target error at the last frame, mm", |s| s.tre_mm_final),
     ];
