@@ -461,7 +461,6 @@ impl<'a, T: Real> Model<'a, T> {
                 &at_rest,
                 TangentProjection::Exact,
             );
-            let _ = tet;
             for (l, &v) in tet.iter().enumerate() {
                 damping[v as usize] += eval.tangent[l][l].trace() / T::of(3.0);
             }

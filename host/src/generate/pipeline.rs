@@ -289,7 +289,6 @@ pub fn simulate(scenario_path: &Path, progress: bool) -> Result<Simulation, GenE
     )
     .map_err(|e| GenError(format!("simulator: {e}")))?;
     let boundary = real.boundary();
-    let triangles: Vec<[u32; 3]> = boundary.iter().map(|b| b.0).collect();
     // Depth tolerance: a fraction of the object's smallest extent.
     let extent = (0..3)
         .map(|k| {
@@ -325,7 +324,6 @@ pub fn simulate(scenario_path: &Path, progress: bool) -> Result<Simulation, GenE
         bar.inc(1);
     }
     bar.finish_and_clear();
-    let _ = triangles;
     Ok(Simulation {
         scenario: s,
         camera,
