@@ -131,7 +131,7 @@ fn with_model<R>(c: &Case, strategy: Strategy, f: impl FnOnce(&mut Model<'_, f64
         tets: &c.mesh.tets,
         fixed: &c.fixed,
     };
-    let mut storage = ModelStorage::new(&input, FEATURES, 0).expect("size");
+    let mut storage = ModelStorage::with_features(&input, FEATURES).expect("size");
     let mut model = storage
         .model(&input, &config(c.cam, strategy))
         .expect("model");

@@ -1,6 +1,6 @@
 //! Cut detection on the committed scenes (paper §2.2–2.3): the cut scenes are detected soon
 //! after their slit opens and the detected line lies on the true one; the scenes without a cut
-//! are never cut; the separation surface is the line extruded along the camera's axis.
+//! are never cut; the separation surface is the line extruded along the camera rays.
 
 use std::path::{Path, PathBuf};
 
@@ -69,7 +69,7 @@ fn scenes_without_a_cut_are_never_cut() {
 }
 
 #[test]
-fn the_separation_surface_is_the_line_extruded_along_the_camera_axis() {
+fn the_separation_surface_is_the_line_extruded_along_the_camera_rays() {
     let scene = load("band-side-cut");
     let toml = scene.dir.join("scene.toml");
     let camera = scene.file.camera(&toml).unwrap();
@@ -87,7 +87,7 @@ fn the_separation_surface_is_the_line_extruded_along_the_camera_axis() {
         tets: &scene.tets,
         fixed: &scene.file.model.fixed,
     };
-    let mut storage = ModelStorage::with_capacities(&input, &scene.file.capacities).unwrap();
+    let mut storage = ModelStorage::new(&input, &scene.file.capacities).unwrap();
     let mut model = storage.model(&input, &config).unwrap();
     model.embed_features(&scene.frames[0]).unwrap();
     for frame in &scene.frames[1..] {
@@ -103,30 +103,30 @@ fn the_separation_surface_is_the_line_extruded_along_the_camera_axis() {
     assert!(n >= 2);
     let mut quads = [[[0.0; 3]; 4]; 64];
     let m = model.separation_surface(&mut quads);
-    assert!(m >= 1, "no quad");
+    assert_eq!(m, n - 1, "one quad per segment");
     let view = camera.view_direction();
-    let diagonal = {
-        let x = model.positions();
-        let lo = (0..3).map(|c| x.iter().map(|p| p[c]).fold(f64::INFINITY, f64::min));
-        let hi = (0..3).map(|c| x.iter().map(|p| p[c]).fold(f64::NEG_INFINITY, f64::max));
-        lo.zip(hi).map(|(a, b)| (b - a).powi(2)).sum::<f64>().sqrt()
-    };
-    for q in &quads[..m] {
-        let [a, b, c, d] = q.map(Vector3::from);
-        // The far edge is the near edge moved along the camera's axis by the model's size.
-        assert!((d - a - view * diagonal).norm() < 1e-12);
-        assert!((c - b - view * diagonal).norm() < 1e-12);
-        // The near edge lies on the cut line in the image.
-        for p in [a, b] {
+    let centre = *camera.centre();
+    let depths: Vec<f64> = model
+        .positions()
+        .iter()
+        .map(|p| (Vector3::from(*p) - centre).dot(&view))
+        .collect();
+    let near = depths.iter().copied().fold(f64::INFINITY, f64::min);
+    let far = depths.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    for (k, q) in quads[..m].iter().enumerate() {
+        // Corners 0 and 3 lie on the ray through vertex k, corners 1 and 2 on the ray through
+        // vertex k + 1, at the model's nearest and farthest depth along the view.
+        for (corner, vertex, depth) in
+            [(0, k, near), (1, k + 1, near), (2, k + 1, far), (3, k, far)]
+        {
+            let p = Vector3::from(q[corner]);
             let uv = camera.project(&p, 0).unwrap();
-            let nearest = line[..n]
-                .iter()
-                .map(|v| (v[0] - uv.x).hypot(v[1] - uv.y))
-                .fold(f64::INFINITY, f64::min);
+            let v = line[vertex];
             assert!(
-                nearest < 1e-6,
-                "quad corner {uv} is {nearest} px from the line's vertices"
+                (uv.x - v[0]).hypot(uv.y - v[1]) < 1e-6,
+                "quad {k} corner {corner} projects to {uv}, not to vertex {v:?}"
             );
+            assert!(((p - centre).dot(&view) - depth).abs() < 1e-9);
         }
     }
 }

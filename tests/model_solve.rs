@@ -131,7 +131,7 @@ fn cantilever_tip_deflection_matches_euler_bernoulli() {
         let input = beam.input();
         let mut cfg = config(beam.cam, 3.0e-11, Strategy::Refactor, 0.0);
         cfg.solver.newton_iterations = 3;
-        let mut storage = ModelStorage::new(&input, 64, 0).unwrap();
+        let mut storage = ModelStorage::with_features(&input, 64).unwrap();
         let mut model = storage.model(&input, &cfg).unwrap();
         model.embed_features(&beam.frame0).unwrap();
         // A small deflection is nearly linear: one frame of Newton steps converges.
@@ -150,19 +150,15 @@ fn cantilever_tip_deflection_matches_euler_bernoulli() {
         let mut predicted = 0.0;
         let k = cfg.solver.spring_stiffness;
         for (slot, target) in model.features().targets().iter().enumerate() {
-            let p = model
-                .features()
-                .position(slot, model.mesh(), model.positions())
-                .unwrap();
+            let p = nalgebra::Vector3::from(model.feature_position(slot).unwrap());
             let (uv, j) = beam.cam.project_with_jacobian(&p, slot).unwrap();
             let r = nalgebra::Vector2::new(target[0] - uv.x, target[1] - uv.y);
             let force = j.transpose() * r * k;
             // Where the force acts along the beam, at rest (small deflection).
             let a = model
-                .features()
+                .feature_embedding()
                 .position(slot, model.mesh(), model.mesh().rest())
-                .unwrap()
-                .x;
+                .unwrap()[0];
             let l = beam.length;
             predicted += force.y * a * a * (3.0 * l - a) / (6.0 * e * i);
         }
@@ -198,7 +194,7 @@ fn converged_refactor_solve_matches_a_newton_loop_solved_by_faer() {
     let input = beam.input();
     let cfg = config(beam.cam, 2.0e-7, Strategy::Refactor, 0.0);
 
-    let mut storage = ModelStorage::new(&input, 64, 0).unwrap();
+    let mut storage = ModelStorage::with_features(&input, 64).unwrap();
     let mut ours = storage.model(&input, &cfg).unwrap();
     ours.embed_features(&beam.frame0).unwrap();
     let last = converge(&mut ours, &beam.pulled);
@@ -208,7 +204,7 @@ fn converged_refactor_solve_matches_a_newton_loop_solved_by_faer() {
         last.gradient_norm_after
     );
 
-    let mut storage_ref = ModelStorage::new(&input, 64, 0).unwrap();
+    let mut storage_ref = ModelStorage::with_features(&input, 64).unwrap();
     let mut reference = storage_ref.model(&input, &cfg).unwrap();
     reference.embed_features(&beam.frame0).unwrap();
     reference.observe(&beam.pulled).unwrap();
@@ -266,7 +262,7 @@ fn target_deformation(
         fixed,
     };
     let cfg = config(cam, 2.0e-7, Strategy::Refactor, 0.0);
-    let mut storage = ModelStorage::new(&input, 64, 0).unwrap();
+    let mut storage = ModelStorage::with_features(&input, 64).unwrap();
     let mut model = storage.model(&input, &cfg).unwrap();
     let pts = top_grid(0.9 * size[0], size[0], size[1], size[2], 4);
     let frame0 = observe(&cam, &pts);
@@ -312,7 +308,7 @@ fn registration(strategy: Strategy) {
         fixed: &fixed,
     };
     let cfg = config(cam, 2.0e-6, strategy, 1e-3);
-    let mut storage = ModelStorage::new(&input, 256, 0).unwrap();
+    let mut storage = ModelStorage::with_features(&input, 256).unwrap();
     let mut model = storage.model(&input, &cfg).unwrap();
     let report = model.embed_features(&observe(&cam, &at(0.0))).unwrap();
     assert_eq!(report.missed, 0);
@@ -425,7 +421,7 @@ fn the_model_runs_in_f32() {
             ..incise_core::DetectionConfig::paper()
         },
     };
-    let mut storage = ModelStorage::<f32>::new(&input, 256, 0).unwrap();
+    let mut storage = ModelStorage::<f32>::with_features(&input, 256).unwrap();
     let mut model = storage.model(&input, &cfg).unwrap();
     let top = nodes_where(&mesh, 2, size[2]);
     let at = |s: f64| -> Vec<Observation<f32>> {

@@ -47,8 +47,25 @@ pub struct CutLine<'a, T> {
     n: usize,
     /// Directions of the two fronts in the image (start, end), unit length.
     direction: [[T; 2]; 2],
+    /// Frame each front last moved forward (or the line started).
+    moved: [u32; 2],
     detected_frame: Option<u32>,
     capped: bool,
+    /// The vertices (an index range, inclusive) whose segments have been applied to the mesh:
+    /// the line grows only at its ends, so they stay contiguous.
+    applied: Option<[usize; 2]>,
+}
+
+/// A part of the line not yet applied to the mesh: vertices `first..=last`, and which of its
+/// two ends are open (the line's own ends) rather than continuing the part already applied.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PendingPart {
+    /// First vertex.
+    pub first: usize,
+    /// Last vertex.
+    pub last: usize,
+    /// Whether each end is an end of the line.
+    pub open: [bool; 2],
 }
 
 fn sub<T: Real>(a: [T; 2], b: [T; 2]) -> [T; 2] {
@@ -88,8 +105,10 @@ impl<'a, T: Real> CutLine<'a, T> {
             weights: reals.take(3 * capacity)?.as_chunks_mut::<3>().0,
             n: 0,
             direction: [[T::zero(); 2]; 2],
+            moved: [0; 2],
             detected_frame: None,
             capped: false,
+            applied: None,
         })
     }
 
@@ -98,6 +117,45 @@ impl<'a, T: Real> CutLine<'a, T> {
         self.n = 0;
         self.detected_frame = None;
         self.capped = false;
+        self.applied = None;
+    }
+
+    /// The parts of the line not yet applied to the mesh (at most one per end; the whole line
+    /// before anything is applied).
+    pub fn pending(&self) -> [Option<PendingPart>; 2] {
+        if self.n < 2 {
+            return [None, None];
+        }
+        let last = self.n - 1;
+        match self.applied {
+            None => [
+                Some(PendingPart {
+                    first: 0,
+                    last,
+                    open: [true, true],
+                }),
+                None,
+            ],
+            Some([lo, hi]) => [
+                (lo > 0).then_some(PendingPart {
+                    first: 0,
+                    last: lo,
+                    open: [true, false],
+                }),
+                (hi < last).then_some(PendingPart {
+                    first: hi,
+                    last,
+                    open: [false, true],
+                }),
+            ],
+        }
+    }
+
+    /// Records that the whole line as it is now has been applied to the mesh.
+    pub fn mark_applied(&mut self) {
+        if self.n >= 2 {
+            self.applied = Some([0, self.n - 1]);
+        }
     }
 
     /// Number of vertices.
@@ -145,11 +203,14 @@ impl<'a, T: Real> CutLine<'a, T> {
         m
     }
 
-    /// The separation surface: one quadrilateral per polyline segment, `[a, b, b + L·e, a + L·e]`,
-    /// where `a` and `b` are the vertices carried onto the model surface along their camera
-    /// rays, `e` the unit depth direction (the configured one, else the camera's viewing
-    /// direction) and `L = length` metres. Writes up to `out.len()` quads, returns how many; a
-    /// segment with a vertex whose ray misses the model is left out.
+    /// The separation surface the mesh is cut along ([`crate::cut`]): one quadrilateral per
+    /// polyline segment. Extruded along the camera rays (the default), the quadrilateral of
+    /// segment `[a, b]` is `[a_near, b_near, b_far, a_far]`, the points of the rays through `a`
+    /// and `b` at the nearest and farthest depth of the model (`x`) along the view. Along a
+    /// configured depth direction `e`, it is `[a, b, b + L·e, a + L·e]`, where `a` and `b` are
+    /// the vertices carried onto the model along their rays (or, for a ray that misses it, onto
+    /// the plane through its centroid across the view) and `L = length` metres. Writes up to
+    /// `out.len()` quads, returns how many.
     #[allow(clippy::too_many_arguments)]
     pub fn separation_surface(
         &self,
@@ -161,48 +222,78 @@ impl<'a, T: Real> CutLine<'a, T> {
         length: T,
         out: &mut [[[T; 3]; 4]],
     ) -> usize {
-        let e = match config.depth {
-            Some(d) => {
-                let v = Vector3::new(d[0], d[1], d[2]);
-                v / v.norm()
+        let view = camera.view_direction();
+        let centre = *camera.centre();
+        let n = mesh.n_nodes();
+        let (mut near, mut far) = (T::zero(), T::zero());
+        let mut centroid = Vector3::zeros();
+        for (k, p) in x[..n].iter().enumerate() {
+            let q = Vector3::new(p[0], p[1], p[2]);
+            centroid += q;
+            let z = (q - centre).dot(&view);
+            near = if k == 0 { z } else { near.min(z) };
+            far = if k == 0 { z } else { far.max(z) };
+        }
+        centroid /= T::of(n.max(1) as f64);
+        let at_depth = |uv: [T; 2], z: T| -> Vector3<T> {
+            let (origin, dir) = camera.ray(uv[0], uv[1]);
+            let denom = dir.dot(&view);
+            origin + dir * if denom > T::EPS { z / denom } else { z }
+        };
+        let on_model = |uv: [T; 2]| -> Vector3<T> {
+            if let Some((tet, w)) = first_hit(mesh, x, camera, uv)
+                && let Some(p) = crate::embed::interpolate(x, &mesh.tets()[tet as usize], &w)
+            {
+                return Vector3::new(p[0], p[1], p[2]);
             }
-            None => camera.view_direction(),
-        } * length;
-        let on_surface = |k: usize| -> Option<Vector3<T>> {
-            let uv = self.vertex(k, features)?;
-            let (tet, w) = first_hit(mesh, x, camera, uv)?;
-            let nodes = mesh.tets().get(tet as usize)?;
-            let mut p = Vector3::zeros();
-            for (c, &v) in nodes.iter().enumerate() {
-                let q = x.get(v as usize)?;
-                p += Vector3::new(q[0], q[1], q[2]) * w[c];
-            }
-            Some(p)
+            at_depth(uv, (centroid - centre).dot(&view))
         };
         let mut m = 0;
-        let mut previous = if self.n > 0 { on_surface(0) } else { None };
         for k in 1..self.n {
             if m == out.len() {
                 break;
             }
-            let current = on_surface(k);
-            if let (Some(a), Some(b)) = (previous, current) {
-                out[m] = [a, b, b + e, a + e].map(|p| [p.x, p.y, p.z]);
-                m += 1;
-            }
-            previous = current;
+            let (Some(a), Some(b)) = (self.vertex(k - 1, features), self.vertex(k, features))
+            else {
+                continue;
+            };
+            let quad = match config.depth {
+                None => [
+                    at_depth(a, near),
+                    at_depth(b, near),
+                    at_depth(b, far),
+                    at_depth(a, far),
+                ],
+                Some(d) => {
+                    let e = Vector3::new(d[0], d[1], d[2]);
+                    let e = e / e.norm() * length;
+                    let (pa, pb) = (on_model(a), on_model(b));
+                    [pa, pb, pb + e, pa + e]
+                }
+            };
+            out[m] = quad.map(|p| [p.x, p.y, p.z]);
+            m += 1;
         }
         m
     }
 
     /// One frame: starts the line from the separation `points` once there are enough, or
-    /// advances its fronts. `features` are the latest image positions of the feature slots
-    /// (vertices are anchored to them); `usable[i] != 0` marks slots that may anchor a new
-    /// vertex; `scratch` holds the projected vertices (at least the capacity).
+    /// advances its fronts. `since[k]` is the frame at which point `k`'s pair became split: a
+    /// front advances only on points inserted after it last moved (the paper's "new cut lines
+    /// are only inserted when a sufficient number of separation points have been inserted"),
+    /// so a discrepancy that stays put, such as the strain at a cut's tip that a coarse model
+    /// cannot follow, cannot push a front along frame after frame. `lips` are further evidence
+    /// of where the cut is (the midpoints of a cut model's lips): vertices follow them as they
+    /// follow separation points. `features` are the latest image positions of the feature
+    /// slots (vertices are anchored to them); `usable[i] != 0` marks slots that may anchor a
+    /// new vertex; `scratch` holds the projected vertices (at least the capacity).
+    #[allow(clippy::too_many_arguments)]
     pub fn update(
         &mut self,
         frame: u32,
         points: &[[T; 2]],
+        since: &[u32],
+        lips: &[[T; 2]],
         features: &[[T; 2]],
         usable: &[u32],
         config: &DetectionConfig<T>,
@@ -216,11 +307,14 @@ impl<'a, T: Real> CutLine<'a, T> {
         } else {
             let m = self.project(features, scratch);
             if m == self.n {
-                self.follow_points(points, features, usable, config, &scratch[..m]);
+                self.follow_points(points, lips, features, usable, config, &scratch[..m]);
                 let m = self.project(features, scratch);
                 for end in 0..2 {
                     let v = if end == 0 { scratch[0] } else { scratch[m - 1] };
-                    if let Some((p, dir)) = Self::advance(v, self.direction[end], points, config) {
+                    let fresh = |k: usize| since.get(k).is_some_and(|&f| f > self.moved[end]);
+                    if let Some((p, dir)) =
+                        Self::advance(v, self.direction[end], points, fresh, config)
+                    {
                         if self.n == self.anchors.len() {
                             self.capped = true;
                             continue;
@@ -228,6 +322,7 @@ impl<'a, T: Real> CutLine<'a, T> {
                         if let Some((anchor, w)) = anchor_at(p, features, usable) {
                             self.insert(end, anchor, w);
                             self.direction[end] = dir;
+                            self.moved[end] = frame;
                             added += 1;
                         }
                     }
@@ -321,6 +416,7 @@ impl<'a, T: Real> CutLine<'a, T> {
                 self.weights[1] = wb;
                 self.n = 2;
                 self.direction = [[-e[0], -e[1]], e];
+                self.moved = [frame; 2];
                 self.detected_frame = Some(frame);
                 2
             }
@@ -332,10 +428,13 @@ impl<'a, T: Real> CutLine<'a, T> {
     /// same fraction of the way between the lips as they part, which need not be the middle;
     /// the separation points (midpoints of pairs across the cut) are. Each vertex with enough
     /// of them within a maximum step moves across the line (not along it) to their mean and is
-    /// anchored again there. `projected` are the vertices' current pixels.
+    /// anchored again there. Where the model is cut there are no separation points left; the
+    /// midpoints of its lips (`lips`) are exact rather than noisy, so one within two maximum
+    /// steps is evidence enough. `projected` are the vertices' current pixels.
     fn follow_points(
         &mut self,
         points: &[[T; 2]],
+        lips: &[[T; 2]],
         features: &[[T; 2]],
         usable: &[u32],
         config: &DetectionConfig<T>,
@@ -357,16 +456,25 @@ impl<'a, T: Real> CutLine<'a, T> {
             }
             let normal = [-t[1] / len, t[0] / len];
             let v = projected[k];
-            let (mut offset, mut count) = (T::zero(), 0u32);
-            for p in points {
+            let across = |p: &[T; 2], reach: T| -> Option<T> {
                 let w = sub(*p, v);
-                if length(w) <= config.max_step_px {
-                    offset += w[0] * normal[0] + w[1] * normal[1];
-                    count += 1;
-                }
+                (length(w) <= reach).then(|| w[0] * normal[0] + w[1] * normal[1])
+            };
+            let (mut offset, mut count) = (T::zero(), 0u32);
+            for d in points.iter().filter_map(|p| across(p, config.max_step_px)) {
+                offset += d;
+                count += 1;
             }
             if count < config.min_support {
-                continue;
+                (offset, count) = (T::zero(), 0);
+                let reach = T::of(2.0) * config.max_step_px;
+                for d in lips.iter().filter_map(|p| across(p, reach)) {
+                    offset += d;
+                    count += 1;
+                }
+                if count == 0 {
+                    continue;
+                }
             }
             let shift = offset / T::of(f64::from(count));
             let target = [v[0] + normal[0] * shift, v[1] + normal[1] * shift];
@@ -377,18 +485,22 @@ impl<'a, T: Real> CutLine<'a, T> {
         }
     }
 
-    /// Where a front at `v` heading `u` moves, if enough points ahead, inside the angle `α`
-    /// and within three maximum steps, support it: toward their mean, by at most the maximum
-    /// step.
+    /// Where a front at `v` heading `u` moves, if enough `fresh` points ahead, inside the
+    /// angle `α` and within three maximum steps, support it: toward their mean, by at most the
+    /// maximum step.
     fn advance(
         v: [T; 2],
         u: [T; 2],
         points: &[[T; 2]],
+        fresh: impl Fn(usize) -> bool,
         config: &DetectionConfig<T>,
     ) -> Option<([T; 2], [T; 2])> {
         let cos_alpha = (config.alpha_degrees * T::pi() / T::of(180.0)).cos();
         let (mut sum, mut count) = ([T::zero(); 2], 0u32);
-        for p in points {
+        for (k, p) in points.iter().enumerate() {
+            if !fresh(k) {
+                continue;
+            }
             let w = sub(*p, v);
             let d = length(w);
             if d > T::EPS
@@ -418,6 +530,9 @@ impl<'a, T: Real> CutLine<'a, T> {
 
     fn insert(&mut self, end: usize, anchor: [u32; 3], w: [T; 3]) {
         if end == 0 {
+            if let Some(r) = self.applied.as_mut() {
+                *r = [r[0] + 1, r[1] + 1];
+            }
             for k in (0..self.n).rev() {
                 self.anchors[k + 1] = self.anchors[k];
                 self.weights[k + 1] = self.weights[k];
@@ -543,7 +658,16 @@ mod tests {
         // A blob away from the line must not tilt it.
         points[9] = [80.0, 80.0];
         points[10] = [82.0, 81.0];
-        let r = line.update(3, &points[..11], &features, &usable, &config, &mut scratch);
+        let r = line.update(
+            3,
+            &points[..11],
+            &[4; 11],
+            &[],
+            &features,
+            &usable,
+            &config,
+            &mut scratch,
+        );
         assert_eq!((r.detected_frame, r.vertices, r.added), (Some(3), 2, 2));
         let m = line.project(&features, &mut scratch);
         assert_eq!(m, 2);
@@ -556,7 +680,16 @@ mod tests {
         }
         let before = line.project(&features, &mut scratch);
         let far_end = scratch[..before].iter().map(|p| p[1]).fold(0.0, f64::max);
-        let r = line.update(4, &points[..8], &features, &usable, &config, &mut scratch);
+        let r = line.update(
+            4,
+            &points[..8],
+            &[4; 8],
+            &[],
+            &features,
+            &usable,
+            &config,
+            &mut scratch,
+        );
         assert_eq!(r.added, 1);
         let m = line.project(&features, &mut scratch);
         let new_end = scratch[..m].iter().map(|p| p[1]).fold(0.0, f64::max);
@@ -578,12 +711,30 @@ mod tests {
         for k in 0..8 {
             points[k] = [50.0, 20.0 + 5.0 * k as f64];
         }
-        let r = line.update(1, &points, &features, &usable, &config, &mut scratch);
+        let r = line.update(
+            1,
+            &points,
+            &[1; 8],
+            &[],
+            &features,
+            &usable,
+            &config,
+            &mut scratch,
+        );
         assert_eq!((r.vertices, r.capped), (2, false));
         for k in 0..8 {
             points[k] = [50.0, 60.0 + 5.0 * k as f64];
         }
-        let r = line.update(2, &points, &features, &usable, &config, &mut scratch);
+        let r = line.update(
+            2,
+            &points,
+            &[2; 8],
+            &[],
+            &features,
+            &usable,
+            &config,
+            &mut scratch,
+        );
         assert_eq!((r.vertices, r.added, r.capped), (2, 0, true));
     }
 }

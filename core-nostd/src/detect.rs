@@ -182,6 +182,10 @@ mod detector {
         /// Per feature, this frame: measured pairs and outlier pairs.
         pair_counts: &'a mut [[u32; 2]],
         points: &'a mut [[T; 2]],
+        /// Per point: the frame its pair (last) became split.
+        point_since: &'a mut [u32],
+        /// Per pair: the frame it (last) became split.
+        split_since: &'a mut [u32],
         n_points: usize,
         grid: &'a mut [u32],
         radius: T,
@@ -197,7 +201,7 @@ mod detector {
 
         /// Indices of storage.
         pub const fn index_len(features: usize, pairs: usize) -> usize {
-            3 * pairs + 3 * features + GRID_CELLS + 1 + features
+            5 * pairs + 3 * features + GRID_CELLS + 1 + features
         }
 
         /// Empty detector storage.
@@ -220,6 +224,8 @@ mod detector {
                 previous: reals.take(2 * features)?.as_chunks_mut::<2>().0,
                 current: reals.take(2 * features)?.as_chunks_mut::<2>().0,
                 points: reals.take(2 * pairs)?.as_chunks_mut::<2>().0,
+                point_since: indices.take(pairs)?,
+                split_since: indices.take(pairs)?,
                 n_points: 0,
                 radius: T::zero(),
                 pairs_lost: 0,
@@ -245,6 +251,12 @@ mod detector {
         /// The separation points of the last frame, pixels.
         pub fn points(&self) -> &[[T; 2]] {
             &self.points[..self.n_points]
+        }
+
+        /// For each separation point, the frame at which its pair became split (the paper's
+        /// separation points "inserted" since then).
+        pub fn point_since(&self) -> &[u32] {
+            &self.point_since[..self.n_points]
         }
 
         /// Builds the neighbour pairs from the frame-0 projections `uv` of the virtual features
@@ -359,10 +371,11 @@ mod detector {
             Ok(())
         }
 
-        /// One frame: `d` are the residuals of the slots (meaningful where `observed[i] != 0`),
-        /// `targets` the tracked positions (for the separation points).
+        /// One frame (number `frame`): `d` are the residuals of the slots (meaningful where
+        /// `observed[i] != 0`), `targets` the tracked positions (for the separation points).
         pub fn update(
             &mut self,
+            frame: u32,
             d: &[[T; 2]],
             observed: &[u32],
             targets: &[[T; 2]],
@@ -524,11 +537,15 @@ mod detector {
                 if streak >= config.persistence {
                     next |= SPLIT;
                     split += 1;
+                    if streak == config.persistence {
+                        self.split_since[k] = frame;
+                    }
                     // The separation point: between the two tracked features, where the cut runs.
                     if self.n_points < self.points.len() {
                         let (a, b) = (targets[i as usize], targets[j as usize]);
                         self.points[self.n_points] =
                             [(a[0] + b[0]) * T::of(0.5), (a[1] + b[1]) * T::of(0.5)];
+                        self.point_since[self.n_points] = self.split_since[k];
                         self.n_points += 1;
                     }
                 }
@@ -606,7 +623,7 @@ mod detector {
             // Every residual the same (the model lags a rigid shift by the same amount everywhere).
             let d = [[3.0, -2.0]; 400];
             for _ in 0..5 {
-                let r = det.update(&d, &[1; 400], &uv, &config());
+                let r = det.update(0, &d, &[1; 400], &uv, &config());
                 assert_eq!(r.outliers, 0);
                 assert_eq!(r.split, 0);
             }
@@ -631,7 +648,7 @@ mod detector {
                 // Reach the final residuals in one step then hold: the temporal filter sees the
                 // same change everywhere, so nothing is filtered.
                 let dd = if frame == 0 { [[0.0; 2]; 400] } else { d };
-                last = det.update(&dd, &[1; 400], &uv, &config());
+                last = det.update(0, &dd, &[1; 400], &uv, &config());
             }
             assert_eq!(last.features_filtered, 0);
             assert!(last.split > 0);
@@ -656,10 +673,10 @@ mod detector {
                 if (2..5).contains(&frame) {
                     d[210][0] += 20.0;
                 }
-                let r = det.update(&d, &[1; 400], &uv, &config());
+                let r = det.update(0, &d, &[1; 400], &uv, &config());
                 assert_eq!(r.split, 0, "frame {frame}");
             }
-            let r = det.update(&d, &[1; 400], &uv, &config());
+            let r = det.update(0, &d, &[1; 400], &uv, &config());
             assert_eq!(r.features_filtered, 1);
             // Feature 210 had 8 neighbours within 15 px.
             assert_eq!(r.pairs_lost, 8);

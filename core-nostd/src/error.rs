@@ -42,6 +42,10 @@ pub enum Resource {
     Pairs,
     /// Vertices of the cut line.
     CutVertices,
+    /// Unknowns of the linear system (three per free node).
+    Unknowns,
+    /// Internal targets carried by the model.
+    Targets,
 }
 
 impl fmt::Display for Resource {
@@ -63,6 +67,8 @@ impl fmt::Display for Resource {
             Resource::Observations => "observations",
             Resource::Pairs => "neighbour pairs",
             Resource::CutVertices => "cut-line vertices",
+            Resource::Unknowns => "unknowns",
+            Resource::Targets => "internal targets",
         };
         f.write_str(s)
     }

@@ -1,9 +1,12 @@
 //! Virtual features: each tracked image feature is tied to a point of the model surface,
-//! stored as barycentric weights in one tetrahedron, and pulled toward its observation.
+//! stored as barycentric weights in one tetrahedron (an [`Embedding`]), and pulled toward its
+//! observation. This module holds the observation side (ids, the latest pixel of each feature,
+//! whether it is seen in this frame) and places the features at frame 0.
 
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::Vector3;
 
 use crate::camera::Camera;
+use crate::embed::{Embedding, barycentric, clamp_weights};
 use crate::error::{Error, Resource};
 use crate::mesh::Mesh;
 use crate::real::Real;
@@ -29,17 +32,14 @@ pub struct EmbedReport {
     pub first_missed: Option<u32>,
 }
 
-/// Fixed-capacity storage of the virtual features.
+/// Fixed-capacity storage of the tracked features' observations.
 ///
 /// Invariants: the first `len` entries of `lookup` are `(id, slot)` pairs sorted by id with
-/// distinct ids; slots are `0..len`; each slot's tetrahedron index is valid for the mesh the
-/// features were embedded in, and its four weights are non-negative and sum to one.
+/// distinct ids; slots are `0..len`, and slot `k` is point `k` of the features' [`Embedding`].
 #[derive(Debug)]
 pub struct Features<'a, T> {
     len: usize,
     lookup: &'a mut [[u32; 2]],
-    tet: &'a mut [u32],
-    weights: &'a mut [[T; 4]],
     target: &'a mut [[T; 2]],
     active: &'a mut [u32],
     stamp: &'a mut [u32],
@@ -49,12 +49,12 @@ pub struct Features<'a, T> {
 impl<'a, T: Real> Features<'a, T> {
     /// Scalars of storage for `capacity` features.
     pub const fn real_len(capacity: usize) -> usize {
-        6 * capacity
+        2 * capacity
     }
 
     /// Indices of storage for `capacity` features.
     pub const fn index_len(capacity: usize) -> usize {
-        5 * capacity
+        4 * capacity
     }
 
     /// Empty storage for `capacity` features, taken from the slabs.
@@ -69,10 +69,8 @@ impl<'a, T: Real> Features<'a, T> {
         Ok(Features {
             len: 0,
             lookup: indices.take(2 * capacity)?.as_chunks_mut::<2>().0,
-            tet: indices.take(capacity)?,
             active: indices.take(capacity)?,
             stamp: indices.take(capacity)?,
-            weights: reals.take(4 * capacity)?.as_chunks_mut::<4>().0,
             target: reals.take(2 * capacity)?.as_chunks_mut::<2>().0,
             stamp_value: 0,
         })
@@ -80,7 +78,7 @@ impl<'a, T: Real> Features<'a, T> {
 
     /// Capacity.
     pub fn capacity(&self) -> usize {
-        self.tet.len()
+        self.active.len()
     }
 
     /// Number of embedded features.
@@ -89,7 +87,8 @@ impl<'a, T: Real> Features<'a, T> {
     }
 
     /// Forgets every feature.
-    pub fn clear(&mut self) {
+    #[cfg_attr(not(feature = "cut"), allow(dead_code))]
+    pub(crate) fn forget(&mut self) {
         self.len = 0;
     }
 
@@ -99,27 +98,31 @@ impl<'a, T: Real> Features<'a, T> {
     }
 
     /// Places each frame-0 observation where its camera ray first meets the model surface
-    /// (`positions` are the current node positions) and replaces the features held so far.
+    /// (`positions` are the current node positions), in `embedding`, and replaces the features
+    /// held so far.
     ///
     /// Cost: observations × boundary triangles ray–triangle tests; it runs once, at frame 0.
     ///
     /// # Errors
-    /// [`Error::Capacity`] for more observations than the capacity;
-    /// [`Error::NonFiniteInput`], [`Error::OutsideImage`] or [`Error::DuplicateFeature`] for a
-    /// bad observation. On error the features held before stay as they were.
+    /// [`Error::Capacity`] for more observations than the capacity (of this storage or of
+    /// `embedding`); [`Error::NonFiniteInput`], [`Error::OutsideImage`] or
+    /// [`Error::DuplicateFeature`] for a bad observation. On error the features held before
+    /// stay as they were.
     pub fn embed(
         &mut self,
+        embedding: &mut Embedding<'_, T>,
         mesh: &Mesh<'_, T>,
         positions: &[[T; 3]],
         camera: &Camera<T>,
         obs: &[Observation<T>],
         margin: T,
     ) -> Result<EmbedReport, Error> {
-        if obs.len() > self.capacity() {
+        let capacity = self.capacity().min(embedding.capacity());
+        if obs.len() > capacity {
             return Err(Error::Capacity {
                 resource: Resource::Features,
                 needed: obs.len(),
-                available: self.capacity(),
+                available: capacity,
             });
         }
         check_observations(camera, obs, margin)?;
@@ -142,12 +145,13 @@ impl<'a, T: Real> Features<'a, T> {
             first_missed: None,
         };
         let mut n = 0;
+        embedding.clear();
         for o in obs {
             match first_hit(mesh, positions, camera, o.uv) {
                 Some((tet, weights)) => {
+                    // Cannot overflow: `obs.len()` fits the embedding's capacity.
+                    embedding.push(tet, weights, Resource::Features)?;
                     self.lookup[n] = [o.id, n as u32];
-                    self.tet[n] = tet;
-                    self.weights[n] = weights;
                     self.target[n] = o.uv;
                     self.active[n] = 1;
                     n += 1;
@@ -228,16 +232,6 @@ impl<'a, T: Real> Features<'a, T> {
         &self.lookup[..self.len]
     }
 
-    /// Tetrahedron of each slot.
-    pub fn tets(&self) -> &[u32] {
-        &self.tet[..self.len]
-    }
-
-    /// Barycentric weights of each slot.
-    pub fn weights(&self) -> &[[T; 4]] {
-        &self.weights[..self.len]
-    }
-
     /// Target pixel of each slot (the latest observation).
     pub fn targets(&self) -> &[[T; 2]] {
         &self.target[..self.len]
@@ -246,18 +240,6 @@ impl<'a, T: Real> Features<'a, T> {
     /// Whether each slot is observed in the current frame (1) or not (0).
     pub fn active(&self) -> &[u32] {
         &self.active[..self.len]
-    }
-
-    /// World position of the virtual feature in `slot` for node positions `x`.
-    pub fn position(&self, slot: usize, mesh: &Mesh<'_, T>, x: &[[T; 3]]) -> Option<Vector3<T>> {
-        let tet = mesh.tets().get(*self.tet[..self.len].get(slot)? as usize)?;
-        let w = self.weights[slot];
-        let mut p = Vector3::zeros();
-        for (k, &v) in tet.iter().enumerate() {
-            let xv = x.get(v as usize)?;
-            p += Vector3::new(xv[0], xv[1], xv[2]) * w[k];
-        }
-        Some(p)
     }
 }
 
@@ -305,23 +287,10 @@ pub(crate) fn first_hit<T: Real>(
     let hit = origin + dir * t;
     let tet_index = *mesh.surface_tet().get(s)?;
     let tet = mesh.tets().get(tet_index as usize)?;
-    let x0 = p(tet[0]);
-    let ds = Matrix3::from_columns(&[p(tet[1]) - x0, p(tet[2]) - x0, p(tet[3]) - x0]);
-    let l = ds.try_inverse()? * (hit - x0);
+    let corners = tet.map(|v| x[v as usize]);
     // The hit lies on a face, so one weight is zero up to rounding: clamp and renormalise.
-    let mut w = [T::one() - l.x - l.y - l.z, l.x, l.y, l.z];
-    let mut sum = T::zero();
-    for wk in w.iter_mut() {
-        *wk = wk.max(T::zero());
-        sum += *wk;
-    }
-    if !(sum > T::zero()) {
-        return None;
-    }
-    for wk in w.iter_mut() {
-        *wk /= sum;
-    }
-    Some((tet_index, w))
+    let w = barycentric(&corners, [hit.x, hit.y, hit.z])?;
+    Some((tet_index, clamp_weights(w)?))
 }
 
 /// Distance along the unit ray to triangle `(a, b, c)` (either side), if hit in front of the

@@ -40,8 +40,11 @@
 
 pub mod camera;
 #[cfg(feature = "cut")]
+pub mod cut;
+#[cfg(feature = "cut")]
 pub mod cutline;
 pub mod detect;
+pub mod embed;
 pub mod error;
 pub mod features;
 pub mod material;
@@ -59,8 +62,13 @@ pub use real::Real;
 pub use nalgebra;
 
 pub use camera::{Camera, Intrinsics};
+#[cfg(feature = "cut")]
+pub use cut::{CutEvent, CutReport, CutWork};
 pub use detect::DetectionConfig;
 pub use features::{EmbedReport, Observation};
 pub use mesh::{MeshCapacity, MeshInput};
-pub use model::{Capacities, Linearization, Material, Model, ModelConfig, ModelSize, StepReport};
+pub use model::{
+    Capacities, Linearization, Material, MeshAnalysis, Model, ModelBuffers, ModelConfig, ModelSize,
+    StepReport, analyse_mesh, analyse_mesh_work_len,
+};
 pub use solve::{Energies, SolverConfig, Strategy, WorkCount};

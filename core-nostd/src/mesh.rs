@@ -84,17 +84,43 @@ pub struct Mesh<'a, T> {
 }
 
 impl<'a, T: Real> Mesh<'a, T> {
-    /// Validates `input`, copies it into storage taken from the slabs (sizes from
-    /// [`MeshCapacity::real_len`] / [`MeshCapacity::index_len`]) and extracts the boundary
-    /// surface, using `work` ([`MeshCapacity::work_len`] entries, no meaning on return).
+    /// An empty mesh (no node, no tetrahedron) in storage taken from the slabs (sizes from
+    /// [`MeshCapacity::real_len`] / [`MeshCapacity::index_len`]), to be filled by
+    /// [`Mesh::load`].
     ///
     /// # Errors
-    /// [`Error::Capacity`] if the mesh exceeds `capacity` or a slab or `work` is too short;
-    /// [`Error::NonFiniteInput`] for a non-finite coordinate; [`Error::IndexOutOfRange`] for a
-    /// bad node index in a tetrahedron or the fixed list; [`Error::DegenerateElement`] /
-    /// [`Error::InvertedElement`] for a bad rest tetrahedron; [`Error::NoFixedNodes`];
-    /// [`Error::NonManifold`] for a face shared by more than two tetrahedra or a boundary edge
-    /// not shared by exactly two boundary triangles.
+    /// [`Error::Capacity`] if a slab is too short.
+    pub fn with_capacity(
+        capacity: &MeshCapacity,
+        reals: &mut Slab<'a, T>,
+        indices: &mut Slab<'a, u32>,
+    ) -> Result<Self, Error> {
+        Ok(Mesh {
+            capacity: *capacity,
+            n_nodes: 0,
+            n_tets: 0,
+            n_surface: 0,
+            n_free: 0,
+            rest: reals.take(3 * capacity.nodes)?.as_chunks_mut::<3>().0,
+            element_rest: reals
+                .take(ELEMENT_REST_LEN * capacity.tets)?
+                .as_chunks_mut::<ELEMENT_REST_LEN>()
+                .0,
+            tets: indices.take(4 * capacity.tets)?.as_chunks_mut::<4>().0,
+            free_index: indices.take(capacity.nodes)?,
+            surface: indices
+                .take(3 * capacity.surface_triangles)?
+                .as_chunks_mut::<3>()
+                .0,
+            surface_tet: indices.take(capacity.surface_triangles)?,
+        })
+    }
+
+    /// Validates `input`, copies it into storage taken from the slabs and extracts the
+    /// boundary surface: [`Mesh::with_capacity`] then [`Mesh::load`].
+    ///
+    /// # Errors
+    /// As [`Mesh::with_capacity`] and [`Mesh::load`].
     pub fn new(
         input: &MeshInput<'_, T>,
         capacity: &MeshCapacity,
@@ -102,6 +128,24 @@ impl<'a, T: Real> Mesh<'a, T> {
         indices: &mut Slab<'a, u32>,
         work: &mut [u32],
     ) -> Result<Self, Error> {
+        let mut mesh = Self::with_capacity(capacity, reals, indices)?;
+        mesh.load(input, work)?;
+        Ok(mesh)
+    }
+
+    /// Validates `input`, replaces this mesh with it and extracts the boundary surface, using
+    /// `work` ([`MeshCapacity::work_len`] entries, no meaning on return).
+    ///
+    /// # Errors
+    /// [`Error::Capacity`] if the mesh exceeds the capacity or `work` is too short;
+    /// [`Error::NonFiniteInput`] for a non-finite coordinate; [`Error::IndexOutOfRange`] for a
+    /// bad node index in a tetrahedron or the fixed list; [`Error::DegenerateElement`] /
+    /// [`Error::InvertedElement`] for a bad rest tetrahedron; [`Error::NoFixedNodes`];
+    /// [`Error::NonManifold`] for a face shared by more than two tetrahedra or a boundary edge
+    /// not shared by exactly two boundary triangles. Everything but the surface is checked
+    /// before anything is written; a surface that does not close leaves the mesh empty.
+    pub fn load(&mut self, input: &MeshInput<'_, T>, work: &mut [u32]) -> Result<(), Error> {
+        let capacity = self.capacity;
         let (n_nodes, n_tets) = (input.rest.len(), input.tets.len());
         check_capacity(Resource::Nodes, n_nodes, capacity.nodes)?;
         check_capacity(Resource::Tetrahedra, n_tets, capacity.tets)?;
@@ -144,50 +188,108 @@ impl<'a, T: Real> Mesh<'a, T> {
             ElementRest::new(&tet.map(|v| input.rest[v as usize]), t)?;
         }
 
-        let rest = reals.take(3 * capacity.nodes)?.as_chunks_mut::<3>().0;
-        let element_rest = reals
-            .take(ELEMENT_REST_LEN * capacity.tets)?
-            .as_chunks_mut::<ELEMENT_REST_LEN>()
-            .0;
-        let tets = indices.take(4 * capacity.tets)?.as_chunks_mut::<4>().0;
-        let free_index = indices.take(capacity.nodes)?;
-        let surface = indices
-            .take(3 * capacity.surface_triangles)?
-            .as_chunks_mut::<3>()
-            .0;
-        let surface_tet = indices.take(capacity.surface_triangles)?;
-
-        rest[..n_nodes].copy_from_slice(input.rest);
-        tets[..n_tets].copy_from_slice(input.tets);
-        free_index.fill(0);
+        self.rest[..n_nodes].copy_from_slice(input.rest);
+        self.tets[..n_tets].copy_from_slice(input.tets);
+        self.free_index[..n_nodes].fill(0);
         for &f in input.fixed {
-            free_index[f as usize] = NONE;
+            self.free_index[f as usize] = NONE;
         }
+        self.n_nodes = n_nodes;
+        self.n_tets = n_tets;
+        let done = self.finish_edit(work);
+        if done.is_err() {
+            self.n_nodes = 0;
+            self.n_tets = 0;
+            self.n_surface = 0;
+            self.n_free = 0;
+        }
+        done
+    }
+
+    /// Makes this mesh a copy of `other` (same capacities: the two halves of one model).
+    #[cfg_attr(not(feature = "cut"), allow(dead_code))]
+    pub(crate) fn copy_from(&mut self, other: &Mesh<'_, T>) {
+        let (n, t, s) = (other.n_nodes, other.n_tets, other.n_surface);
+        self.rest[..n].copy_from_slice(&other.rest[..n]);
+        self.element_rest[..t].copy_from_slice(&other.element_rest[..t]);
+        self.tets[..t].copy_from_slice(&other.tets[..t]);
+        self.free_index[..n].copy_from_slice(&other.free_index[..n]);
+        self.surface[..s].copy_from_slice(&other.surface[..s]);
+        self.surface_tet[..s].copy_from_slice(&other.surface_tet[..s]);
+        self.n_nodes = n;
+        self.n_tets = t;
+        self.n_surface = s;
+        self.n_free = other.n_free;
+    }
+
+    /// Appends a node at rest position `rest` (held at rest if `fixed`); its free index is
+    /// assigned by [`Mesh::finish_edit`].
+    ///
+    /// # Errors
+    /// [`Error::Capacity`] naming [`Resource::Nodes`] when the capacity is full.
+    #[cfg_attr(not(feature = "cut"), allow(dead_code))]
+    pub(crate) fn push_node(&mut self, rest: [T; 3], fixed: bool) -> Result<u32, Error> {
+        check_capacity(Resource::Nodes, self.n_nodes + 1, self.capacity.nodes)?;
+        let v = self.n_nodes;
+        self.rest[v] = rest;
+        self.free_index[v] = if fixed { NONE } else { 0 };
+        self.n_nodes += 1;
+        Ok(v as u32)
+    }
+
+    /// Moves the rest position of node `v` (element data follows in [`Mesh::finish_edit`]).
+    #[cfg_attr(not(feature = "cut"), allow(dead_code))]
+    pub(crate) fn set_rest(&mut self, v: usize, p: [T; 3]) {
+        if let Some(slot) = self.rest[..self.n_nodes].get_mut(v) {
+            *slot = p;
+        }
+    }
+
+    /// Replaces the nodes of tetrahedron `t`.
+    #[cfg_attr(not(feature = "cut"), allow(dead_code))]
+    pub(crate) fn set_tet(&mut self, t: usize, tet: [u32; 4]) {
+        if let Some(slot) = self.tets[..self.n_tets].get_mut(t) {
+            *slot = tet;
+        }
+    }
+
+    /// Appends a tetrahedron.
+    ///
+    /// # Errors
+    /// [`Error::Capacity`] naming [`Resource::Tetrahedra`] when the capacity is full.
+    #[cfg_attr(not(feature = "cut"), allow(dead_code))]
+    pub(crate) fn push_tet(&mut self, tet: [u32; 4]) -> Result<u32, Error> {
+        check_capacity(Resource::Tetrahedra, self.n_tets + 1, self.capacity.tets)?;
+        let t = self.n_tets;
+        self.tets[t] = tet;
+        self.n_tets += 1;
+        Ok(t as u32)
+    }
+
+    /// After nodes or tetrahedra changed: numbers the free nodes, recomputes the rest geometry
+    /// of every tetrahedron and extracts the boundary surface; `work` as for [`Mesh::load`].
+    ///
+    /// # Errors
+    /// [`Error::DegenerateElement`] / [`Error::InvertedElement`], [`Error::NonManifold`],
+    /// [`Error::Capacity`] for the surface or a short `work`. The mesh is then inconsistent:
+    /// callers edit a spare copy and drop it on error.
+    pub(crate) fn finish_edit(&mut self, work: &mut [u32]) -> Result<(), Error> {
+        ensure_len(work, self.capacity.work_len(), Resource::Workspace)?;
         let mut n_free = 0u32;
-        for f in free_index[..n_nodes].iter_mut() {
+        for f in self.free_index[..self.n_nodes].iter_mut() {
             if *f != NONE {
                 *f = n_free;
                 n_free += 1;
             }
         }
-        let mut mesh = Mesh {
-            capacity: *capacity,
-            n_nodes,
-            n_tets,
-            n_surface: 0,
-            n_free: n_free as usize,
-            rest,
-            element_rest,
-            tets,
-            free_index,
-            surface,
-            surface_tet,
-        };
-        for t in 0..n_tets {
-            mesh.update_element_rest(t)?;
+        self.n_free = n_free as usize;
+        if n_free as usize == self.n_nodes {
+            return Err(Error::NoFixedNodes);
         }
-        mesh.extract_surface(work)?;
-        Ok(mesh)
+        for t in 0..self.n_tets {
+            self.update_element_rest(t)?;
+        }
+        self.extract_surface(work)
     }
 
     fn update_element_rest(&mut self, t: usize) -> Result<(), Error> {
@@ -313,6 +415,15 @@ impl<'a, T: Real> Mesh<'a, T> {
     pub fn surface_tet(&self) -> &[u32] {
         &self.surface_tet[..self.n_surface]
     }
+    /// Whether node `v` is held at rest (`false` out of range).
+    pub fn is_fixed(&self, v: usize) -> bool {
+        self.free_index().get(v).is_some_and(|&f| f == NONE)
+    }
+    /// Shape quality of tetrahedron `t` at rest ([`shape_quality`]; `None` out of range).
+    pub fn quality(&self, t: usize) -> Option<T> {
+        let tet = self.tets().get(t)?;
+        Some(shape_quality(&tet.map(|v| self.rest[v as usize])))
+    }
     /// Rest geometry of tetrahedron `t` (`None` if out of range).
     pub fn element_rest(&self, t: usize) -> Option<ElementRest<T>> {
         let e = self.element_rest[..self.n_tets].get(t)?;
@@ -333,6 +444,28 @@ fn check_capacity(resource: Resource, needed: usize, available: usize) -> Result
     } else {
         Ok(())
     }
+}
+
+/// Shape quality of a tetrahedron: `6√2 · V / ℓ³`, `V` its signed volume and `ℓ` the root
+/// mean square of its six edge lengths. It is 1 for the regular tetrahedron, falls to 0 as the
+/// tetrahedron flattens (whatever the way: needle, wedge, sliver or cap) and is negative when it
+/// is inverted; it does not depend on the size. The cut keeps every element it creates or moves
+/// above a floor of this measure ([`crate::cut::QUALITY_FLOOR`]).
+pub fn shape_quality<T: Real>(x: &[[T; 3]; 4]) -> T {
+    let mut sum_sq = T::zero();
+    for a in 0..4 {
+        for b in (a + 1)..4 {
+            let d = [x[b][0] - x[a][0], x[b][1] - x[a][1], x[b][2] - x[a][2]];
+            sum_sq += d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+        }
+    }
+    let rms = (sum_sq / T::of(6.0)).sqrt();
+    let volume = orientation(x[0], x[1], x[2], x[3]) / T::of(6.0);
+    let scale = rms * rms * rms;
+    if !(scale > T::zero()) {
+        return T::zero();
+    }
+    T::of(6.0 * core::f64::consts::SQRT_2) * volume / scale
 }
 
 /// `(b − a) × (c − a) · (d − a)`: positive when `d` lies on the side the normal of `(a, b, c)`

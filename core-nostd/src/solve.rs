@@ -20,6 +20,7 @@
 use nalgebra::{Matrix3, Vector3};
 
 use crate::camera::Camera;
+use crate::embed::Embedding;
 use crate::error::{Error, Parameter};
 use crate::features::Features;
 use crate::material::{
@@ -162,7 +163,10 @@ pub(crate) struct Problem<'p, 'a, T: Real> {
     pub mesh: &'p Mesh<'a, T>,
     pub lame: Lame<T>,
     pub camera: &'p Camera<T>,
+    /// The features' observations (targets, observed in this frame).
     pub features: &'p Features<'a, T>,
+    /// Where each feature sits in the mesh (slot by slot).
+    pub embedding: &'p Embedding<'a, T>,
     pub spring_stiffness: T,
     /// Damping weight per node.
     pub damping: &'p [T],
@@ -239,10 +243,10 @@ impl<T: Real> Problem<'_, '_, T> {
                 continue;
             }
             let p = self
-                .features
+                .embedding
                 .position(slot, self.mesh, x)
                 .ok_or(Error::NoFeatures)?;
-            let uv = self.camera.project(&p, slot)?;
+            let uv = self.camera.project(&Vector3::from(p), slot)?;
             let target = self.features.targets()[slot];
             let (du, dv) = (target[0] - uv.x, target[1] - uv.y);
             sum += half_k * (du * du + dv * dv);
@@ -330,14 +334,14 @@ impl<T: Real> Problem<'_, '_, T> {
             if self.features.active()[slot] == 0 {
                 continue;
             }
-            let t = self.features.tets()[slot] as usize;
-            let w = self.features.weights()[slot];
+            let t = self.embedding.tets()[slot] as usize;
+            let w = self.embedding.weights()[slot];
             let tet = self.mesh.tets()[t];
             let p = self
-                .features
+                .embedding
                 .position(slot, self.mesh, x)
                 .ok_or(Error::NoFeatures)?;
-            let (uv, j) = self.camera.project_with_jacobian(&p, slot)?;
+            let (uv, j) = self.camera.project_with_jacobian(&Vector3::from(p), slot)?;
             let target = self.features.targets()[slot];
             let r = nalgebra::Vector2::new(target[0] - uv.x, target[1] - uv.y);
             e.spring += T::of(0.5) * k * r.norm_squared();

@@ -7,10 +7,10 @@ use std::time::Instant;
 
 use image::RgbImage;
 use incise_core::mesh::MeshCapacity;
-use incise_core::nalgebra::{Matrix3, Vector3};
+use incise_core::nalgebra::Vector3;
 use incise_core::{
-    Capacities, Error as CoreError, Material, MeshInput, Model, ModelConfig, ModelSize,
-    Observation, Real,
+    Capacities, Error as CoreError, Material, MeshAnalysis, MeshInput, Model, ModelBuffers,
+    ModelConfig, ModelSize, Observation, Real, analyse_mesh, analyse_mesh_work_len,
 };
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
@@ -67,61 +67,62 @@ fn output(e: impl fmt::Display) -> RunError {
     RunError::Output(e.to_string())
 }
 
-/// The storage of one model, sized by the core's own analysis: what a host does with the
-/// core's caller-sized API.
+/// The storage of one model, owned: what a host does with the core's caller-sized API.
 pub struct ModelStorage<T> {
     /// The sizes.
     pub size: ModelSize,
+    /// What the uncut mesh needs of the linear algebra.
+    pub analysis: MeshAnalysis,
     reals: Vec<T>,
     indices: Vec<u32>,
-    work: Vec<u32>,
 }
 
 impl<T: Real> ModelStorage<T> {
-    /// Sizes storage for `mesh` with room for `features` features and `headroom_percent` of
-    /// extra matrix and factor entries.
+    /// Sizes storage for `mesh` with the scene's capacities: the mesh's nodes and tetrahedra
+    /// plus the room a cut may take, and the factor entries the section states (absent: three
+    /// times the uncut model's).
     ///
     /// # Errors
     /// The core's error for a mesh it refuses.
-    pub fn new(
-        mesh: &MeshInput<'_, T>,
-        features: usize,
-        headroom_percent: usize,
-    ) -> Result<Self, CoreError> {
-        Self::with_capacities(
-            mesh,
-            &CapacitySection {
-                features,
-                factor_headroom_percent: headroom_percent,
-                ..CapacitySection::default()
-            },
-        )
-    }
-
-    /// Sizes storage for `mesh` with the scene's capacities.
-    ///
-    /// # Errors
-    /// The core's error for a mesh it refuses.
-    pub fn with_capacities(
-        mesh: &MeshInput<'_, T>,
-        c: &CapacitySection,
-    ) -> Result<Self, CoreError> {
+    pub fn new(mesh: &MeshInput<'_, T>, c: &CapacitySection) -> Result<Self, CoreError> {
+        let (n, t) = (mesh.rest.len(), mesh.tets.len());
+        let mut work = vec![0u32; analyse_mesh_work_len(n, t)];
+        let analysis = analyse_mesh(mesh, &mut work)?;
+        let tets = t.saturating_add(c.cut_tets);
         let caps = Capacities {
-            mesh: MeshCapacity::exact(mesh),
+            mesh: MeshCapacity {
+                nodes: n.saturating_add(c.cut_nodes),
+                tets,
+                surface_triangles: tets.saturating_mul(4),
+            },
             features: c.features,
-            factor_headroom_percent: c.factor_headroom_percent,
+            targets: c.targets,
+            factor_entries: c.factor_entries.unwrap_or(analysis.nnz_l.saturating_mul(3)),
             pairs: c.pairs,
             cut_vertices: c.cut_vertices,
         };
-        let features = c.features;
-        let mut work = vec![0u32; ModelSize::work_len(&caps.mesh, features)];
-        let size = ModelSize::analyse(mesh, &caps, &mut work)?;
+        let size = ModelSize::new(&caps);
         Ok(ModelStorage {
             size,
+            analysis,
             reals: vec![T::zero(); size.real_len()],
             indices: vec![0; size.index_len()],
-            work,
         })
+    }
+
+    /// Storage for `mesh` with room for `features` features and the default capacities
+    /// otherwise.
+    ///
+    /// # Errors
+    /// As [`ModelStorage::new`].
+    pub fn with_features(mesh: &MeshInput<'_, T>, features: usize) -> Result<Self, CoreError> {
+        Self::new(
+            mesh,
+            &CapacitySection {
+                features,
+                ..CapacitySection::default()
+            },
+        )
     }
 
     /// Builds the model in this storage.
@@ -133,14 +134,8 @@ impl<T: Real> ModelStorage<T> {
         mesh: &MeshInput<'_, T>,
         config: &ModelConfig<T>,
     ) -> Result<Model<'a, T>, CoreError> {
-        Model::new(
-            mesh,
-            config,
-            &self.size,
-            &mut self.reals,
-            &mut self.indices,
-            &mut self.work,
-        )
+        let buffers = ModelBuffers::new(&self.size, &mut self.reals, &mut self.indices)?;
+        Model::new(mesh, config, &self.size, buffers)
     }
 
     /// Bytes of the model's storage (scalars and indices), what a firmware build would hold.
@@ -193,6 +188,18 @@ pub struct Summary {
     pub tre_mm_final: f64,
     /// The same with cutting switched off.
     pub tre_mm_final_uncut: f64,
+    /// The same for the rest model left in place: the baseline any registration must beat.
+    pub tre_mm_final_rest: f64,
+    /// Cut events (a new topology put in service).
+    pub cut_events: usize,
+    /// Frame of the first cut event.
+    pub cut_first_frame: Option<usize>,
+    /// Nodes and tetrahedra of the model at the end (more than at the start once cut).
+    pub nodes_final: usize,
+    /// Tetrahedra of the model at the end.
+    pub tets_final: usize,
+    /// The first cut the core refused, if any: frame and reason.
+    pub cut_refused: Option<String>,
     /// Median time of `Model::step`, milliseconds.
     pub ms_per_frame_median: f64,
     /// Largest time of `Model::step`, milliseconds.
@@ -243,6 +250,42 @@ pub struct DetectionTrace {
     pub hausdorff_px: Option<f64>,
 }
 
+/// What cutting the mesh did over a run.
+#[derive(Clone, Debug, Default)]
+pub struct CutTrace {
+    /// Frames at which a cut went into service.
+    pub frames: Vec<usize>,
+    /// Tetrahedra split, nodes and tetrahedra added, over all events.
+    pub tets_split: usize,
+    /// Nodes added (on cut edges and as copies).
+    pub nodes_added: usize,
+    /// Tetrahedra added.
+    pub tets_added: usize,
+    /// Lowest shape quality of a tetrahedron a cut created or moved.
+    pub min_quality: f64,
+    /// The first cut the core refused, and why.
+    pub refused: Option<(usize, String)>,
+}
+
+impl CutTrace {
+    fn record(&mut self, frame: usize, r: &incise_core::CutReport) {
+        if r.applied {
+            let e = &r.event;
+            if self.frames.is_empty() {
+                self.min_quality = 1.0;
+            }
+            self.frames.push(frame);
+            self.tets_split += e.tets_split;
+            self.nodes_added += e.edge_nodes + e.nodes_duplicated;
+            self.tets_added += e.tets_added;
+            self.min_quality = self.min_quality.min(f64::from(e.min_quality_milli) / 1e3);
+        }
+        if let (None, Some(err)) = (&self.refused, r.refused) {
+            self.refused = Some((frame, err.to_string()));
+        }
+    }
+}
+
 /// One pass over a scene.
 #[derive(Clone, Debug)]
 pub struct Trace {
@@ -258,6 +301,13 @@ pub struct Trace {
     pub surface_rms_final: f64,
     /// TRE at the last frame, metres.
     pub tre_final: f64,
+    /// TRE at the last frame of the rest model left in place, metres: the baseline any
+    /// registration must beat.
+    pub tre_rest_final: f64,
+    /// Cutting the mesh.
+    pub cuts: CutTrace,
+    /// Nodes and tetrahedra of the model at the end.
+    pub mesh_final: (usize, usize),
     /// Features embedded / missed.
     pub embedded: usize,
     /// Features missed.
@@ -299,38 +349,6 @@ fn load_truth(scene: &Scene) -> Result<Option<Truth>, SceneError> {
     }))
 }
 
-/// Barycentric embedding of `points` in the tetrahedra of a mesh at rest: the containing
-/// tetrahedron, or, for a point just outside, the one whose clamped weights land closest.
-fn embed_points(
-    points: &[[f64; 3]],
-    rest: &[[f64; 3]],
-    tets: &[[u32; 4]],
-) -> Vec<(usize, [f64; 4])> {
-    points
-        .iter()
-        .map(|&p| {
-            let mut best = (f64::INFINITY, 0, [0.25; 4]);
-            for (t, tet) in tets.iter().enumerate() {
-                let x = tet.map(|v| Vector3::from(rest[v as usize]));
-                let m = Matrix3::from_columns(&[x[1] - x[0], x[2] - x[0], x[3] - x[0]]);
-                let Some(inv) = m.try_inverse() else { continue };
-                let l = inv * (Vector3::from(p) - x[0]);
-                let w = [1.0 - l.x - l.y - l.z, l.x, l.y, l.z];
-                let outside = w.iter().map(|&wi| (-wi).max(0.0)).sum::<f64>();
-                if outside < best.0 {
-                    let clamped = w.map(|wi| wi.max(0.0));
-                    let s: f64 = clamped.iter().sum();
-                    best = (outside, t, clamped.map(|wi| wi / s));
-                }
-                if outside == 0.0 {
-                    break;
-                }
-            }
-            (best.1, best.2)
-        })
-        .collect()
-}
-
 /// The true silhouette of `frame`, checked against the camera's size.
 fn load_silhouette(scene: &Scene, frame: usize, model_mask: &Mask) -> Result<Mask, SceneError> {
     let path = scene.silhouette_path(frame);
@@ -346,16 +364,6 @@ fn load_silhouette(scene: &Scene, frame: usize, model_mask: &Mask) -> Result<Mas
         ));
     }
     Ok(mask)
-}
-
-fn interpolate(x: &[[f64; 3]], tet: [u32; 4], w: [f64; 4]) -> [f64; 3] {
-    let mut p = [0.0; 3];
-    for (k, &v) in tet.iter().enumerate() {
-        for c in 0..3 {
-            p[c] += w[k] * x[v as usize][c];
-        }
-    }
-    p
 }
 
 fn median(v: &[f64]) -> f64 {
@@ -487,8 +495,7 @@ pub fn run_with(
         fixed: &scene.file.model.fixed,
     };
     let caps = &scene.file.capacities;
-    let mut storage =
-        ModelStorage::with_capacities(&input, caps).map_err(core("sizing the model"))?;
+    let mut storage = ModelStorage::new(&input, caps).map_err(core("sizing the model"))?;
     let model_bytes = storage.bytes();
     let mut model = storage
         .model(&input, &config)
@@ -502,13 +509,18 @@ pub fn run_with(
         .map_err(core("placing the frame-0 features on the model"))?;
     let mut pending = Some(first);
     let truth = load_truth(scene)?;
-    let target_rest = truth
-        .as_ref()
-        .and_then(|t| t.targets.first().cloned())
-        .unwrap_or_default();
-    let targets = embed_points(&target_rest, &scene.rest, &scene.tets);
-    let surface = model.mesh().surface().to_vec();
-    let tets = scene.tets.clone();
+    // The model carries the internal targets (through cuts, each on its own side).
+    if let Some(points) = truth.as_ref().and_then(|t| t.targets.first()) {
+        model
+            .embed_targets(points)
+            .map_err(core("embedding the internal targets"))?;
+    }
+    let predict = |model: &Model<'_, f64>| -> Vec<[f64; 3]> {
+        (0..model.n_targets())
+            .filter_map(|k| model.target_position(k))
+            .collect()
+    };
+    let rest_targets = predict(&model);
 
     if let Some(dir) = out {
         std::fs::create_dir_all(dir).map_err(output)?;
@@ -531,6 +543,7 @@ pub fn run_with(
     let mut polyline = vec![[0.0; 2]; caps.cut_vertices.max(1)];
     let (mut last_dice, mut last_tre) = (0.0, 0.0);
     let mut recorded = vec![];
+    let mut cuts = CutTrace::default();
     for f in 0.. {
         let frame = match pending.take() {
             Some(frame) => frame,
@@ -562,6 +575,7 @@ pub fn run_with(
                     report.detection.separation_points,
                     report.cut_line.vertices,
                 );
+                cuts.record(f, &report.cut);
                 detection.pairs = report.detection.pairs;
                 detection.pairs_lost = report.detection.pairs_lost;
                 detection.features_filtered = report.detection.features_filtered;
@@ -571,6 +585,7 @@ pub fn run_with(
             }
         }
         let x = model.positions().to_vec();
+        let surface = model.mesh().surface().to_vec();
         let n_line = model.cut_polyline(&mut polyline);
         detection.polyline = polyline[..n_line].to_vec();
         let model_mask = silhouette(&camera, &x, &surface);
@@ -581,10 +596,7 @@ pub fn run_with(
         let d = truth_mask
             .as_ref()
             .map_or(f64::NAN, |t| dice(&model_mask, t));
-        let predicted: Vec<[f64; 3]> = targets
-            .iter()
-            .map(|&(t, w)| interpolate(&x, tets[t], w))
-            .collect();
+        let predicted = predict(&model);
         let tre = truth
             .as_ref()
             .and_then(|t| t.targets.get(f))
@@ -641,14 +653,21 @@ pub fn run_with(
             }
         }
         if let Some(dir) = out {
+            // The mesh as it is now: cut, with its lips apart.
             let name = format!("mesh_{f:04}.vtu");
             let disp: Vec<[f64; 3]> = x
                 .iter()
-                .zip(&scene.rest)
+                .zip(model.mesh().rest())
                 .map(|(a, b)| [a[0] - b[0], a[1] - b[1], a[2] - b[2]])
                 .collect();
-            vtu::write_vtu(&dir.join(&name), &x, &tets, &[("displacement", &disp)], &[])
-                .map_err(output)?;
+            vtu::write_vtu(
+                &dir.join(&name),
+                &x,
+                model.mesh().tets(),
+                &[("displacement", &disp)],
+                &[],
+            )
+            .map_err(output)?;
             pvd.push((f as f64, name));
         }
         frames.push(FrameRecord {
@@ -691,13 +710,14 @@ pub fn run_with(
     let surface_rms_final = match &truth {
         Some(t) => {
             let x = model.positions().to_vec();
+            let surface = model.mesh().surface();
             let (gt_pos, gt_tri) = (&t.surface.positions, &t.surface.triangles);
             let mut surface_nodes: Vec<u32> = surface.iter().flatten().copied().collect();
             surface_nodes.sort_unstable();
             surface_nodes.dedup();
             let model_points: Vec<[f64; 3]> =
                 surface_nodes.iter().map(|&v| x[v as usize]).collect();
-            let a = surface_rms(gt_pos, &x, &surface);
+            let a = surface_rms(gt_pos, &x, surface);
             let b = surface_rms(&model_points, gt_pos, gt_tri);
             let (na, nb) = (gt_pos.len() as f64, model_points.len() as f64);
             ((a * a * na + b * b * nb) / (na + nb).max(1.0)).sqrt()
@@ -721,6 +741,13 @@ pub fn run_with(
         dice_final: last_dice,
         surface_rms_final,
         tre_final: last_tre,
+        tre_rest_final: truth
+            .as_ref()
+            .and_then(|t| t.targets.last())
+            .filter(|gt| gt.len() == rest_targets.len() && !gt.is_empty())
+            .map_or(f64::NAN, |gt| paired_rms(&rest_targets, gt)),
+        cuts,
+        mesh_final: (model.mesh().n_nodes(), model.mesh().n_tets()),
         embedded: report.embedded,
         missed: report.missed,
         model_bytes,
@@ -789,6 +816,16 @@ pub fn run_scene_with(
         surface_rmse_mm_final: trace.surface_rms_final * 1e3,
         tre_mm_final: trace.tre_final * 1e3,
         tre_mm_final_uncut: uncut.tre_final * 1e3,
+        tre_mm_final_rest: trace.tre_rest_final * 1e3,
+        cut_events: trace.cuts.frames.len(),
+        cut_first_frame: trace.cuts.frames.first().copied(),
+        nodes_final: trace.mesh_final.0,
+        tets_final: trace.mesh_final.1,
+        cut_refused: trace
+            .cuts
+            .refused
+            .as_ref()
+            .map(|(f, e)| format!("frame {f}: {e}")),
         ms_per_frame_median: median(&times),
         ms_per_frame_max: times.iter().copied().fold(0.0, f64::max),
         image_width: camera.width,

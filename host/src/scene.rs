@@ -252,14 +252,22 @@ impl DetectionSection {
     }
 }
 
-/// `[capacities]`: the fixed storage of the core.
+/// `[capacities]`: the fixed storage of the core. The mesh's own nodes and tetrahedra are
+/// counted from the model; a cut's new ones come from the room reserved here.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields, default)]
 pub struct CapacitySection {
     /// Tracked features.
     pub features: usize,
-    /// Extra room for matrix and factor entries, percent.
-    pub factor_headroom_percent: usize,
+    /// Internal targets the model carries.
+    pub targets: usize,
+    /// Nodes a cut may add to the model's (new nodes on cut edges and node copies).
+    pub cut_nodes: usize,
+    /// Tetrahedra a cut may add (the pieces of split tetrahedra).
+    pub cut_tets: usize,
+    /// Entries of the factor `L` after every cut; absent: three times what the uncut model
+    /// needs.
+    pub factor_entries: Option<usize>,
     /// Neighbour pairs of the cut detection.
     pub pairs: usize,
     /// Vertices of the cut line.
@@ -270,7 +278,10 @@ impl Default for CapacitySection {
     fn default() -> Self {
         CapacitySection {
             features: 1024,
-            factor_headroom_percent: 0,
+            targets: 64,
+            cut_nodes: 256,
+            cut_tets: 1024,
+            factor_entries: None,
             pairs: 32_768,
             cut_vertices: 64,
         }

@@ -818,7 +818,7 @@ pub fn rest_silhouette(scene: &Scene) -> Result<Mask, RunError> {
         move |error| RunError::Core { context, error }
     };
     // The model exactly as a run builds it, for its checked mesh and boundary surface.
-    let mut storage = ModelStorage::<f64>::with_capacities(&input, &scene.file.capacities)
+    let mut storage = ModelStorage::<f64>::new(&input, &scene.file.capacities)
         .map_err(core("sizing the model"))?;
     let config = incise_core::ModelConfig {
         material: incise_core::Material {

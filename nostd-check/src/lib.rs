@@ -35,8 +35,8 @@ pub extern "C" fn incise_nostd_check_step() -> i32 {
 fn step() -> Result<bool, incise_core::Error> {
     use incise_core::nalgebra::{Matrix3, Vector3};
     use incise_core::{
-        Camera, Capacities, Intrinsics, Material, MeshCapacity, MeshInput, Model, ModelConfig,
-        ModelSize, Observation, SolverConfig, Strategy,
+        Camera, Capacities, Intrinsics, Material, MeshCapacity, MeshInput, Model, ModelBuffers,
+        ModelConfig, ModelSize, Observation, SolverConfig, Strategy,
     };
     const CX: usize = 4;
     const NN: usize = (CX + 1) * 3 * 3;
@@ -91,22 +91,23 @@ fn step() -> Result<bool, incise_core::Error> {
         },
         detection: incise_core::DetectionConfig::paper(),
     };
-    let caps = Capacities {
+    // Every length is a `const fn` of the capacities: the buffers are sized at compile time.
+    const SIZE: ModelSize = ModelSize::new(&Capacities {
         mesh: MeshCapacity {
             nodes: NN,
             tets: NT,
             surface_triangles: 4 * NT,
         },
         features: 16,
-        factor_headroom_percent: 0,
+        targets: 4,
+        factor_entries: 4096,
         pairs: 256,
         cut_vertices: 16,
-    };
-    let mut work = [0u32; 32768];
-    let size = ModelSize::analyse(&mesh, &caps, &mut work)?;
-    let mut reals = [0.0f64; 32768];
-    let mut indices = [0u32; 32768];
-    let mut model = Model::new(&mesh, &config, &size, &mut reals, &mut indices, &mut work)?;
+    });
+    let mut reals = [0.0f64; SIZE.real_len()];
+    let mut indices = [0u32; SIZE.index_len()];
+    let buffers = ModelBuffers::new(&SIZE, &mut reals, &mut indices)?;
+    let mut model = Model::new(&mesh, &config, &SIZE, buffers)?;
 
     // Nine features on the top face near the free end.
     let mut frame = [Observation {

@@ -10,37 +10,39 @@ use crate::storage::{Slab, ensure_exact_len, ensure_len};
 /// The numeric factor `C = L D Lᵀ` of `C = P A Pᵀ`, `L` unit lower triangular (its strictly lower
 /// part stored in the column pattern of a [`Symbolic`]) and `D` diagonal and positive.
 ///
-/// The storage holds two sets of values: a factorization writes the set not in service and puts
-/// it in service only when it succeeds, so a failed factorization leaves the previous factor
-/// usable (and, after a cut, an old factor can keep serving while a new one is built). Memory:
-/// `2 · (nnz(L) + n)` scalars ([`LdlFactor::storage_len`]).
+/// The storage is sized for a capacity (any analysis up to it can be factored, so a factor
+/// survives a change of pattern) and holds two sets of values: a factorization writes the set
+/// not in service and puts it in service only when it succeeds, so a failed factorization
+/// leaves the previous factor usable. Memory: `2 · (nnz(L) + n)` scalars of the capacity
+/// ([`LdlFactor::storage_len`]).
 #[derive(Debug)]
 pub struct LdlFactor<'a, T> {
-    size: SymbolicSize,
+    capacity: SymbolicSize,
     l: [&'a mut [T]; 2],
     d: [&'a mut [T]; 2],
-    active: Option<usize>,
+    /// The value set in service and the sizes of the analysis it was computed for.
+    active: Option<(usize, SymbolicSize)>,
 }
 
 impl<'a, T: Real> LdlFactor<'a, T> {
-    /// Scalars of storage a factor of this size needs.
+    /// Scalars of storage a factor of capacity `size` needs.
     pub const fn storage_len(size: &SymbolicSize) -> usize {
         2 * (size.nnz_l + size.n)
     }
 
-    /// An empty factor (nothing in service yet) in `storage`.
+    /// An empty factor (nothing in service yet) in `storage`, for analyses up to `capacity`.
     ///
     /// # Errors
     /// [`Error::Capacity`] if `storage` is shorter than [`LdlFactor::storage_len`].
-    pub fn new(size: &SymbolicSize, storage: &'a mut [T]) -> Result<Self, Error> {
-        ensure_len(storage, Self::storage_len(size), Resource::RealStorage)?;
+    pub fn new(capacity: &SymbolicSize, storage: &'a mut [T]) -> Result<Self, Error> {
+        ensure_len(storage, Self::storage_len(capacity), Resource::RealStorage)?;
         let mut slab = Slab::new(storage, Resource::RealStorage);
-        let l0 = slab.take(size.nnz_l)?;
-        let l1 = slab.take(size.nnz_l)?;
-        let d0 = slab.take(size.n)?;
-        let d1 = slab.take(size.n)?;
+        let l0 = slab.take(capacity.nnz_l)?;
+        let l1 = slab.take(capacity.nnz_l)?;
+        let d0 = slab.take(capacity.n)?;
+        let d1 = slab.take(capacity.n)?;
         Ok(LdlFactor {
-            size: *size,
+            capacity: *capacity,
             l: [l0, l1],
             d: [d0, d1],
             active: None,
@@ -54,12 +56,12 @@ impl<'a, T: Real> LdlFactor<'a, T> {
 
     /// Strictly lower values of `L` in service, in the order of [`Symbolic::l_row`].
     pub fn l_values(&self) -> Option<&[T]> {
-        self.active.map(|a| &*self.l[a])
+        self.active.map(|(a, s)| &self.l[a][..s.nnz_l])
     }
 
     /// Diagonal `D` in service (permuted order).
     pub fn d_values(&self) -> Option<&[T]> {
-        self.active.map(|a| &*self.d[a])
+        self.active.map(|(a, s)| &self.d[a][..s.n])
     }
 
     /// Factorizes `A` (values `a_values` in the order of the pattern the symbolic analysis was
@@ -68,7 +70,8 @@ impl<'a, T: Real> LdlFactor<'a, T> {
     ///
     /// # Errors
     /// [`Error::NotPositiveDefinite`] or [`Error::NotFinite`] naming the first failing column
-    /// of the permuted matrix; [`Error::SymbolicMismatch`] if `sym` is not of this factor's size;
+    /// of the permuted matrix; [`Error::Capacity`] naming [`Resource::FactorEntries`] or
+    /// [`Resource::Unknowns`] if `sym` is larger than this factor's capacity;
     /// [`Error::Length`] / [`Error::Capacity`] for wrong buffer lengths. On any error the
     /// factor in service (if any) stays in service, unchanged.
     pub fn factorize(
@@ -78,15 +81,25 @@ impl<'a, T: Real> LdlFactor<'a, T> {
         work: &mut [T],
         cursor: &mut [u32],
     ) -> Result<(), Error> {
-        if sym.size_info() != self.size {
-            return Err(Error::SymbolicMismatch);
+        let size = sym.size_info();
+        for (resource, needed, available) in [
+            (Resource::Unknowns, size.n, self.capacity.n),
+            (Resource::FactorEntries, size.nnz_l, self.capacity.nnz_l),
+        ] {
+            if needed > available {
+                return Err(Error::Capacity {
+                    resource,
+                    needed,
+                    available,
+                });
+            }
         }
-        let n = self.size.n;
-        ensure_exact_len(a_values, self.size.nnz_a, Resource::MatrixEntries)?;
+        let n = size.n;
+        ensure_exact_len(a_values, size.nnz_a, Resource::MatrixEntries)?;
         ensure_len(work, n, Resource::Workspace)?;
         ensure_len(cursor, n, Resource::Workspace)?;
         let target = match self.active {
-            Some(0) => 1,
+            Some((0, _)) => 1,
             _ => 0,
         };
         let (l, d) = (&mut *self.l[target], &mut *self.d[target]);
@@ -126,17 +139,17 @@ impl<'a, T: Real> LdlFactor<'a, T> {
             }
             d[k] = dk;
         }
-        self.active = Some(target);
+        self.active = Some((target, size));
         Ok(())
     }
 
     fn in_service(&self, sym: &Symbolic<'_>, v: &[T]) -> Result<(&[T], &[T]), Error> {
-        let a = self.active.ok_or(Error::NotFactored)?;
-        if sym.size_info() != self.size {
+        let (a, size) = self.active.ok_or(Error::NotFactored)?;
+        if sym.size_info() != size {
             return Err(Error::SymbolicMismatch);
         }
-        ensure_exact_len(v, self.size.n, Resource::Vector)?;
-        Ok((&*self.l[a], &*self.d[a]))
+        ensure_exact_len(v, size.n, Resource::Vector)?;
+        Ok((&self.l[a][..size.nnz_l], &self.d[a][..size.n]))
     }
 
     /// Solves `L w = w` in place (permuted order).
@@ -147,7 +160,7 @@ impl<'a, T: Real> LdlFactor<'a, T> {
     pub fn solve_lower_in_place(&self, sym: &Symbolic<'_>, w: &mut [T]) -> Result<(), Error> {
         let (l, _) = self.in_service(sym, w)?;
         let (l_ptr, l_row) = (sym.l_ptr(), sym.l_row());
-        for j in 0..self.size.n {
+        for j in 0..sym.n() {
             let wj = w[j];
             let cols = ux(l_ptr[j])..ux(l_ptr[j + 1]);
             for (&r, &lv) in l_row[cols.clone()].iter().zip(&l[cols]) {
@@ -176,7 +189,7 @@ impl<'a, T: Real> LdlFactor<'a, T> {
     pub fn solve_upper_in_place(&self, sym: &Symbolic<'_>, w: &mut [T]) -> Result<(), Error> {
         let (l, _) = self.in_service(sym, w)?;
         let (l_ptr, l_row) = (sym.l_ptr(), sym.l_row());
-        for j in (0..self.size.n).rev() {
+        for j in (0..sym.n()).rev() {
             let mut wj = w[j];
             let cols = ux(l_ptr[j])..ux(l_ptr[j + 1]);
             for (&r, &lv) in l_row[cols.clone()].iter().zip(&l[cols]) {
@@ -199,7 +212,7 @@ impl<'a, T: Real> LdlFactor<'a, T> {
         work: &mut [T],
     ) -> Result<(), Error> {
         self.in_service(sym, b)?;
-        let n = self.size.n;
+        let n = sym.n();
         ensure_len(work, n, Resource::Workspace)?;
         let w = &mut work[..n];
         for (wk, &p) in w.iter_mut().zip(sym.perm()) {

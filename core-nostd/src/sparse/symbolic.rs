@@ -35,21 +35,26 @@ pub const fn analyse_work_len(n: usize, nnz_a: usize) -> usize {
 /// Holds the permutation and its inverse, the upper pattern of `C` with, for each of its
 /// entries, the position of the value in `A`'s value array (so the numeric phase reads `A`'s
 /// values directly), the elimination tree, the column pattern of `L` (strictly lower, rows
-/// increasing) and its row pattern (columns increasing). Built by [`Symbolic::new`]; every
-/// accessor relies on its invariants and none can fail.
+/// increasing) and its row pattern (columns increasing).
+///
+/// The storage is sized once for a *capacity* ([`Symbolic::with_capacity`]) and the analysis
+/// can be rebuilt in it for any pattern that fits ([`Symbolic::analyse`]), which is what a mesh
+/// that gets cut needs. Every accessor relies on the invariants the last successful analysis
+/// established and none can fail.
 #[derive(Debug)]
 pub struct Symbolic<'a> {
+    capacity: SymbolicSize,
     size: SymbolicSize,
-    perm: &'a [u32],
-    iperm: &'a [u32],
-    etree: &'a [u32],
-    c_ptr: &'a [u32],
-    c_row: &'a [u32],
-    c_src: &'a [u32],
-    l_ptr: &'a [u32],
-    l_row: &'a [u32],
-    lt_ptr: &'a [u32],
-    lt_col: &'a [u32],
+    perm: &'a mut [u32],
+    iperm: &'a mut [u32],
+    etree: &'a mut [u32],
+    c_ptr: &'a mut [u32],
+    c_row: &'a mut [u32],
+    c_src: &'a mut [u32],
+    l_ptr: &'a mut [u32],
+    l_row: &'a mut [u32],
+    lt_ptr: &'a mut [u32],
+    lt_col: &'a mut [u32],
     factor_flops: u64,
 }
 
@@ -91,7 +96,41 @@ impl<'a> Symbolic<'a> {
         })
     }
 
-    /// Builds the symbolic factorization in `storage` (at least
+    /// An empty analysis (dimension 0) whose storage holds any pattern up to `capacity`:
+    /// `storage` needs [`SymbolicSize::index_len`]`(capacity)` entries.
+    ///
+    /// # Errors
+    /// [`Error::Capacity`] if `storage` is too short.
+    pub fn with_capacity(capacity: SymbolicSize, storage: &'a mut [u32]) -> Result<Self, Error> {
+        ensure_len(storage, capacity.index_len(), Resource::IndexStorage)?;
+        let n = capacity.n;
+        let mut slab = Slab::new(storage, Resource::IndexStorage);
+        let mut sym = Symbolic {
+            capacity,
+            size: SymbolicSize {
+                n: 0,
+                nnz_a: 0,
+                nnz_l: 0,
+            },
+            perm: slab.take(n)?,
+            iperm: slab.take(n)?,
+            etree: slab.take(n)?,
+            c_ptr: slab.take(n + 1)?,
+            c_row: slab.take(capacity.nnz_a)?,
+            c_src: slab.take(capacity.nnz_a)?,
+            l_ptr: slab.take(n + 1)?,
+            l_row: slab.take(capacity.nnz_l)?,
+            lt_ptr: slab.take(n + 1)?,
+            lt_col: slab.take(capacity.nnz_l)?,
+            factor_flops: 0,
+        };
+        for ptr in [&mut sym.c_ptr, &mut sym.l_ptr, &mut sym.lt_ptr] {
+            ptr[0] = 0;
+        }
+        Ok(sym)
+    }
+
+    /// Builds the symbolic factorization of `A` under `perm` in `storage` (at least
     /// [`SymbolicSize::index_len`] entries for the size [`Symbolic::size`] reports), using
     /// `work` as there.
     ///
@@ -103,22 +142,62 @@ impl<'a> Symbolic<'a> {
         storage: &'a mut [u32],
         work: &mut [u32],
     ) -> Result<Self, Error> {
-        let n = a.n();
         let size = Self::size(a, perm, work)?;
-        ensure_len(storage, size.index_len(), Resource::IndexStorage)?;
-        let mut slab = Slab::new(storage, Resource::IndexStorage);
-        let perm_s = slab.take(n)?;
+        let mut sym = Self::with_capacity(size, storage)?;
+        sym.analyse(a, perm, work)?;
+        Ok(sym)
+    }
+
+    /// Replaces the analysis with that of `A` under `perm`, in this storage; `work` as for
+    /// [`Symbolic::size`].
+    ///
+    /// Transactional: the sizes are computed and checked against the capacity before anything
+    /// is written, so on error the previous analysis is intact.
+    ///
+    /// # Errors
+    /// As [`Symbolic::size`]; [`Error::Capacity`] naming [`Resource::Unknowns`],
+    /// [`Resource::MatrixEntries`] or [`Resource::FactorEntries`] when the pattern exceeds the
+    /// capacity.
+    pub fn analyse(
+        &mut self,
+        a: &UpperCsc<'_>,
+        perm: &[u32],
+        work: &mut [u32],
+    ) -> Result<(), Error> {
+        let size = Self::size(a, perm, work)?;
+        let cap = self.capacity;
+        for (resource, needed, available) in [
+            (Resource::Unknowns, size.n, cap.n),
+            (Resource::MatrixEntries, size.nnz_a, cap.nnz_a),
+            (Resource::FactorEntries, size.nnz_l, cap.nnz_l),
+        ] {
+            if needed > available {
+                return Err(Error::Capacity {
+                    resource,
+                    needed,
+                    available,
+                });
+            }
+        }
+        let n = size.n;
+        let (perm_s, iperm, etree) = (
+            &mut self.perm[..n],
+            &mut self.iperm[..n],
+            &mut self.etree[..n],
+        );
+        let (c_ptr, c_row, c_src) = (
+            &mut self.c_ptr[..n + 1],
+            &mut self.c_row[..size.nnz_a],
+            &mut self.c_src[..size.nnz_a],
+        );
+        let (l_ptr, l_row, lt_ptr, lt_col) = (
+            &mut self.l_ptr[..n + 1],
+            &mut self.l_row[..size.nnz_l],
+            &mut self.lt_ptr[..n + 1],
+            &mut self.lt_col[..size.nnz_l],
+        );
         perm_s.copy_from_slice(perm);
-        let iperm = slab.take(n)?;
         invert_permutation(perm, iperm)?;
-        let etree = slab.take(n)?;
-        let c_ptr = slab.take(n + 1)?;
-        let c_row = slab.take(a.nnz())?;
-        let c_src = slab.take(a.nnz())?;
-        let l_ptr = slab.take(n + 1)?;
-        let l_row = slab.take(size.nnz_l)?;
-        let lt_ptr = slab.take(n + 1)?;
-        let lt_col = slab.take(size.nnz_l)?;
 
         let mut wslab = Slab::new(work, Resource::Workspace);
         let mark = wslab.take(n)?;
@@ -161,25 +240,18 @@ impl<'a> Symbolic<'a> {
                 col_count[j] += 1;
             }
         }
-        Ok(Symbolic {
-            size,
-            perm: perm_s,
-            iperm,
-            etree,
-            c_ptr,
-            c_row,
-            c_src,
-            l_ptr,
-            l_row,
-            lt_ptr,
-            lt_col,
-            factor_flops: flops,
-        })
+        self.size = size;
+        self.factor_flops = flops;
+        Ok(())
     }
 
-    /// The sizes.
+    /// The sizes of the current analysis.
     pub fn size_info(&self) -> SymbolicSize {
         self.size
+    }
+    /// The largest sizes the storage holds.
+    pub fn capacity(&self) -> SymbolicSize {
+        self.capacity
     }
     /// Dimension.
     pub fn n(&self) -> usize {
@@ -190,44 +262,44 @@ impl<'a> Symbolic<'a> {
         self.size.nnz_l
     }
     /// `perm[k]` is the column of `A` that comes `k`-th.
-    pub fn perm(&self) -> &'a [u32] {
-        self.perm
+    pub fn perm(&self) -> &[u32] {
+        &self.perm[..self.size.n]
     }
     /// Inverse permutation: `iperm[perm[k]] == k`.
-    pub fn iperm(&self) -> &'a [u32] {
-        self.iperm
+    pub fn iperm(&self) -> &[u32] {
+        &self.iperm[..self.size.n]
     }
     /// Parent of each column in the elimination tree of `C` ([`NONE`] for a root).
-    pub fn etree(&self) -> &'a [u32] {
-        self.etree
+    pub fn etree(&self) -> &[u32] {
+        &self.etree[..self.size.n]
     }
     /// Column pointers of `L` (`n + 1`).
-    pub fn l_ptr(&self) -> &'a [u32] {
-        self.l_ptr
+    pub fn l_ptr(&self) -> &[u32] {
+        &self.l_ptr[..self.size.n + 1]
     }
     /// Row indices of `L`, column by column, increasing.
-    pub fn l_row(&self) -> &'a [u32] {
-        self.l_row
+    pub fn l_row(&self) -> &[u32] {
+        &self.l_row[..self.size.nnz_l]
     }
     /// Row pointers of `L` (`n + 1`).
-    pub fn lt_ptr(&self) -> &'a [u32] {
-        self.lt_ptr
+    pub fn lt_ptr(&self) -> &[u32] {
+        &self.lt_ptr[..self.size.n + 1]
     }
     /// Column indices of `L`, row by row, increasing.
-    pub fn lt_col(&self) -> &'a [u32] {
-        self.lt_col
+    pub fn lt_col(&self) -> &[u32] {
+        &self.lt_col[..self.size.nnz_l]
     }
     /// Upper pattern of `C = P A Pᵀ`: column pointers.
-    pub fn c_ptr(&self) -> &'a [u32] {
-        self.c_ptr
+    pub fn c_ptr(&self) -> &[u32] {
+        &self.c_ptr[..self.size.n + 1]
     }
     /// Upper pattern of `C`: row indices, increasing per column.
-    pub fn c_row(&self) -> &'a [u32] {
-        self.c_row
+    pub fn c_row(&self) -> &[u32] {
+        &self.c_row[..self.size.nnz_a]
     }
     /// For each entry of `C`, the position of its value in `A`'s value array.
-    pub fn c_src(&self) -> &'a [u32] {
-        self.c_src
+    pub fn c_src(&self) -> &[u32] {
+        &self.c_src[..self.size.nnz_a]
     }
     /// Multiply-adds (and divisions) of one numeric factorization: a data-independent count.
     pub fn factor_flops(&self) -> u64 {

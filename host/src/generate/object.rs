@@ -185,6 +185,8 @@ pub struct Slit {
     pub pairs: Vec<(u32, u32)>,
     /// Number of mesh faces that form the slit.
     pub faces: usize,
+    /// Nodes on the slit that were not split: its front, where the lips meet.
+    pub front: Vec<u32>,
 }
 
 /// Cuts `mesh` along the interior faces that separate tetrahedra whose centroids lie on
@@ -234,6 +236,7 @@ pub fn cut_slit(mesh: &TetMesh, point: [f64; 3], normal: [f64; 3], region: [[f64
     }
     let mut out = mesh.clone();
     let mut pairs = vec![];
+    let mut front = vec![];
     for &v in &slit_nodes {
         let ts = &around[&v];
         // Union-find over the tetrahedra around v, joined through shared faces not cut.
@@ -263,6 +266,9 @@ pub fn cut_slit(mesh: &TetMesh, point: [f64; 3], normal: [f64; 3], region: [[f64
         let first = roots.iter().copied().min().unwrap_or(0);
         roots.sort_unstable();
         roots.dedup();
+        if roots.len() == 1 {
+            front.push(v);
+        }
         for &r in roots.iter().filter(|&&r| r != first) {
             out.nodes.push(mesh.nodes[v as usize]);
             let copy = (out.nodes.len() - 1) as u32;
@@ -282,6 +288,7 @@ pub fn cut_slit(mesh: &TetMesh, point: [f64; 3], normal: [f64; 3], region: [[f64
         mesh: out,
         pairs,
         faces: cut.len(),
+        front,
     }
 }
 

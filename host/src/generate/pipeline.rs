@@ -141,6 +141,8 @@ pub struct Simulation {
     pub fine: TetMesh,
     /// `(original, duplicate)` nodes along the slit's lips.
     pub lips: Vec<(u32, u32)>,
+    /// Nodes of the slit's front, where its lips meet.
+    pub slit_front: Vec<u32>,
     /// Boundary triangles of the real mesh (outward) with their tetrahedra.
     pub boundary: Vec<([u32; 3], usize)>,
     /// Node positions of the real mesh, every frame (frame 0 is rest).
@@ -239,7 +241,7 @@ pub fn simulate(scenario_path: &Path, progress: bool) -> Result<Simulation, GenE
             )));
         }
     };
-    let (real, pairs) = match &s.slit {
+    let (real, pairs, slit_front) = match &s.slit {
         Some(sl) => {
             let cut = cut_slit(&fine, sl.point, sl.normal, sl.region);
             if cut.faces == 0 {
@@ -247,9 +249,9 @@ pub fn simulate(scenario_path: &Path, progress: bool) -> Result<Simulation, GenE
                     "[slit] region holds no mesh face: nothing is cut".into(),
                 ));
             }
-            (cut.mesh, cut.pairs)
+            (cut.mesh, cut.pairs, cut.front)
         }
-        None => (fine.clone(), vec![]),
+        None => (fine.clone(), vec![], vec![]),
     };
 
     // Held and grasped nodes of the real mesh; the model holds its nodes in the held boxes.
@@ -333,6 +335,7 @@ pub fn simulate(scenario_path: &Path, progress: bool) -> Result<Simulation, GenE
         real,
         fine,
         lips: pairs,
+        slit_front,
         boundary,
         positions,
         tolerance,
@@ -401,12 +404,14 @@ pub fn write_scene(
     .map_err(err)?;
     let targets = sample_targets(real, s.object.targets, &mut rng);
 
-    // The true cut line: lips on the original surface, seen at rest, ordered along the slit.
+    // The true cut line: lips on the original surface, seen at rest, ordered along the slit;
+    // at its front the lips meet, and the front node is its own midpoint.
     let fine_boundary: std::collections::HashSet<u32> =
         fine.boundary().iter().flat_map(|b| b.0).collect();
     let mut lips: Vec<(u32, u32)> = pairs
         .iter()
         .copied()
+        .chain(sim.slit_front.iter().map(|&v| (v, v)))
         .filter(|&(v, _)| fine_boundary.contains(&v))
         .filter(|&(v, _)| {
             depth0

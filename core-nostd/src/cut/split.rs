@@ -1,0 +1,250 @@
+//! Splitting one tetrahedron by the zero set of a linear function `φ` given at its nodes.
+//!
+//! After snapping, every node is strictly positive, strictly negative or exactly zero, and only
+//! five sign patterns cross (up to symmetry); each has one split into tetrahedra:
+//!
+//! | nodes `+ / − / 0` | cut edges | pieces | tetrahedra |
+//! | --- | --- | --- | --- |
+//! | 1 / 3 / 0 (or 3 / 1) | 3 | a tetrahedron and a prism | 1 + 3 |
+//! | 2 / 2 / 0 | 4 | two prisms | 3 + 3 |
+//! | 1 / 2 / 1 (or 2 / 1) | 2 | a tetrahedron and a pyramid | 1 + 2 |
+//! | 1 / 1 / 2 | 1 | two tetrahedra | 1 + 1 |
+//!
+//! The quadrilateral faces of prisms and pyramids are split along the diagonal through their
+//! vertex of smallest key (Dompierre et al., "How to subdivide pyramids, prisms and hexahedra
+//! into tetrahedra", 1999): the choice depends on the face alone, so two tetrahedra that share
+//! it split it alike and the mesh stays conforming; and it always leaves a prism three
+//! tetrahedra and a pyramid two. A vertex is keyed by what it is: a node of the mesh (by
+//! index), or the new node on an edge (after every mesh node, by the edge's two nodes), which
+//! is also the order the new nodes get their indices in.
+
+/// A vertex of a piece: a node of the mesh, or the new node where the cut crosses an edge.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub(crate) enum Vertex {
+    /// Mesh node.
+    Node(u32),
+    /// New node on the edge between two mesh nodes (smaller first).
+    Edge(u32, u32),
+}
+
+impl Vertex {
+    /// The vertex on the edge `(a, b)`.
+    pub fn edge(a: u32, b: u32) -> Self {
+        Vertex::Edge(a.min(b), a.max(b))
+    }
+}
+
+/// Sign of a node's `φ`: `1`, `-1` or `0`.
+pub(crate) type Sign = i8;
+
+/// At most six tetrahedra per split.
+pub(crate) const MAX_CHILDREN: usize = 6;
+
+/// Children of a split, in the order written (orientation not yet fixed).
+pub(crate) struct Children {
+    pub tets: [[Vertex; 4]; MAX_CHILDREN],
+    pub len: usize,
+}
+
+impl Children {
+    fn new() -> Self {
+        Children {
+            tets: [[Vertex::Node(0); 4]; MAX_CHILDREN],
+            len: 0,
+        }
+    }
+
+    fn push(&mut self, t: [Vertex; 4]) {
+        if self.len < MAX_CHILDREN {
+            self.tets[self.len] = t;
+            self.len += 1;
+        }
+    }
+
+    /// The tetrahedra written.
+    pub fn as_slice(&self) -> &[[Vertex; 4]] {
+        &self.tets[..self.len]
+    }
+}
+
+/// Whether a tetrahedron with these signs is crossed by the zero set.
+pub(crate) fn crosses(signs: &[Sign; 4]) -> bool {
+    signs.contains(&1) && signs.contains(&-1)
+}
+
+/// The split of tetrahedron `tet` with node signs `signs` (`crosses(signs)` must hold, else
+/// nothing is written).
+pub(crate) fn split(tet: &[u32; 4], signs: &[Sign; 4]) -> Children {
+    let mut out = Children::new();
+    let count = |s: Sign| signs.iter().filter(|&&x| x == s).count();
+    let (pos, neg, zero) = (count(1), count(-1), count(0));
+    if pos == 0 || neg == 0 {
+        return out;
+    }
+    let nodes_with = |s: Sign| {
+        let mut v = [0u32; 4];
+        let mut k = 0;
+        for (a, &sa) in signs.iter().enumerate() {
+            if sa == s {
+                v[k] = tet[a];
+                k += 1;
+            }
+        }
+        v
+    };
+    let n = Vertex::Node;
+    match zero {
+        0 if pos == 1 || neg == 1 => {
+            // One node alone on its side: a tetrahedron at it, a prism on the other side.
+            let (lone, others) = if pos == 1 {
+                (nodes_with(1)[0], nodes_with(-1))
+            } else {
+                (nodes_with(-1)[0], nodes_with(1))
+            };
+            let c = [0, 1, 2].map(|k| Vertex::edge(lone, others[k]));
+            out.push([n(lone), c[0], c[1], c[2]]);
+            prism(&mut out, [n(others[0]), n(others[1]), n(others[2])], c);
+        }
+        0 => {
+            // Two and two: a prism on each side.
+            let [a, b, ..] = nodes_with(1);
+            let [c, d, ..] = nodes_with(-1);
+            let (ac, ad, bc, bd) = (
+                Vertex::edge(a, c),
+                Vertex::edge(a, d),
+                Vertex::edge(b, c),
+                Vertex::edge(b, d),
+            );
+            prism(&mut out, [n(a), ac, ad], [n(b), bc, bd]);
+            prism(&mut out, [n(c), ac, bc], [n(d), ad, bd]);
+        }
+        1 => {
+            // Through one node: a tetrahedron on the lone node's side, a pyramid on the other.
+            let z = nodes_with(0)[0];
+            let (lone, [p1, p2, ..]) = if pos == 1 {
+                (nodes_with(1)[0], nodes_with(-1))
+            } else {
+                (nodes_with(-1)[0], nodes_with(1))
+            };
+            let (c1, c2) = (Vertex::edge(lone, p1), Vertex::edge(lone, p2));
+            out.push([n(lone), n(z), c1, c2]);
+            pyramid(&mut out, n(z), [n(p1), n(p2), c2, c1]);
+        }
+        _ => {
+            // Through an edge: one crossing, two tetrahedra.
+            let [z1, z2, ..] = nodes_with(0);
+            let (p, m) = (nodes_with(1)[0], nodes_with(-1)[0]);
+            let c = Vertex::edge(p, m);
+            out.push([n(z1), n(z2), n(p), c]);
+            out.push([n(z1), n(z2), c, n(m)]);
+        }
+    }
+    out
+}
+
+/// The prism with triangles `a` and `b` (edges `a[i]`–`b[i]`) as three tetrahedra.
+fn prism(out: &mut Children, a: [Vertex; 3], b: [Vertex; 3]) {
+    // Rotate (and, if need be, swap the two triangles) so the smallest vertex is a[0].
+    let all = [a[0], a[1], a[2], b[0], b[1], b[2]];
+    let mut m = 0;
+    for k in 1..6 {
+        if all[k] < all[m] {
+            m = k;
+        }
+    }
+    let (a, b) = if m < 3 { (a, b) } else { (b, a) };
+    let r = m % 3;
+    let a = [a[r], a[(r + 1) % 3], a[(r + 2) % 3]];
+    let b = [b[r], b[(r + 1) % 3], b[(r + 2) % 3]];
+    // The two quadrilaterals at a[0] are split through it, leaving a tetrahedron and a
+    // pyramid over the third quadrilateral.
+    out.push([a[0], b[0], b[1], b[2]]);
+    pyramid(out, a[0], [a[1], a[2], b[2], b[1]]);
+}
+
+/// The pyramid with apex `apex` over the quadrilateral `q` (in cyclic order) as two
+/// tetrahedra, split along the diagonal through `q`'s smallest vertex.
+fn pyramid(out: &mut Children, apex: Vertex, q: [Vertex; 4]) {
+    let mut m = 0;
+    for k in 1..4 {
+        if q[k] < q[m] {
+            m = k;
+        }
+    }
+    let (q0, q1, q2, q3) = (q[m], q[(m + 1) % 4], q[(m + 2) % 4], q[(m + 3) % 4]);
+    out.push([apex, q0, q1, q2]);
+    out.push([apex, q0, q2, q3]);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Signed volume of a tetrahedron of points.
+    fn volume(p: [[f64; 3]; 4]) -> f64 {
+        let u = [0, 1, 2].map(|c| p[1][c] - p[0][c]);
+        let v = [0, 1, 2].map(|c| p[2][c] - p[0][c]);
+        let w = [0, 1, 2].map(|c| p[3][c] - p[0][c]);
+        (u[0] * (v[1] * w[2] - v[2] * w[1]) - u[1] * (v[0] * w[2] - v[2] * w[0])
+            + u[2] * (v[0] * w[1] - v[1] * w[0]))
+            / 6.0
+    }
+
+    #[test]
+    fn every_pattern_tiles_the_tetrahedron_and_keeps_each_piece_on_one_side() {
+        let x = [
+            [0.0, 0.0, 0.0],
+            [1.0, 0.1, 0.0],
+            [0.2, 1.0, 0.1],
+            [0.1, 0.3, 1.0],
+        ];
+        let tet = [4u32, 9, 2, 7];
+        // φ at the nodes for each pattern; zeros are exact.
+        let cases: [[f64; 4]; 7] = [
+            [1.0, -1.0, -2.0, -0.5],
+            [-1.0, 1.0, 2.0, 0.5],
+            [1.0, 2.0, -1.0, -0.5],
+            [0.0, 1.0, -1.0, -0.5],
+            [0.0, -1.0, 1.0, 0.5],
+            [0.0, 0.0, 1.0, -1.0],
+            [1.0, 0.0, 0.0, -2.0],
+        ];
+        for phi in cases {
+            let signs = phi.map(|p| {
+                if p > 0.0 {
+                    1
+                } else if p < 0.0 {
+                    -1
+                } else {
+                    0
+                }
+            });
+            let local = |v: u32| tet.iter().position(|&t| t == v).unwrap();
+            let pos = |vx: Vertex| -> ([f64; 3], f64) {
+                match vx {
+                    Vertex::Node(v) => (x[local(v)], phi[local(v)]),
+                    Vertex::Edge(a, b) => {
+                        let (ia, ib) = (local(a), local(b));
+                        let t = phi[ia] / (phi[ia] - phi[ib]);
+                        ([0, 1, 2].map(|c| x[ia][c] + t * (x[ib][c] - x[ia][c])), 0.0)
+                    }
+                }
+            };
+            let children = split(&tet, &signs);
+            let mut total = 0.0;
+            for child in children.as_slice() {
+                let p = child.map(|v| pos(v).0);
+                let vol = volume(p).abs();
+                assert!(vol > 1e-6, "{phi:?}: flat child {child:?}");
+                total += vol;
+                // All of a child's nodes lie on one side (zeros allowed).
+                let s = child.map(|v| pos(v).1);
+                assert!(
+                    s.iter().all(|&v| v >= 0.0) || s.iter().all(|&v| v <= 0.0),
+                    "{phi:?}: child {child:?} straddles"
+                );
+            }
+            assert!((total - volume(x)).abs() < 1e-12, "{phi:?}: {total}");
+        }
+    }
+}

@@ -1,0 +1,271 @@
+//! The separation surface as a function on space: the cut polyline of the image extruded along
+//! the camera rays (or a configured depth direction), one plane per segment.
+//!
+//! A point's signed distance `φ` is taken to the plane of the segment nearest to its image;
+//! `φ > 0` on the left of the polyline in the image (`u` right, `v` down, walking from the first
+//! vertex to the last). A point is *in the extent* of the surface when its image falls beside
+//! the polyline — within the tube, not beyond either end — so that a cut can stop where the
+//! surface stops.
+
+use nalgebra::Vector3;
+
+use crate::camera::Camera;
+use crate::error::{Error, Resource};
+use crate::features::first_hit;
+use crate::mesh::Mesh;
+use crate::real::Real;
+
+/// Reals of scratch per polyline vertex: a plane (normal and offset) for the segment it
+/// starts, and the arc length up to it.
+pub(crate) const REALS_PER_VERTEX: usize = 5;
+
+fn sub<T: Real>(a: [T; 2], b: [T; 2]) -> [T; 2] {
+    [a[0] - b[0], a[1] - b[1]]
+}
+
+fn dot2<T: Real>(a: [T; 2], b: [T; 2]) -> T {
+    a[0] * b[0] + a[1] * b[1]
+}
+
+/// Where an image point lies relative to the polyline.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Foot<T> {
+    /// The nearest segment.
+    pub segment: usize,
+    /// Signed image distance to that segment's line, pixels (`> 0` on the left).
+    pub signed_px: T,
+    /// Whether the point lies beside the polyline: not beyond an end, within the tube.
+    pub inside: bool,
+}
+
+/// The polyline (ends extended), its segment planes, and the camera.
+pub(crate) struct SeparationSurface<'s, T: Real> {
+    polyline: &'s [[T; 2]],
+    /// The two end vertices after extension.
+    ends: [[T; 2]; 2],
+    /// Per segment: unit normal and offset, `φ(p) = n · p − offset`.
+    planes: &'s [[T; 4]],
+    camera: &'s Camera<T>,
+    tube_px: T,
+}
+
+impl<'s, T: Real> SeparationSurface<'s, T> {
+    /// Builds the planes of `polyline` (at least two vertices) into `scratch`
+    /// (`4 · (vertices − 1)` reals). `depth`: extrude along this direction instead of the
+    /// camera rays; the segment's plane then goes through the points where the rays of its
+    /// vertices meet the model (`mesh` at positions `x`), or, where a ray misses it, the
+    /// plane through the model's centroid across the view. An end `extend` names is extended by
+    /// `extension_px` along its segment when that reaches past the model's silhouette;
+    /// `extension_px` is also the tube's half-width.
+    ///
+    /// # Errors
+    /// [`Error::Capacity`] naming [`Resource::CutVertices`] for a short `scratch`.
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        polyline: &'s [[T; 2]],
+        camera: &'s Camera<T>,
+        depth: Option<[T; 3]>,
+        extension_px: T,
+        extend: [bool; 2],
+        mesh: &Mesh<'_, T>,
+        x: &[[T; 3]],
+        scratch: &'s mut [T],
+    ) -> Result<Self, Error> {
+        let m = polyline.len();
+        let segments = m.saturating_sub(1);
+        let needed = 4 * segments;
+        if scratch.len() < needed {
+            return Err(Error::Capacity {
+                resource: Resource::CutVertices,
+                needed,
+                available: scratch.len(),
+            });
+        }
+        let planes = scratch[..needed].as_chunks_mut::<4>().0;
+        let ext = if extension_px.finite() {
+            extension_px.max(T::one())
+        } else {
+            T::one()
+        };
+        let open_ends = extend;
+        // The detector sees a cut end only to within a feature spacing: the last separation
+        // point lies up to a spacing short of it. An open end is therefore extended by half a
+        // spacing (the expected shortfall), and taken through the silhouette when the model's
+        // edge lies within a spacing: no feature beyond could have shown the cut going on, and
+        // a bridge that thin left uncut would hold the lips together.
+        let extend = |from: [T; 2], toward: [T; 2], open: bool| -> [T; 2] {
+            let d = sub(from, toward);
+            let len = dot2(d, d).sqrt();
+            if !(open && len > T::EPS) {
+                return from;
+            }
+            let along = |s: T| [from[0] + d[0] / len * s, from[1] + d[1] / len * s];
+            if first_hit(mesh, x, camera, along(ext)).is_some() {
+                along(ext * T::of(0.5))
+            } else {
+                along(ext)
+            }
+        };
+        let ends = if m >= 2 {
+            [
+                extend(polyline[0], polyline[1], open_ends[0]),
+                extend(polyline[m - 1], polyline[m - 2], open_ends[1]),
+            ]
+        } else {
+            [[T::zero(); 2]; 2]
+        };
+        let vertex = |k: usize| -> [T; 2] {
+            if k == 0 {
+                ends[0]
+            } else if k + 1 == m {
+                ends[1]
+            } else {
+                polyline[k]
+            }
+        };
+        // Across the view through the model's centroid: where a depth-extruded segment is
+        // anchored when a ray misses the model.
+        let n = mesh.n_nodes();
+        let mut centroid = Vector3::zeros();
+        for p in &x[..n] {
+            centroid += Vector3::new(p[0], p[1], p[2]);
+        }
+        centroid /= T::of(n.max(1) as f64);
+        let view = camera.view_direction();
+        let point_on_model = |uv: [T; 2]| -> Vector3<T> {
+            if let Some((tet, w)) = first_hit(mesh, x, camera, uv)
+                && let Some(p) = crate::embed::interpolate(x, &mesh.tets()[tet as usize], &w)
+            {
+                return Vector3::new(p[0], p[1], p[2]);
+            }
+            let (origin, dir) = camera.ray(uv[0], uv[1]);
+            let denom = dir.dot(&view);
+            let s = if denom.abs() > T::EPS {
+                (centroid - origin).dot(&view) / denom
+            } else {
+                T::zero()
+            };
+            origin + dir * s
+        };
+        for k in 0..segments {
+            let (a, b) = (vertex(k), vertex(k + 1));
+            let t = sub(b, a);
+            let len = dot2(t, t).sqrt();
+            let mut plane = [T::zero(); 4];
+            if len > T::EPS {
+                let (normal, offset, probe_origin) = match depth {
+                    None => {
+                        let (c, ra) = camera.ray(a[0], a[1]);
+                        let (_, rb) = camera.ray(b[0], b[1]);
+                        let nv = ra.cross(&rb);
+                        (nv, nv.dot(&c), c)
+                    }
+                    Some(d) => {
+                        let d = Vector3::new(d[0], d[1], d[2]);
+                        let (pa, pb) = (point_on_model(a), point_on_model(b));
+                        let nv = (pb - pa).cross(&d);
+                        (nv, nv.dot(&pa), camera.ray(a[0], a[1]).0)
+                    }
+                };
+                let norm = normal.norm();
+                if norm > T::zero() && norm.finite() {
+                    let (normal, offset) = (normal / norm, offset / norm);
+                    // Orientation: a point seen on the left of the segment must be positive.
+                    let mid = [(a[0] + b[0]) * T::of(0.5), (a[1] + b[1]) * T::of(0.5)];
+                    let left = [-t[1] / len, t[0] / len];
+                    let probe = [mid[0] + left[0], mid[1] + left[1]];
+                    let (_, dir) = camera.ray(probe[0], probe[1]);
+                    let depth_at = (point_on_model(mid) - probe_origin).norm();
+                    let p = probe_origin + dir * depth_at.max(T::EPS);
+                    let sign = if normal.dot(&p) - offset < T::zero() {
+                        -T::one()
+                    } else {
+                        T::one()
+                    };
+                    plane = [
+                        normal.x * sign,
+                        normal.y * sign,
+                        normal.z * sign,
+                        offset * sign,
+                    ];
+                }
+            }
+            planes[k] = plane;
+        }
+        Ok(SeparationSurface {
+            polyline,
+            ends,
+            planes,
+            camera,
+            tube_px: ext,
+        })
+    }
+
+    fn vertex(&self, k: usize) -> [T; 2] {
+        let m = self.polyline.len();
+        if k == 0 {
+            self.ends[0]
+        } else if k + 1 == m {
+            self.ends[1]
+        } else {
+            self.polyline[k]
+        }
+    }
+
+    /// Segments of the polyline.
+    pub fn segments(&self) -> usize {
+        self.planes.len()
+    }
+
+    /// Where image point `q` lies relative to the polyline.
+    pub fn foot(&self, q: [T; 2]) -> Option<Foot<T>> {
+        let last = self.segments().checked_sub(1)?;
+        let mut best: Option<(T, usize, T, T)> = None;
+        for k in 0..=last {
+            let (a, b) = (self.vertex(k), self.vertex(k + 1));
+            let t = sub(b, a);
+            let len2 = dot2(t, t);
+            if !(len2 > T::EPS) {
+                continue;
+            }
+            let w = sub(q, a);
+            let s = dot2(w, t) / len2;
+            let sc = s.max(T::zero()).min(T::one());
+            let d = sub(w, [t[0] * sc, t[1] * sc]);
+            let dist2 = dot2(d, d);
+            if best.is_none_or(|(b, ..)| dist2 < b) {
+                let signed = (t[0] * w[1] - t[1] * w[0]) / len2.sqrt();
+                best = Some((dist2, k, s, signed));
+            }
+        }
+        let (dist2, k, s, signed) = best?;
+        let beyond = (k == 0 && s < T::zero()) || (k == last && s > T::one());
+        Some(Foot {
+            segment: k,
+            signed_px: signed,
+            inside: !beyond && dist2.sqrt() <= self.tube_px,
+        })
+    }
+
+    /// `φ` of point `p` against the plane of `segment`, metres.
+    pub fn phi(&self, segment: usize, p: &[T; 3]) -> T {
+        let n = self.planes[segment];
+        n[0] * p[0] + n[1] * p[1] + n[2] * p[2] - n[3]
+    }
+
+    /// The nearest segment of `p`'s image and `p`'s `φ` against its plane; `None` when `p`
+    /// cannot be projected.
+    pub fn classify(&self, p: &[T; 3]) -> Option<(Foot<T>, T)> {
+        let uv = self
+            .camera
+            .project(&Vector3::new(p[0], p[1], p[2]), 0)
+            .ok()?;
+        let foot = self.foot([uv.x, uv.y])?;
+        Some((foot, self.phi(foot.segment, p)))
+    }
+
+    /// Whether the image of `p` lies beside the polyline.
+    pub fn in_extent(&self, p: &[T; 3]) -> bool {
+        self.classify(p).is_some_and(|(f, _)| f.inside)
+    }
+}

@@ -1,0 +1,182 @@
+//! Everything a cut changes: the mesh, the node positions and what hangs on the nodes, and the
+//! structure of the linear system built on the mesh (stiffness pattern, ordering, symbolic
+//! factorization, scatter map).
+//!
+//! A model holds two of these in its storage: the one in service and a spare. A cut copies the
+//! one in service into the spare, cuts the spare, rebuilds its system and factors it; only when
+//! all of that succeeds are the two swapped, so a refused cut leaves the model as it was.
+
+use crate::embed::Embedding;
+use crate::error::{Error, Resource};
+use crate::material::{Lame, TangentProjection, element_energy_gradient_tangent};
+use crate::mesh::{Mesh, MeshInput};
+use crate::real::Real;
+use crate::solve::build_scatter;
+use crate::sparse::{Symbolic, UpperCsc};
+use crate::storage::Slab;
+
+use super::size::{ModelSize, order_free_nodes};
+
+/// One half of a model's topology-dependent storage.
+#[derive(Debug)]
+pub(crate) struct Discretization<'a, T> {
+    pub mesh: Mesh<'a, T>,
+    /// Node positions, metres.
+    pub x: &'a mut [[T; 3]],
+    /// Positions at the end of the previous frame: what the damping pulls toward.
+    pub previous: &'a mut [[T; 3]],
+    /// Damping weight per node.
+    pub damping: &'a mut [T],
+    /// Stiffness pattern (upper triangle, unknowns in free-node order): column pointers…
+    pub col_ptr: &'a mut [u32],
+    /// … and row indices; `nnz_a` of them in use.
+    pub row_idx: &'a mut [u32],
+    pub nnz_a: usize,
+    pub symbolic: Symbolic<'a>,
+    /// Per tetrahedron, where its blocks go in the pattern's values.
+    pub scatter: &'a mut [[u32; 30]],
+    /// Where each virtual feature sits (slot by slot).
+    pub features: Embedding<'a, T>,
+    /// Where each internal target sits.
+    pub targets: Embedding<'a, T>,
+    /// Nodes the cuts separated, with their copies.
+    #[cfg(feature = "cut")]
+    pub lips: crate::cut::Lips<'a>,
+}
+
+impl<'a, T: Real> Discretization<'a, T> {
+    /// An empty half, in storage taken from the slabs.
+    pub fn with_capacity(
+        size: &ModelSize,
+        reals: &mut Slab<'a, T>,
+        indices: &mut Slab<'a, u32>,
+    ) -> Result<Self, Error> {
+        let c = &size.capacities;
+        let n = c.mesh.nodes;
+        let mesh = Mesh::with_capacity(&c.mesh, reals, indices)?;
+        Ok(Discretization {
+            mesh,
+            x: reals.take(3 * n)?.as_chunks_mut::<3>().0,
+            previous: reals.take(3 * n)?.as_chunks_mut::<3>().0,
+            damping: reals.take(n)?,
+            features: Embedding::with_capacity(c.features, reals, indices)?,
+            targets: Embedding::with_capacity(c.targets, reals, indices)?,
+            col_ptr: indices.take(size.unknowns + 1)?,
+            row_idx: indices.take(size.nnz_a)?,
+            nnz_a: 0,
+            symbolic: Symbolic::with_capacity(
+                size.symbolic_capacity(),
+                indices.take(size.symbolic_capacity().index_len())?,
+            )?,
+            scatter: indices.take(30 * c.mesh.tets)?.as_chunks_mut::<30>().0,
+            #[cfg(feature = "cut")]
+            lips: crate::cut::Lips::with_capacity(n, indices)?,
+        })
+    }
+
+    /// Loads `input` at rest (positions and previous positions at the rest positions, no
+    /// feature, no target), computes the damping weights and builds the system.
+    pub fn load(
+        &mut self,
+        input: &MeshInput<'_, T>,
+        lame: &Lame<T>,
+        damping: T,
+        work: &mut [u32],
+    ) -> Result<(), Error> {
+        self.mesh.load(input, work)?;
+        let n = self.mesh.n_nodes();
+        self.x[..n].copy_from_slice(self.mesh.rest());
+        self.previous[..n].copy_from_slice(self.mesh.rest());
+        self.features.clear();
+        self.targets.clear();
+        #[cfg(feature = "cut")]
+        self.lips.clear();
+        self.compute_damping(lame, damping);
+        self.rebuild_system(work)
+    }
+
+    /// Makes this half a copy of `other`'s mesh and state (not of its system, which a cut
+    /// rebuilds anyway).
+    #[cfg_attr(not(feature = "cut"), allow(dead_code))]
+    pub fn copy_state_from(&mut self, other: &Discretization<'_, T>) {
+        self.mesh.copy_from(&other.mesh);
+        let n = other.mesh.n_nodes();
+        self.x[..n].copy_from_slice(&other.x[..n]);
+        self.previous[..n].copy_from_slice(&other.previous[..n]);
+        self.damping[..n].copy_from_slice(&other.damping[..n]);
+        self.features.copy_from(&other.features);
+        self.targets.copy_from(&other.targets);
+        #[cfg(feature = "cut")]
+        self.lips.copy_from(&other.lips);
+    }
+
+    /// Damping weights from the rest stiffness: `fraction` times a third of the trace of each
+    /// node's diagonal block of the rest tangent.
+    pub fn compute_damping(&mut self, lame: &Lame<T>, fraction: T) {
+        let n = self.mesh.n_nodes();
+        let damping = &mut self.damping[..n];
+        damping.fill(T::zero());
+        for (t, tet) in self.mesh.tets().iter().enumerate() {
+            let Some(rest) = self.mesh.element_rest(t) else {
+                continue;
+            };
+            let g = rest.shape_gradients();
+            let at_rest = [[T::zero(); 3]; 4];
+            let eval = element_energy_gradient_tangent(
+                lame,
+                &rest,
+                &g,
+                &at_rest,
+                TangentProjection::Exact,
+            );
+            for (l, &v) in tet.iter().enumerate() {
+                damping[v as usize] += eval.tangent[l][l].trace() / T::of(3.0);
+            }
+        }
+        for c in damping.iter_mut() {
+            *c *= fraction;
+        }
+    }
+
+    /// Rebuilds the stiffness pattern, its ordering, the symbolic factorization and the
+    /// scatter map for the current mesh, using `work` ([`ModelSize::work_len`]).
+    pub fn rebuild_system(&mut self, work: &mut [u32]) -> Result<(), Error> {
+        let Discretization {
+            mesh,
+            col_ptr,
+            row_idx,
+            nnz_a,
+            symbolic,
+            scatter,
+            ..
+        } = self;
+        let n_free = mesh.n_free();
+        let n = 3 * n_free;
+        // `row_idx` holds the bound `6 n + 54 t` of the capacities, so the pattern always fits.
+        let mut slab = Slab::new(work, Resource::Workspace);
+        let ordered = order_free_nodes(
+            mesh.tets(),
+            mesh.free_index(),
+            n_free,
+            col_ptr,
+            row_idx,
+            &mut slab,
+        )?;
+        let a = UpperCsc::new(n, &col_ptr[..n + 1], &row_idx[..ordered.nnz_a])?;
+        symbolic.analyse(&a, ordered.perm, ordered.scratch)?;
+        build_scatter(mesh, &a, scatter)?;
+        *nnz_a = ordered.nnz_a;
+        Ok(())
+    }
+
+    /// The stiffness pattern in use.
+    pub fn pattern(&self) -> Result<UpperCsc<'_>, Error> {
+        let n = 3 * self.mesh.n_free();
+        UpperCsc::new(n, &self.col_ptr[..n + 1], &self.row_idx[..self.nnz_a])
+    }
+
+    /// Unknowns in use: three per free node.
+    pub fn n_unknowns(&self) -> usize {
+        3 * self.mesh.n_free()
+    }
+}

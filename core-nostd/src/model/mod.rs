@@ -1,0 +1,1093 @@
+//! The model: mesh, material, camera, virtual features, internal targets and the fixed-budget
+//! solver, built once in caller storage and stepped frame by frame.
+//!
+//! ```text
+//! let size = ModelSize::new(&capacities);                 every length a const fn of them
+//! Model::new(mesh, config, &size, ModelBuffers::new(&size, reals, indices)?)
+//! model.embed_features(frame_0)                          virtual features on the surface
+//! model.embed_targets(points)                            internal targets (optional)
+//! loop { model.step(frame) }                             observe → solve → detect → grow → cut
+//! ```
+//!
+//! The storage that a cut changes lives twice ([`discretization`]): the half in service and a
+//! spare the cut is built into, swapped in only when the whole rebuild succeeded.
+
+mod discretization;
+mod size;
+
+pub use size::{
+    Capacities, MeshAnalysis, ModelBuffers, ModelSize, analyse_mesh, analyse_mesh_work_len,
+};
+
+use nalgebra::Vector3;
+
+use crate::camera::Camera;
+#[cfg(feature = "cut")]
+use crate::cut::{self, CutEvent, CutReport};
+#[cfg(feature = "cut")]
+use crate::cutline::{CutLine, CutLineReport};
+use crate::detect::DetectionConfig;
+#[cfg(feature = "cut")]
+use crate::detect::{DetectionReport, Detector};
+use crate::embed::{interpolate, locate_at_rest};
+use crate::error::{Error, Resource};
+use crate::features::{EmbedReport, Features, Observation};
+use crate::material::Lame;
+use crate::mesh::{Mesh, MeshInput};
+use crate::real::Real;
+use crate::solve::{Energies, Problem, SolverConfig, Strategy, WorkCount, dot};
+use crate::sparse::{LdlFactor, NONE, Symbolic, UpperCsc, sym_matvec};
+use crate::storage::{Slab, ensure_exact_len, ensure_len};
+
+use discretization::Discretization;
+
+/// Material parameters.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Material<T> {
+    /// Young's modulus, pascals.
+    pub young: T,
+    /// Poisson ratio, dimensionless, in `(-1, 0.5)`.
+    pub poisson: T,
+}
+
+/// Everything a model needs besides its mesh.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ModelConfig<T: Real> {
+    /// Material of the organ.
+    pub material: Material<T>,
+    /// The calibrated camera.
+    pub camera: Camera<T>,
+    /// The per-frame solve.
+    pub solver: SolverConfig<T>,
+    /// Cut detection (used only when the crate is built with the `cut` feature).
+    pub detection: DetectionConfig<T>,
+}
+
+/// Which matrix the factor in service holds.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum FactorHolds {
+    Nothing,
+    /// The frozen matrix of [`Strategy::Frozen`].
+    Frozen,
+    /// The Hessian of the last Newton step.
+    Step,
+}
+
+/// What one [`Model::step`] did.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StepReport<T> {
+    /// Frame number (0 for the first step).
+    pub frame: u32,
+    /// Features observed in this frame.
+    pub observed: usize,
+    /// Energies at the start of the step (new observations, previous positions).
+    pub energy_before: Energies<T>,
+    /// Energies at the end of the step.
+    pub energy_after: Energies<T>,
+    /// Norm of the gradient over the free unknowns at the start of the step.
+    pub gradient_norm_before: T,
+    /// Norm of the gradient at the end of the step.
+    pub gradient_norm_after: T,
+    /// The smallest step length the line search accepted over the Newton steps (0 if one
+    /// Newton step could not decrease the energy).
+    pub min_step_length: T,
+    /// Work of the steady part of the frame (the solve), per stage.
+    pub work: WorkCount,
+    /// What the cut detection saw (zeros when it is switched off).
+    #[cfg(feature = "cut")]
+    pub detection: DetectionReport<T>,
+    /// The cut line.
+    #[cfg(feature = "cut")]
+    pub cut_line: CutLineReport,
+    /// The cut of the mesh in this frame, with its own work (apart from the steady frame).
+    #[cfg(feature = "cut")]
+    pub cut: CutReport,
+}
+
+/// The linear system of a Newton step, from [`Model::linearize`].
+#[derive(Debug)]
+pub struct Linearization<'m, T> {
+    /// Energies at the current positions.
+    pub energies: Energies<T>,
+    /// Gradient over the free unknowns.
+    pub gradient: &'m [T],
+    /// Positive definite Hessian values on `pattern`.
+    pub hessian: &'m [T],
+    /// The stiffness pattern (upper triangle, unknowns in free-node order).
+    pub pattern: UpperCsc<'m>,
+}
+
+/// Vectors of the Newton step and its linear solve, over the unknowns (no meaning between
+/// calls; a cut uses them as scratch too).
+struct SolveVectors<'a, T> {
+    gradient: &'a mut [T],
+    step: &'a mut [T],
+    /// PCG residual, preconditioned residual, direction and `H·direction`.
+    residual: &'a mut [T],
+    preconditioned: &'a mut [T],
+    direction: &'a mut [T],
+    product: &'a mut [T],
+    /// Work of the triangular solves and the factorization.
+    solve_work: &'a mut [T],
+    /// Positions tried by the line search.
+    trial: &'a mut [[T; 3]],
+    /// Column cursors of the factorization.
+    cursor: &'a mut [u32],
+}
+
+/// The organ model.
+pub struct Model<'a, T: Real> {
+    config: ModelConfig<T>,
+    lame: Lame<T>,
+    /// The mesh and everything built on it, in service.
+    live: Discretization<'a, T>,
+    /// Room to build the next topology in (no meaning between cuts).
+    #[cfg(feature = "cut")]
+    spare: Discretization<'a, T>,
+    hessian: &'a mut [T],
+    factor: LdlFactor<'a, T>,
+    holds: FactorHolds,
+    vectors: SolveVectors<'a, T>,
+    /// Workspace of rebuilds and cuts (no meaning between calls).
+    #[cfg(feature = "cut")]
+    work: &'a mut [u32],
+    features: Features<'a, T>,
+    #[cfg(feature = "cut")]
+    cut: CutState<'a, T>,
+    frame: u32,
+}
+
+/// The detector, the cut line and their scratch.
+#[cfg(feature = "cut")]
+struct CutState<'a, T> {
+    detector: Detector<'a, T>,
+    line: CutLine<'a, T>,
+    /// Residual `d_i` per feature slot.
+    residuals: &'a mut [[T; 2]],
+    /// Scratch: projections of the virtual features at frame 0, then the cut line's vertices
+    /// each frame.
+    pixels: &'a mut [[T; 2]],
+    /// Scratch: the midpoints of the cut's lips in the image.
+    lip_points: &'a mut [[T; 2]],
+    /// Scratch of the mesh cut ([`cut::real_len`]).
+    scratch: &'a mut [T],
+}
+
+impl<'a, T: Real> Model<'a, T> {
+    /// Builds the model in caller storage (sizes from `size`); the model starts at rest with
+    /// no features and no targets.
+    ///
+    /// # Errors
+    /// As [`Mesh::load`]; [`Error::InvalidParameter`] for a bad material, solver or detection
+    /// setting; [`Error::Capacity`] when a buffer or a capacity of `size` is too small (the
+    /// mesh larger than its capacities, or its factor larger than
+    /// [`Capacities::factor_entries`]).
+    pub fn new(
+        input: &MeshInput<'_, T>,
+        config: &ModelConfig<T>,
+        size: &ModelSize,
+        buffers: ModelBuffers<'a, T>,
+    ) -> Result<Self, Error> {
+        config.solver.validate()?;
+        config.detection.validate()?;
+        let lame = Lame::from_young_poisson(config.material.young, config.material.poisson)?;
+        let ModelBuffers { reals, indices } = buffers;
+        ensure_len(reals, size.real_len(), Resource::RealStorage)?;
+        ensure_len(indices, size.index_len(), Resource::IndexStorage)?;
+        let caps = &size.capacities;
+        let mut rs = Slab::new(reals, Resource::RealStorage);
+        let mut is = Slab::new(indices, Resource::IndexStorage);
+        let mut live = Discretization::with_capacity(size, &mut rs, &mut is)?;
+        #[cfg(feature = "cut")]
+        let spare = Discretization::with_capacity(size, &mut rs, &mut is)?;
+        let dofs = size.unknowns;
+        let hessian = rs.take(size.nnz_a)?;
+        let factor = LdlFactor::new(
+            &size.symbolic_capacity(),
+            rs.take(LdlFactor::<T>::storage_len(&size.symbolic_capacity()))?,
+        )?;
+        let vectors = SolveVectors {
+            gradient: rs.take(dofs)?,
+            step: rs.take(dofs)?,
+            residual: rs.take(dofs)?,
+            preconditioned: rs.take(dofs)?,
+            direction: rs.take(dofs)?,
+            product: rs.take(dofs)?,
+            solve_work: rs.take(dofs)?,
+            trial: rs.take(3 * caps.mesh.nodes)?.as_chunks_mut::<3>().0,
+            cursor: is.take(dofs)?,
+        };
+        let features = Features::new(caps.features, &mut rs, &mut is)?;
+        #[cfg(feature = "cut")]
+        let cut = CutState {
+            detector: Detector::new(caps.features, caps.pairs, &mut rs, &mut is)?,
+            line: CutLine::new(caps.cut_vertices, &mut rs, &mut is)?,
+            residuals: rs.take(2 * caps.features)?.as_chunks_mut::<2>().0,
+            pixels: rs
+                .take(2 * caps.features.max(caps.cut_vertices))?
+                .as_chunks_mut::<2>()
+                .0,
+            lip_points: rs.take(2 * caps.mesh.nodes)?.as_chunks_mut::<2>().0,
+            scratch: rs.take(cut::real_len(caps.mesh.nodes, caps.cut_vertices))?,
+        };
+        let work = is.take(size.work_len())?;
+        live.load(input, &lame, config.solver.damping, work)?;
+        Ok(Model {
+            config: *config,
+            lame,
+            live,
+            #[cfg(feature = "cut")]
+            spare,
+            hessian,
+            factor,
+            holds: FactorHolds::Nothing,
+            vectors,
+            #[cfg(feature = "cut")]
+            work,
+            features,
+            #[cfg(feature = "cut")]
+            cut,
+            frame: 0,
+        })
+    }
+
+    /// The mesh in service.
+    pub fn mesh(&self) -> &Mesh<'a, T> {
+        &self.live.mesh
+    }
+
+    /// Current node positions, metres.
+    pub fn positions(&self) -> &[[T; 3]] {
+        &self.live.x[..self.live.mesh.n_nodes()]
+    }
+
+    /// The features' observations (ids, latest pixels, observed this frame).
+    pub fn features(&self) -> &Features<'a, T> {
+        &self.features
+    }
+
+    /// Where each virtual feature sits in the mesh (tetrahedron and weights, by slot).
+    pub fn feature_embedding(&self) -> &crate::embed::Embedding<'a, T> {
+        &self.live.features
+    }
+
+    /// Where each internal target sits in the mesh.
+    pub fn target_embedding(&self) -> &crate::embed::Embedding<'a, T> {
+        &self.live.targets
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &ModelConfig<T> {
+        &self.config
+    }
+
+    /// The symbolic factorization of the stiffness pattern in service (sizes, flop counts).
+    pub fn symbolic(&self) -> &Symbolic<'a> {
+        &self.live.symbolic
+    }
+
+    /// The numeric factor (values of the last factorization in service, if any).
+    pub fn factor(&self) -> &LdlFactor<'a, T> {
+        &self.factor
+    }
+
+    /// Number of unknowns (three per free node).
+    pub fn n_unknowns(&self) -> usize {
+        self.live.n_unknowns()
+    }
+
+    /// World position of the virtual feature in `slot`, metres.
+    ///
+    /// # Errors
+    /// [`Error::IndexOutOfRange`] naming [`Resource::Features`] for a slot not in use.
+    pub fn feature_position(&self, slot: usize) -> Result<[T; 3], Error> {
+        self.live
+            .features
+            .position(slot, &self.live.mesh, self.positions())
+            .ok_or(Error::IndexOutOfRange {
+                resource: Resource::Features,
+                position: slot,
+                index: slot,
+                bound: self.live.features.len(),
+            })
+    }
+
+    /// Current pixel of the virtual feature in `slot`.
+    ///
+    /// # Errors
+    /// As [`Model::feature_position`]; [`Error::BehindCamera`].
+    pub fn projected_feature(&self, slot: usize) -> Result<[T; 2], Error> {
+        let p = self.feature_position(slot)?;
+        let uv = self.config.camera.project(&Vector3::from(p), slot)?;
+        Ok([uv.x, uv.y])
+    }
+
+    /// Number of internal targets carried.
+    pub fn n_targets(&self) -> usize {
+        self.live.targets.len()
+    }
+
+    /// Current position of internal target `k`, metres (`None` out of range).
+    pub fn target_position(&self, k: usize) -> Option<[T; 3]> {
+        self.live
+            .targets
+            .position(k, &self.live.mesh, self.positions())
+    }
+
+    /// Embeds internal targets given by their rest positions (metres): each in the rest
+    /// tetrahedron that contains it, or, for a point just outside the mesh, the one it lies
+    /// least outside of (weights clamped to it). Replaces the targets held before. The model
+    /// carries them from then on, through cuts (each is re-embedded in the piece of its own
+    /// side).
+    ///
+    /// Cost: targets × tetrahedra barycentric solves, once.
+    ///
+    /// # Errors
+    /// [`Error::Capacity`] naming [`Resource::Targets`] for more points than
+    /// [`Capacities::targets`]; [`Error::NonFiniteInput`] for a non-finite coordinate. On error
+    /// the targets held before stay.
+    pub fn embed_targets(&mut self, rest_points: &[[T; 3]]) -> Result<usize, Error> {
+        let capacity = self.live.targets.capacity();
+        if rest_points.len() > capacity {
+            return Err(Error::Capacity {
+                resource: Resource::Targets,
+                needed: rest_points.len(),
+                available: capacity,
+            });
+        }
+        if let Some(position) = rest_points
+            .iter()
+            .position(|p| !p.iter().all(|c| c.finite()))
+        {
+            return Err(Error::NonFiniteInput {
+                resource: Resource::Targets,
+                position,
+            });
+        }
+        let targets = &mut self.live.targets;
+        targets.clear();
+        for &p in rest_points {
+            // A mesh has at least one proper tetrahedron, so a point always lands somewhere.
+            let (t, w) = locate_at_rest(&self.live.mesh, p).unwrap_or((0, [T::of(0.25); 4]));
+            targets.push(t, w, Resource::Targets)?;
+        }
+        Ok(targets.len())
+    }
+
+    /// Switches the linear strategy; a later step refactors what the new strategy needs.
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] for an iteration count out of range.
+    pub fn set_strategy(&mut self, strategy: Strategy) -> Result<(), Error> {
+        let solver = SolverConfig {
+            strategy,
+            ..self.config.solver
+        };
+        solver.validate()?;
+        self.config.solver = solver;
+        Ok(())
+    }
+
+    /// Embeds the features of frame 0 (see [`Features::embed`]) at the current positions,
+    /// replacing any held before, and prepares the frozen factor when that strategy is
+    /// configured.
+    ///
+    /// # Errors
+    /// As [`Features::embed`]; [`Error::NoFeatures`] if no ray hits the model. On error the
+    /// model is as before.
+    pub fn embed_features(&mut self, frame0: &[Observation<T>]) -> Result<EmbedReport, Error> {
+        let margin = self.config.solver.image_margin;
+        let n = self.live.mesh.n_nodes();
+        let report = self.features.embed(
+            &mut self.live.features,
+            &self.live.mesh,
+            &self.live.x[..n],
+            &self.config.camera,
+            frame0,
+            margin,
+        )?;
+        if report.embedded == 0 {
+            return Err(Error::NoFeatures);
+        }
+        self.holds = FactorHolds::Nothing;
+        #[cfg(feature = "cut")]
+        {
+            self.frame = 0;
+            self.cut.line.reset();
+            let n = self.features.len();
+            for slot in 0..n {
+                let uv = self.projected_feature(slot)?;
+                let t = self.features.targets()[slot];
+                self.cut.pixels[slot] = uv;
+                self.cut.residuals[slot] = [t[0] - uv[0], t[1] - uv[1]];
+            }
+            let init = self.cut.detector.init(
+                &self.cut.pixels[..n],
+                &self.cut.residuals[..n],
+                &self.config.detection,
+            );
+            if let Err(e) = init {
+                // The features are placed but cannot be watched for a cut: refuse them all.
+                self.live.features.clear();
+                self.features.forget();
+                return Err(e);
+            }
+        }
+        // The frozen factor is part of setting up, not of the first frame, so that every frame
+        // costs the same.
+        if let Strategy::Frozen { .. } = self.config.solver.strategy {
+            self.prepare_frozen(&mut WorkCount::default())?;
+        }
+        Ok(report)
+    }
+
+    /// One registration step, its stages in order:
+    /// 1. **observe**: take the frame's observations;
+    /// 2. **solve**: a fixed number of Newton steps lowering `W_I + W_S + W_D`;
+    /// 3. **detect** (`cut` feature): residuals, the discontinuity detector;
+    /// 4. **grow**: the cut line follows its evidence and its fronts advance;
+    /// 5. **cut**: the mesh is cut along the line's separation surface ([`Model::apply_cut`]).
+    ///
+    /// The steady work (stages 1–4) is fixed by the configuration and the scene's sizes:
+    /// `newton_iterations + 1` assemblies, one factorization per Newton step (`Refactor`) or
+    /// `pcg_iterations` matrix–vector products and solves (`Frozen`), and
+    /// `line_search_steps` energy evaluations per Newton step. A cut event is reported apart
+    /// ([`StepReport::cut`]); a cut that cannot be made (a capacity, a factorization) is
+    /// reported there and leaves the mesh as it was, without failing the frame.
+    ///
+    /// # Errors
+    /// As [`Features::set_frame`] for a bad frame; [`Error::NoFeatures`] before
+    /// [`Model::embed_features`]; [`Error::NotPositiveDefinite`] / [`Error::Diverged`] /
+    /// [`Error::BehindCamera`] if the solve breaks down. On any error the positions and
+    /// targets are those from before the call.
+    pub fn step(&mut self, frame: &[Observation<T>]) -> Result<StepReport<T>, Error> {
+        let observed = self.observe(frame)?;
+        let n_nodes = self.live.mesh.n_nodes();
+        let live = &mut self.live;
+        live.previous[..n_nodes].copy_from_slice(&live.x[..n_nodes]);
+        let mut report = match self.solve_frame() {
+            Ok(report) => report,
+            Err(e) => {
+                let live = &mut self.live;
+                live.x[..n_nodes].copy_from_slice(&live.previous[..n_nodes]);
+                return Err(e);
+            }
+        };
+        report.frame = self.frame;
+        report.observed = observed;
+        #[cfg(feature = "cut")]
+        if self.config.detection.enabled {
+            report.detection = self.detect();
+            report.cut_line = self.grow_cut_line();
+            report.cut = match self.apply_cut() {
+                Ok(cut) => cut,
+                Err(e) => CutReport::refused(e),
+            };
+        }
+        self.frame = self.frame.wrapping_add(1);
+        Ok(report)
+    }
+
+    /// Takes a frame's observations without solving (what [`Model::step`] does first); for
+    /// validation with an outside solver through [`Model::linearize`]. Returns the number
+    /// observed.
+    ///
+    /// # Errors
+    /// As [`Features::set_frame`]; [`Error::NoFeatures`] before [`Model::embed_features`].
+    pub fn observe(&mut self, frame: &[Observation<T>]) -> Result<usize, Error> {
+        if self.features.is_empty() {
+            return Err(Error::NoFeatures);
+        }
+        let margin = self.config.solver.image_margin;
+        self.features.set_frame(&self.config.camera, frame, margin)
+    }
+
+    fn solve_frame(&mut self) -> Result<StepReport<T>, Error> {
+        let n = self.n_unknowns();
+        let mut work = WorkCount::default();
+        let newton = self.config.solver.newton_iterations;
+        let trials = self.config.solver.line_search_steps;
+
+        if let Strategy::Frozen { .. } = self.config.solver.strategy
+            && self.holds != FactorHolds::Frozen
+        {
+            // Only after a switch of strategy: a one-off cost, counted in this frame's work.
+            self.prepare_frozen(&mut work)?;
+        }
+
+        let mut energy_before = Energies::default();
+        let mut gradient_norm_before = T::zero();
+        let mut min_step = T::one();
+        for it in 0..newton {
+            let e = self.assemble(true, &mut work)?;
+            let v = &mut self.vectors;
+            if it == 0 {
+                energy_before = e;
+                gradient_norm_before = dot(&v.gradient[..n], &v.gradient[..n]).sqrt();
+            }
+            match self.config.solver.strategy {
+                Strategy::Refactor => {
+                    self.factorize(&mut work)?;
+                    self.holds = FactorHolds::Step;
+                    let v = &mut self.vectors;
+                    for (s, &g) in v.step[..n].iter_mut().zip(&v.gradient[..n]) {
+                        *s = -g;
+                    }
+                    self.factor.solve_in_place(
+                        &self.live.symbolic,
+                        &mut v.step[..n],
+                        &mut v.solve_work[..n],
+                    )?;
+                    work.solves += 1;
+                    work.solve_flops += self.live.symbolic.solve_flops();
+                }
+                Strategy::Frozen { pcg_iterations } => {
+                    self.pcg(pcg_iterations, &mut work)?;
+                }
+            }
+            let v = &self.vectors;
+            let slope = dot(&v.gradient[..n], &v.step[..n]);
+            let alpha = self.line_search(&e, slope, trials, &mut work)?;
+            min_step = min_step.min(alpha);
+            if alpha > T::zero() {
+                self.move_along(alpha);
+            }
+        }
+        let energy_after = self.assemble(false, &mut work)?;
+        let v = &self.vectors;
+        let gradient_norm_after = dot(&v.gradient[..n], &v.gradient[..n]).sqrt();
+        if !(gradient_norm_after.finite() && energy_after.total().finite()) {
+            return Err(Error::Diverged);
+        }
+        Ok(StepReport {
+            frame: 0,
+            observed: 0,
+            energy_before,
+            energy_after,
+            gradient_norm_before,
+            gradient_norm_after,
+            min_step_length: min_step,
+            work,
+            #[cfg(feature = "cut")]
+            detection: DetectionReport::default(),
+            #[cfg(feature = "cut")]
+            cut_line: CutLineReport::default(),
+            #[cfg(feature = "cut")]
+            cut: CutReport::default(),
+        })
+    }
+
+    /// Assembles the gradient (and, if asked, the Hessian) at the current positions.
+    fn assemble(&mut self, with_hessian: bool, work: &mut WorkCount) -> Result<Energies<T>, Error> {
+        let Model {
+            live,
+            lame,
+            config,
+            features,
+            vectors,
+            hessian,
+            ..
+        } = self;
+        assemble_on(
+            live,
+            features,
+            lame,
+            config,
+            &mut vectors.gradient[..],
+            with_hessian.then_some(&mut hessian[..]),
+            work,
+        )
+    }
+
+    /// Factors the frozen matrix: the positive definite Hessian at the current state.
+    fn prepare_frozen(&mut self, work: &mut WorkCount) -> Result<(), Error> {
+        self.assemble(true, work)?;
+        self.factorize(work)?;
+        self.holds = FactorHolds::Frozen;
+        Ok(())
+    }
+
+    fn factorize(&mut self, work: &mut WorkCount) -> Result<(), Error> {
+        factorize_on(
+            &self.live,
+            self.hessian,
+            &mut self.factor,
+            &mut self.vectors,
+            work,
+        )
+    }
+
+    /// Preconditioned conjugate gradients on `H step = −grad` with the frozen factor, a fixed
+    /// number of iterations (fewer only if the residual vanishes exactly).
+    fn pcg(&mut self, iterations: u32, work: &mut WorkCount) -> Result<(), Error> {
+        let n = self.n_unknowns();
+        let nnz = self.live.nnz_a;
+        let a = self.live.pattern()?;
+        let sym = &self.live.symbolic;
+        let v = &mut self.vectors;
+        let (step, r, z, p, q, y) = (
+            &mut v.step[..n],
+            &mut v.residual[..n],
+            &mut v.preconditioned[..n],
+            &mut v.direction[..n],
+            &mut v.product[..n],
+            &mut v.solve_work[..n],
+        );
+        step.fill(T::zero());
+        for (ri, &g) in r.iter_mut().zip(&v.gradient[..n]) {
+            *ri = -g;
+        }
+        z.copy_from_slice(r);
+        self.factor.solve_in_place(sym, z, y)?;
+        work.solves += 1;
+        work.solve_flops += sym.solve_flops();
+        p.copy_from_slice(z);
+        let mut rz = dot(r, z);
+        for _ in 0..iterations {
+            sym_matvec(&a, &self.hessian[..nnz], p, q)?;
+            work.matvecs += 1;
+            work.matvec_flops += 2 * nnz as u64;
+            let pq = dot(p, q);
+            if !(pq > T::zero() && rz > T::zero()) {
+                break;
+            }
+            let alpha = rz / pq;
+            for i in 0..n {
+                step[i] += alpha * p[i];
+                r[i] -= alpha * q[i];
+            }
+            z.copy_from_slice(r);
+            self.factor.solve_in_place(sym, z, y)?;
+            work.solves += 1;
+            work.solve_flops += sym.solve_flops();
+            let rz_new = dot(r, z);
+            let beta = rz_new / rz;
+            for i in 0..n {
+                p[i] = z[i] + beta * p[i];
+            }
+            rz = rz_new;
+        }
+        Ok(())
+    }
+
+    /// Evaluates all trial lengths `1, ½, …` and returns the first that satisfies the Armijo
+    /// condition, else the one with the lowest energy if it improves, else 0.
+    ///
+    /// Armijo is tested with the energy's rounding error as slack: near the minimum the
+    /// decrease a Newton step buys falls below what the energy can resolve, and the step must
+    /// still be taken for the gradient to keep shrinking.
+    fn line_search(
+        &mut self,
+        at: &Energies<T>,
+        slope: T,
+        trials: u32,
+        work: &mut WorkCount,
+    ) -> Result<T, Error> {
+        let n_nodes = self.live.mesh.n_nodes();
+        let energy = at.total();
+        let slack = T::of(2.0) * at.rounding;
+        let mut alpha = T::one();
+        let mut chosen: Option<T> = None;
+        let mut best = (energy, T::zero());
+        for _ in 0..trials {
+            self.fill_trial(alpha);
+            let problem = problem_of(&self.live, &self.features, &self.lame, &self.config);
+            let e = match problem.energy(&self.vectors.trial[..n_nodes], work) {
+                Ok(e) => e.total(),
+                Err(Error::BehindCamera { .. }) => T::zero() / T::zero(),
+                Err(e) => return Err(e),
+            };
+            if e.finite() {
+                if chosen.is_none() && e <= energy + T::of(1e-4) * alpha * slope + slack {
+                    chosen = Some(alpha);
+                }
+                if e < best.0 {
+                    best = (e, alpha);
+                }
+            }
+            alpha *= T::of(0.5);
+        }
+        Ok(chosen.unwrap_or(best.1))
+    }
+
+    fn fill_trial(&mut self, alpha: T) {
+        let n_nodes = self.live.mesh.n_nodes();
+        let free = self.live.mesh.free_index();
+        let v = &mut self.vectors;
+        for node in 0..n_nodes {
+            let f = free[node];
+            v.trial[node] = self.live.x[node];
+            if f != NONE {
+                let b = 3 * f as usize;
+                for c in 0..3 {
+                    v.trial[node][c] += alpha * v.step[b + c];
+                }
+            }
+        }
+    }
+
+    fn move_along(&mut self, alpha: T) {
+        self.fill_trial(alpha);
+        let n_nodes = self.live.mesh.n_nodes();
+        self.live.x[..n_nodes].copy_from_slice(&self.vectors.trial[..n_nodes]);
+    }
+
+    /// The worst-case work of one [`Model::step`]'s steady part with every feature observed:
+    /// a formula of the scene's sizes and the configuration.
+    pub fn worst_case_work(&self) -> WorkCount {
+        let s = &self.config.solver;
+        let newton = s.newton_iterations;
+        let tets = self.live.mesh.n_tets() as u64;
+        let feats = self.features.len() as u64;
+        let nnz = self.live.nnz_a as u64;
+        let sym = &self.live.symbolic;
+        let mut w = WorkCount {
+            assemblies: newton + 1,
+            element_tangents: u64::from(newton) * tets,
+            element_evaluations: tets * (1 + u64::from(newton * s.line_search_steps)),
+            feature_evaluations: feats
+                * (1 + u64::from(newton) * (1 + u64::from(s.line_search_steps))),
+            energy_evaluations: newton * s.line_search_steps,
+            ..WorkCount::default()
+        };
+        match s.strategy {
+            Strategy::Refactor => {
+                w.factorizations = newton;
+                w.factor_flops = u64::from(newton) * sym.factor_flops();
+                w.solves = newton;
+                w.solve_flops = u64::from(newton) * sym.solve_flops();
+            }
+            Strategy::Frozen { pcg_iterations } => {
+                w.solves = newton * (pcg_iterations + 1);
+                w.solve_flops = u64::from(w.solves) * sym.solve_flops();
+                w.matvecs = newton * pcg_iterations;
+                w.matvec_flops = u64::from(w.matvecs) * 2 * nnz;
+            }
+        }
+        w
+    }
+
+    /// The energies at the current positions (observations of the last frame, damping toward
+    /// the previous frame's positions).
+    ///
+    /// # Errors
+    /// [`Error::BehindCamera`] if a virtual feature cannot be projected.
+    pub fn energy(&self) -> Result<Energies<T>, Error> {
+        problem_of(&self.live, &self.features, &self.lame, &self.config)
+            .energy(self.positions(), &mut WorkCount::default())
+    }
+
+    /// Assembles the system a Newton step solves at the current positions, for validation
+    /// against other solvers: the gradient over the free unknowns (`3 · n_free`, node by free
+    /// index) and the positive definite Hessian on the stiffness pattern.
+    ///
+    /// # Errors
+    /// As [`Model::energy`].
+    pub fn linearize(&mut self) -> Result<Linearization<'_, T>, Error> {
+        let energies = self.assemble(true, &mut WorkCount::default())?;
+        let n = self.n_unknowns();
+        let nnz = self.live.nnz_a;
+        Ok(Linearization {
+            energies,
+            gradient: &self.vectors.gradient[..n],
+            hessian: &self.hessian[..nnz],
+            pattern: self.live.pattern()?,
+        })
+    }
+
+    /// Moves the free nodes to `x` (one position per node; the entries of fixed nodes are
+    /// ignored, they stay at rest). The damping reference moves with them.
+    ///
+    /// # Errors
+    /// [`Error::Length`] if `x` does not have one entry per node, [`Error::NonFiniteInput`]
+    /// for a non-finite coordinate; nothing changes then.
+    pub fn set_positions(&mut self, x: &[[T; 3]]) -> Result<(), Error> {
+        let n = self.live.mesh.n_nodes();
+        ensure_exact_len(x, n, Resource::Nodes)?;
+        if let Some(position) = x.iter().position(|p| !p.iter().all(|c| c.finite())) {
+            return Err(Error::NonFiniteInput {
+                resource: Resource::Nodes,
+                position,
+            });
+        }
+        let live = &mut self.live;
+        let free = live.mesh.free_index();
+        for v in 0..n {
+            if free[v] != NONE {
+                live.x[v] = x[v];
+            }
+        }
+        live.previous[..n].copy_from_slice(&live.x[..n]);
+        Ok(())
+    }
+
+    /// Stage 3: the residuals of the frame and the detector.
+    #[cfg(feature = "cut")]
+    fn detect(&mut self) -> DetectionReport<T> {
+        let n = self.features.len();
+        for slot in 0..n {
+            let t = self.features.targets()[slot];
+            // A feature whose virtual point cannot be projected is treated as unobserved.
+            self.cut.residuals[slot] = match self.projected_feature(slot) {
+                Ok(uv) => [t[0] - uv[0], t[1] - uv[1]],
+                Err(_) => [T::zero(); 2],
+            };
+        }
+        self.cut.detector.update(
+            self.frame,
+            &self.cut.residuals[..n],
+            self.features.active(),
+            self.features.targets(),
+            &self.config.detection,
+        )
+    }
+
+    /// Stage 4: the cut line starts or advances. Where the mesh is already cut, the model no
+    /// longer spans the opening and leaves no separation points there: the line then follows
+    /// the midpoints of the cut's lips, as the model sees them.
+    #[cfg(feature = "cut")]
+    fn grow_cut_line(&mut self) -> CutLineReport {
+        let mut n_lips = 0;
+        for &[a, b] in self.live.lips.pairs() {
+            let (pa, pb) = (self.live.x[a as usize], self.live.x[b as usize]);
+            let camera = &self.config.camera;
+            if let (Ok(ua), Ok(ub)) = (
+                camera.project(&Vector3::from(pa), a as usize),
+                camera.project(&Vector3::from(pb), b as usize),
+            ) && let Some(slot) = self.cut.lip_points.get_mut(n_lips)
+            {
+                *slot = [(ua.x + ub.x) * T::of(0.5), (ua.y + ub.y) * T::of(0.5)];
+                n_lips += 1;
+            }
+        }
+        self.cut.line.update(
+            self.frame,
+            self.cut.detector.points(),
+            self.cut.detector.point_since(),
+            &self.cut.lip_points[..n_lips],
+            self.features.targets(),
+            self.features.active(),
+            &self.config.detection,
+            self.cut.pixels,
+        )
+    }
+
+    /// Stage 5: cuts the mesh along the separation surface of the cut line as it is seen now
+    /// (the line extruded along the camera rays, or the configured depth direction), where the
+    /// mesh is not cut yet. Nothing happens before the line has started or when the surface
+    /// crosses nothing new.
+    ///
+    /// The cut is built into the spare half of the storage — mesh, positions, embeddings,
+    /// stiffness pattern, ordering, symbolic analysis — then the Hessian at the current state
+    /// is factored with it, and only then is it put in service. Its work is reported in
+    /// [`CutReport::work`], apart from the steady frame.
+    ///
+    /// # Errors
+    /// [`Error::Capacity`] when the cut needs more nodes, tetrahedra, boundary triangles or
+    /// factor entries than the capacities hold; [`Error::NonManifold`] for a cut that would
+    /// leave a non-manifold surface; the factorization's errors. On any error the model is
+    /// exactly as before the call.
+    #[cfg(feature = "cut")]
+    pub fn apply_cut(&mut self) -> Result<CutReport, Error> {
+        let m = self
+            .cut
+            .line
+            .project(self.features.targets(), self.cut.pixels);
+        let parts = self.cut.line.pending();
+        if m < 2 || parts.iter().all(Option::is_none) {
+            return Ok(CutReport::default());
+        }
+        self.spare.copy_state_from(&self.live);
+        let spare = &mut self.spare;
+        let spacing = self.cut.detector.radius() / T::of(2.5);
+        let mut event = CutEvent::default();
+        for part in parts.into_iter().flatten() {
+            let e = cut::apply(
+                &cut::Surface {
+                    polyline: &self.cut.pixels[part.first..=part.last.min(m - 1)],
+                    camera: &self.config.camera,
+                    depth: self.config.detection.depth,
+                    extension_px: spacing,
+                    extend: part.open,
+                },
+                self.features.targets(),
+                cut::Pieces {
+                    mesh: &mut spare.mesh,
+                    x: &mut spare.x[..],
+                    previous: &mut spare.previous[..],
+                    features: &mut spare.features,
+                    targets: &mut spare.targets,
+                    lips: &mut spare.lips,
+                },
+                self.cut.scratch,
+                self.work,
+            )?;
+            event.merge(&e);
+        }
+        let mut report = CutReport {
+            applied: false,
+            refused: None,
+            event,
+            work: WorkCount::default(),
+        };
+        if !event.changes_mesh() {
+            // Nothing of the new part crosses the mesh: it is done with.
+            self.cut.line.mark_applied();
+            return Ok(report);
+        }
+        spare.compute_damping(&self.lame, self.config.solver.damping);
+        spare.rebuild_system(self.work)?;
+        let mut work = WorkCount::default();
+        assemble_on(
+            spare,
+            &self.features,
+            &self.lame,
+            &self.config,
+            &mut self.vectors.gradient[..],
+            Some(&mut self.hessian[..]),
+            &mut work,
+        )?;
+        factorize_on(
+            spare,
+            self.hessian,
+            &mut self.factor,
+            &mut self.vectors,
+            &mut work,
+        )?;
+        // Everything succeeded: the new topology goes into service with its factor.
+        core::mem::swap(&mut self.live, &mut self.spare);
+        self.holds = match self.config.solver.strategy {
+            Strategy::Frozen { .. } => FactorHolds::Frozen,
+            Strategy::Refactor => FactorHolds::Step,
+        };
+        self.cut.line.mark_applied();
+        report.applied = true;
+        report.work = work;
+        Ok(report)
+    }
+
+    /// The detected cut line in the image, as its anchoring features are seen now: writes up
+    /// to `out.len()` vertices (pixels), returns how many (0 before a cut is detected).
+    #[cfg(feature = "cut")]
+    pub fn cut_polyline(&self, out: &mut [[T; 2]]) -> usize {
+        self.cut.line.project(self.features.targets(), out)
+    }
+
+    /// The separation surface of the detected cut: one quadrilateral (metres) per segment of
+    /// the cut line, extruded along the depth direction by the size of the model. Writes up to
+    /// `out.len()`, returns how many.
+    #[cfg(feature = "cut")]
+    pub fn separation_surface(&self, out: &mut [[[T; 3]; 4]]) -> usize {
+        let x = self.positions();
+        // Long enough to pass through the whole model: its bounding-box diagonal.
+        let (mut lo, mut hi) = ([T::zero(); 3], [T::zero(); 3]);
+        for (k, p) in x.iter().enumerate() {
+            for c in 0..3 {
+                lo[c] = if k == 0 { p[c] } else { lo[c].min(p[c]) };
+                hi[c] = if k == 0 { p[c] } else { hi[c].max(p[c]) };
+            }
+        }
+        let diagonal = ((hi[0] - lo[0]) * (hi[0] - lo[0])
+            + (hi[1] - lo[1]) * (hi[1] - lo[1])
+            + (hi[2] - lo[2]) * (hi[2] - lo[2]))
+            .sqrt();
+        self.cut.line.separation_surface(
+            self.features.targets(),
+            &self.live.mesh,
+            x,
+            &self.config.camera,
+            &self.config.detection,
+            diagonal,
+            out,
+        )
+    }
+
+    /// The cut detector (pairs, separation points).
+    #[cfg(feature = "cut")]
+    pub fn detector(&self) -> &Detector<'a, T> {
+        &self.cut.detector
+    }
+
+    /// The cut line.
+    #[cfg(feature = "cut")]
+    pub fn cut_line(&self) -> &CutLine<'a, T> {
+        &self.cut.line
+    }
+
+    /// The node pairs the cuts have separated (a node on the cut and its copy on the other
+    /// lip).
+    #[cfg(feature = "cut")]
+    pub fn lips(&self) -> &[[u32; 2]] {
+        self.live.lips.pairs()
+    }
+
+    /// Position of internal target `k` interpolated at positions `x` (for callers that move the
+    /// nodes themselves); `None` out of range.
+    pub fn target_at(&self, k: usize, x: &[[T; 3]]) -> Option<[T; 3]> {
+        let t = *self.live.targets.tets().get(k)?;
+        let tet = self.live.mesh.tets().get(t as usize)?;
+        interpolate(x, tet, &self.live.targets.weights()[k])
+    }
+}
+
+/// The energy of a discretization with the features' observations.
+fn problem_of<'p, 'a, T: Real>(
+    d: &'p Discretization<'a, T>,
+    features: &'p Features<'a, T>,
+    lame: &Lame<T>,
+    config: &'p ModelConfig<T>,
+) -> Problem<'p, 'a, T> {
+    let n = d.mesh.n_nodes();
+    Problem {
+        mesh: &d.mesh,
+        lame: *lame,
+        camera: &config.camera,
+        features,
+        embedding: &d.features,
+        spring_stiffness: config.solver.spring_stiffness,
+        damping: &d.damping[..n],
+        anchor: &d.previous[..n],
+        scatter: &d.scatter[..d.mesh.n_tets()],
+        col_ptr: &d.col_ptr[..d.n_unknowns() + 1],
+    }
+}
+
+/// Gradient (and, if given, the Hessian values) of a discretization at its positions.
+fn assemble_on<T: Real>(
+    d: &Discretization<'_, T>,
+    features: &Features<'_, T>,
+    lame: &Lame<T>,
+    config: &ModelConfig<T>,
+    gradient: &mut [T],
+    hessian: Option<&mut [T]>,
+    work: &mut WorkCount,
+) -> Result<Energies<T>, Error> {
+    let n = d.n_unknowns();
+    let nnz = d.nnz_a;
+    problem_of(d, features, lame, config).assemble(
+        &d.x[..d.mesh.n_nodes()],
+        &mut gradient[..n],
+        hessian.map(|h| &mut h[..nnz]),
+        work,
+    )
+}
+
+/// Factors the Hessian values of a discretization with its symbolic analysis.
+fn factorize_on<T: Real>(
+    d: &Discretization<'_, T>,
+    hessian: &[T],
+    factor: &mut LdlFactor<'_, T>,
+    vectors: &mut SolveVectors<'_, T>,
+    work: &mut WorkCount,
+) -> Result<(), Error> {
+    let n = d.n_unknowns();
+    factor.factorize(
+        &d.symbolic,
+        &hessian[..d.nnz_a],
+        &mut vectors.solve_work[..n],
+        &mut vectors.cursor[..n],
+    )?;
+    work.factorizations += 1;
+    work.factor_flops += d.symbolic.factor_flops();
+    Ok(())
+}
