@@ -4,6 +4,7 @@
 
 pub mod oracle;
 pub use incise::rng;
+pub mod cutcheck;
 pub mod scene;
 pub mod system;
 pub mod testmesh;

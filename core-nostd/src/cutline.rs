@@ -112,6 +112,17 @@ impl<'a, T: Real> CutLine<'a, T> {
         })
     }
 
+    /// Hashes every buffer of the line's state.
+    pub(crate) fn fingerprint_into(&self, h: &mut crate::storage::Fingerprint) {
+        h.words(self.anchors[..self.n].iter().flatten());
+        h.reals(self.weights[..self.n].iter().flatten());
+        h.reals(self.direction.iter().flatten());
+        let applied = self.applied.map_or([u32::MAX; 2], |r| r.map(|v| v as u32));
+        let detected = self.detected_frame.unwrap_or(u32::MAX);
+        h.words([self.n as u32, detected, u32::from(self.capped)].iter());
+        h.words(applied.iter().chain(self.moved.iter()));
+    }
+
     /// Forgets the line.
     pub fn reset(&mut self) {
         self.n = 0;

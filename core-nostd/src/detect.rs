@@ -233,6 +233,29 @@ mod detector {
             })
         }
 
+        /// Hashes every buffer of the detector's state.
+        pub(crate) fn fingerprint_into(&self, h: &mut crate::storage::Fingerprint) {
+            h.words(self.pairs[..self.n_pairs].iter().flatten());
+            h.words(&self.pair_state[..self.n_pairs]);
+            h.words(&self.split_since[..self.n_pairs]);
+            h.reals(self.previous.iter().flatten());
+            h.reals(self.current.iter().flatten());
+            h.words(self.feature_state.iter());
+            h.words(self.pair_counts.iter().flatten());
+            h.reals(self.points[..self.n_points].iter().flatten());
+            h.words(&self.point_since[..self.n_points]);
+            h.reals([self.radius].iter());
+            h.words(
+                [
+                    self.n_pairs as u32,
+                    self.n_points as u32,
+                    self.pairs_lost as u32,
+                    self.features_filtered as u32,
+                ]
+                .iter(),
+            );
+        }
+
         /// The neighbour pairs (feature slots).
         pub fn pairs(&self) -> &[[u32; 2]] {
             &self.pairs[..self.n_pairs]

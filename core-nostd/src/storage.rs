@@ -89,6 +89,40 @@ pub fn ensure_exact_len<X>(slice: &[X], expected: usize, resource: Resource) -> 
     }
 }
 
+/// FNV-1a over the bits of a model's state buffers ([`crate::Model::fingerprint`]).
+pub(crate) struct Fingerprint(u64);
+
+impl Fingerprint {
+    pub fn new() -> Self {
+        Fingerprint(0xcbf2_9ce4_8422_2325)
+    }
+
+    fn byte_word(&mut self, w: u64) {
+        for b in w.to_le_bytes() {
+            self.0 ^= u64::from(b);
+            self.0 = self.0.wrapping_mul(0x0000_0100_0000_01b3);
+        }
+    }
+
+    /// Hashes index words.
+    pub fn words<'w>(&mut self, words: impl IntoIterator<Item = &'w u32>) {
+        for &w in words {
+            self.byte_word(u64::from(w));
+        }
+    }
+
+    /// Hashes scalars by their bits (as `f64`, exact for `f32`).
+    pub fn reals<'r, T: crate::Real + 'r>(&mut self, reals: impl IntoIterator<Item = &'r T>) {
+        for &r in reals {
+            self.byte_word(r.to_f64().to_bits());
+        }
+    }
+
+    pub fn finish(&self) -> u64 {
+        self.0
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

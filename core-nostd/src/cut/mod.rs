@@ -414,35 +414,67 @@ pub(crate) fn apply<T: Real>(
 
     let incidence = Incidence::build(mesh.tets(), n0, inc_ptr, inc_list)?;
 
-    // 2. Snap.
+    // 2. Snap. A node on the boundary moves only along a boundary edge, so that the organ's
+    // surface keeps its shape; inside, along any edge.
+    mark[..n0].fill(0);
+    for tri in mesh.surface() {
+        for &v in tri {
+            mark[v as usize] = 1;
+        }
+    }
+    let boundary_edge = |mesh: &Mesh<'_, T>, a: u32, b: u32| {
+        mesh.surface()
+            .iter()
+            .any(|tri| tri.contains(&a) && tri.contains(&b))
+    };
     for v in 0..n0 {
         let pv = phi[v];
         if !(pv.finite() && pv != T::zero()) {
             continue;
         }
-        let mut nearest: Option<(T, u32)> = None;
+        let on_boundary = mark[v] == 1;
+        let (mut nearest, mut along): (Option<T>, Option<(T, u32)>) = (None, None);
         for &t in incidence.of(v) {
             for &w in &mesh.tets()[t as usize] {
                 let pw = phi[w as usize];
                 if pw.finite() && sign(pw) == -sign(pv) {
                     let t_cross = pv / (pv - pw);
-                    if nearest.is_none_or(|(b, _)| t_cross < b) {
-                        nearest = Some((t_cross, w));
+                    if nearest.is_none_or(|b| t_cross < b) {
+                        nearest = Some(t_cross);
+                    }
+                    let allowed =
+                        !on_boundary || (mark[w as usize] == 1 && boundary_edge(mesh, v as u32, w));
+                    if allowed && along.is_none_or(|(b, _)| t_cross < b) {
+                        along = Some((t_cross, w));
                     }
                 }
             }
         }
-        let Some((t_cross, w)) = nearest else {
+        let Some(t_near) = nearest else {
             continue;
         };
-        let (wi, vi) = (w as usize, v);
-        if !(t_cross < tau && sep.in_extent(&lerp(x[vi], x[wi], t_cross))) {
+        // Where the surface passes: along the nearest crossing edge.
+        let near_point = incidence
+            .of(v)
+            .iter()
+            .flat_map(|&t| mesh.tets()[t as usize])
+            .find(|&w| {
+                let pw = phi[w as usize];
+                pw.finite() && sign(pw) == -sign(pv) && pv / (pv - pw) == t_near
+            })
+            .map(|w| lerp(x[v], x[w as usize], t_near));
+        if !(t_near < tau && near_point.is_some_and(|p| sep.in_extent(&p))) {
             continue;
         }
-        let moved_rest = lerp(mesh.rest()[vi], mesh.rest()[wi], t_cross);
-        let moved_x = lerp(x[vi], x[wi], t_cross);
-        let movable = !mesh.is_fixed(vi)
-            && incidence.of(v).iter().all(|&t| {
+        let vi = v;
+        let movable = |(t_cross, w): (T, u32)| -> bool {
+            let wi = w as usize;
+            if !(t_cross < tau) || mesh.is_fixed(vi) {
+                return false;
+            }
+            let moved_rest = lerp(mesh.rest()[vi], mesh.rest()[wi], t_cross);
+            let moved_x = lerp(x[vi], x[wi], t_cross);
+            incidence.of(v).iter().all(|&t| {
                 let tet = mesh.tets()[t as usize];
                 let at = |p: &[[T; 3]], q: [T; 3]| {
                     tet.map(|u| if u as usize == vi { q } else { p[u as usize] })
@@ -455,14 +487,18 @@ pub(crate) fn apply<T: Real>(
                     <= T::zero()
                     || orientation(cur_new[0], cur_new[1], cur_new[2], cur_new[3]) > T::zero();
                 (q_new >= floor || q_new >= q_old) && keeps_orientation
-            });
-        if movable {
-            mesh.set_rest(vi, moved_rest);
-            x[vi] = moved_x;
-            previous[vi] = lerp(previous[vi], previous[wi], t_cross);
-            event.nodes_moved += 1;
-        } else {
-            event.nodes_declared += 1;
+            })
+        };
+        match along.filter(|&a| movable(a)) {
+            Some((t_cross, w)) => {
+                let wi = w as usize;
+                let moved_rest = lerp(mesh.rest()[vi], mesh.rest()[wi], t_cross);
+                mesh.set_rest(vi, moved_rest);
+                x[vi] = lerp(x[vi], x[wi], t_cross);
+                previous[vi] = lerp(previous[vi], previous[wi], t_cross);
+                event.nodes_moved += 1;
+            }
+            None => event.nodes_declared += 1,
         }
         phi[vi] = T::zero();
     }
@@ -725,9 +761,19 @@ pub(crate) fn apply<T: Real>(
         }
     }
 
-    // 7. Separate along the cut faces.
+    // 7. Separate along the cut faces. A piece with all four nodes on the surface (possible
+    // where nodes were declared on it) takes the side of its centroid.
     let n1 = mesh.n_nodes();
-    let side = |t: usize| side_of(phi, &mesh.tets()[t]);
+    let side = |t: usize| {
+        let tet = mesh.tets()[t];
+        let s = side_of(phi, &tet);
+        if s != 0 || !tet.iter().all(|&v| phi[v as usize] == T::zero()) {
+            return s;
+        }
+        let c = [0, 1, 2]
+            .map(|k| tet.iter().fold(T::zero(), |a, &v| a + x[v as usize][k]) / T::of(4.0));
+        sep.classify(&c).map_or(0, |(_, p)| sign(p))
+    };
     let n_cut = cut_faces(
         mesh,
         |v| phi[v as usize] == T::zero(),

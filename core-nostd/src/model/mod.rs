@@ -37,7 +37,7 @@ use crate::mesh::{Mesh, MeshInput};
 use crate::real::Real;
 use crate::solve::{Energies, Problem, SolverConfig, Strategy, WorkCount, dot};
 use crate::sparse::{LdlFactor, NONE, Symbolic, UpperCsc, sym_matvec};
-use crate::storage::{Slab, ensure_exact_len, ensure_len};
+use crate::storage::{Fingerprint, Slab, ensure_exact_len, ensure_len};
 
 use discretization::Discretization;
 
@@ -897,9 +897,66 @@ impl<'a, T: Real> Model<'a, T> {
         if m < 2 || parts.iter().all(Option::is_none) {
             return Ok(CutReport::default());
         }
+        let spacing = self.cut.detector.radius() / T::of(2.5);
+        let report = self.cut_pixels(parts, m, spacing)?;
+        // Applied, or crossing nothing new: that part of the line is done with.
+        self.cut.line.mark_applied();
+        Ok(report)
+    }
+
+    /// Cuts the mesh along a polyline given in the image (pixels, at least two vertices, at
+    /// most [`Capacities::cut_vertices`] or [`Capacities::features`], whichever is larger),
+    /// extruded along the camera rays (or the configured depth direction), as
+    /// [`Model::apply_cut`] does with the detected line: for a cut known from elsewhere (a
+    /// tracked instrument, a plan). Each end is extended by `extension_px` where that reaches
+    /// the model's silhouette, else by half of it.
+    ///
+    /// # Errors
+    /// [`Error::Capacity`] naming [`Resource::CutVertices`] for a polyline longer than the
+    /// storage; [`Error::NonFiniteInput`] for a non-finite vertex; otherwise as
+    /// [`Model::apply_cut`], and the model is then exactly as before the call.
+    #[cfg(feature = "cut")]
+    pub fn cut_along(&mut self, polyline: &[[T; 2]], extension_px: T) -> Result<CutReport, Error> {
+        let m = polyline.len();
+        if m > self.cut.pixels.len() {
+            return Err(Error::Capacity {
+                resource: Resource::CutVertices,
+                needed: m,
+                available: self.cut.pixels.len(),
+            });
+        }
+        if let Some(position) = polyline
+            .iter()
+            .position(|p| !(p[0].finite() && p[1].finite()))
+        {
+            return Err(Error::NonFiniteInput {
+                resource: Resource::CutVertices,
+                position,
+            });
+        }
+        if m < 2 {
+            return Ok(CutReport::default());
+        }
+        self.cut.pixels[..m].copy_from_slice(polyline);
+        let whole = crate::cutline::PendingPart {
+            first: 0,
+            last: m - 1,
+            open: [true, true],
+        };
+        self.cut_pixels([Some(whole), None], m, extension_px)
+    }
+
+    /// Cuts along the parts of the polyline held in `cut.pixels[..m]`; the model changes only
+    /// if everything succeeds.
+    #[cfg(feature = "cut")]
+    fn cut_pixels(
+        &mut self,
+        parts: [Option<crate::cutline::PendingPart>; 2],
+        m: usize,
+        spacing: T,
+    ) -> Result<CutReport, Error> {
         self.spare.copy_state_from(&self.live);
         let spare = &mut self.spare;
-        let spacing = self.cut.detector.radius() / T::of(2.5);
         let mut event = CutEvent::default();
         for part in parts.into_iter().flatten() {
             let e = cut::apply(
@@ -931,8 +988,6 @@ impl<'a, T: Real> Model<'a, T> {
             work: WorkCount::default(),
         };
         if !event.changes_mesh() {
-            // Nothing of the new part crosses the mesh: it is done with.
-            self.cut.line.mark_applied();
             return Ok(report);
         }
         spare.compute_damping(&self.lame, self.config.solver.damping);
@@ -960,7 +1015,6 @@ impl<'a, T: Real> Model<'a, T> {
             Strategy::Frozen { .. } => FactorHolds::Frozen,
             Strategy::Refactor => FactorHolds::Step,
         };
-        self.cut.line.mark_applied();
         report.applied = true;
         report.work = work;
         Ok(report)
@@ -1019,6 +1073,72 @@ impl<'a, T: Real> Model<'a, T> {
     #[cfg(feature = "cut")]
     pub fn lips(&self) -> &[[u32; 2]] {
         self.live.lips.pairs()
+    }
+
+    /// A 64-bit fingerprint (FNV-1a) of every buffer that holds the model's state: the mesh
+    /// (rest positions, element data, tetrahedra, free map, boundary surface), positions,
+    /// previous positions, damping weights, stiffness pattern, symbolic analysis, scatter map,
+    /// feature and target embeddings, the cut's lips, the factor in service, the features'
+    /// observations, the detector and the cut line. Scratch (the spare half, workspaces, the
+    /// Hessian and solve vectors) has no meaning between calls and is left out. Two models in
+    /// the same state have the same fingerprint; a call that fails must leave it unchanged.
+    pub fn fingerprint(&self) -> u64 {
+        let mut h = Fingerprint::new();
+        let d = &self.live;
+        let m = &d.mesh;
+        h.reals(m.rest().iter().flatten());
+        for t in 0..m.n_tets() {
+            if let Some(e) = m.element_rest(t) {
+                h.reals(e.dm_inv.iter());
+                h.reals(core::iter::once(&e.volume));
+            }
+        }
+        h.words(m.tets().iter().flatten());
+        h.words(m.free_index());
+        h.words(m.surface().iter().flatten());
+        h.words(m.surface_tet());
+        let n = m.n_nodes();
+        h.reals(d.x[..n].iter().flatten());
+        h.reals(d.previous[..n].iter().flatten());
+        h.reals(d.damping[..n].iter());
+        h.words(&d.col_ptr[..d.n_unknowns() + 1]);
+        h.words(&d.row_idx[..d.nnz_a]);
+        let sym = &d.symbolic;
+        for part in [
+            sym.perm(),
+            sym.iperm(),
+            sym.etree(),
+            sym.c_ptr(),
+            sym.c_row(),
+            sym.c_src(),
+            sym.l_ptr(),
+            sym.l_row(),
+            sym.lt_ptr(),
+            sym.lt_col(),
+        ] {
+            h.words(part);
+        }
+        h.words(d.scatter[..m.n_tets()].iter().flatten());
+        for e in [&d.features, &d.targets] {
+            h.words(e.tets());
+            h.reals(e.weights().iter().flatten());
+        }
+        #[cfg(feature = "cut")]
+        h.words(d.lips.pairs().iter().flatten());
+        if let (Some(l), Some(dv)) = (self.factor.l_values(), self.factor.d_values()) {
+            h.reals(l.iter());
+            h.reals(dv.iter());
+        }
+        h.words(self.features.ids().iter().flatten());
+        h.reals(self.features.targets().iter().flatten());
+        h.words(self.features.active());
+        h.words(core::iter::once(&self.frame));
+        #[cfg(feature = "cut")]
+        {
+            self.cut.detector.fingerprint_into(&mut h);
+            self.cut.line.fingerprint_into(&mut h);
+        }
+        h.finish()
     }
 
     /// Position of internal target `k` interpolated at positions `x` (for callers that move the
