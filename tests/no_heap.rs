@@ -3,7 +3,8 @@
 //! computations on stack buffers. It is built on its own with `cargo build --manifest-path`, so
 //! the std host cannot switch on features of shared dependencies through feature unification.
 //! The test then
-//! The program factorizes a stiffness matrix and runs `Model::step` on a box held at one end.
+//! The program factorizes a stiffness matrix, runs `Model::step` on a box held at one end, and
+//! cuts a model held in `static` storage (the whole cut pipeline, rebuilt in place).
 //! 1. lists every symbol of the library and fails on any allocator symbol,
 //! 2. links it into an executable with a C `main` and runs it (the computation must check out),
 //! 3. builds the same program with a global allocator and one `Vec` (feature `heap-control`)
@@ -29,7 +30,13 @@ fn build(features: &[&str]) -> PathBuf {
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
     let mut cmd = Command::new(cargo);
     cmd.current_dir(root().join("nostd-check"))
-        .args(["build", "--release", "--locked", "--target-dir"])
+        .args([
+            "build",
+            "--release",
+            "--locked",
+            "--no-default-features",
+            "--target-dir",
+        ])
         .arg(&target_dir);
     if !features.is_empty() {
         cmd.arg("--features").arg(features.join(","));
@@ -88,27 +95,24 @@ fn allocator_symbols(lib: &Path) -> Vec<String> {
     found
 }
 
-#[test]
-fn the_core_links_and_runs_without_a_heap() {
-    let lib = build(&[]);
-    let syms = allocator_symbols(&lib);
-    assert!(syms.is_empty(), "allocator symbols linked: {syms:?}");
-
-    // Link with a C main and run: the core's computation must check out.
+/// Links the library with a C `main` that calls `checks` in order and runs it: 0 when every
+/// computation checks out.
+fn link_and_run(lib: &Path, checks: &[&str]) {
     let dir = lib.parent().expect("library directory").to_path_buf();
     let main_c = dir.join("main.c");
-    std::fs::write(
-        &main_c,
-        "int incise_nostd_check_sparse(void);\n\
-         int incise_nostd_check_step(void);\n\
-         int main(void) {\n\
-           int a = incise_nostd_check_sparse();\n\
-           if (a != 0) return 10 + a;\n\
-           int b = incise_nostd_check_step();\n\
-           return b == 0 ? 0 : 20 + b;\n\
-         }\n",
-    )
-    .unwrap();
+    let mut c = String::new();
+    for name in checks {
+        c.push_str(&format!("int incise_nostd_check_{name}(void);\n"));
+    }
+    c.push_str("int main(void) {\n");
+    for (k, name) in checks.iter().enumerate() {
+        c.push_str(&format!(
+            "  {{ int r = incise_nostd_check_{name}(); if (r != 0) return {} + r; }}\n",
+            10 * (k + 1)
+        ));
+    }
+    c.push_str("  return 0;\n}\n");
+    std::fs::write(&main_c, c).unwrap();
     let exe = dir.join("nostd-check");
     // --gc-sections drops the unwinding tables of the precompiled libcore, which nothing calls.
     let status = Command::new("cc")
@@ -116,7 +120,7 @@ fn the_core_links_and_runs_without_a_heap() {
         .arg(&exe)
         .arg(&main_c)
         .arg("-Wl,--gc-sections")
-        .arg(&lib)
+        .arg(lib)
         .status()
         .expect("cc runs");
     assert!(status.success(), "linking the no_std program failed");
@@ -124,8 +128,25 @@ fn the_core_links_and_runs_without_a_heap() {
     assert_eq!(
         code,
         Some(0),
-        "the no_std computation failed (1: error, 2: wrong answer)"
+        "the no_std computation failed: code 10k + r for check k of {checks:?}, r = 1 an error, \
+         2 a wrong answer"
     );
+}
+
+#[test]
+fn the_core_links_and_runs_without_a_heap() {
+    let lib = build(&[]);
+    let syms = allocator_symbols(&lib);
+    assert!(syms.is_empty(), "allocator symbols linked: {syms:?}");
+    link_and_run(&lib, &["sparse", "step"]);
+}
+
+#[test]
+fn the_core_cuts_a_model_in_static_storage_without_a_heap() {
+    let lib = build(&["cut"]);
+    let syms = allocator_symbols(&lib);
+    assert!(syms.is_empty(), "allocator symbols linked: {syms:?}");
+    link_and_run(&lib, &["sparse", "step", "cut"]);
 }
 
 #[test]

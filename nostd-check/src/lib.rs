@@ -143,6 +143,178 @@ fn step() -> Result<bool, incise_core::Error> {
     Ok(ok)
 }
 
+/// The model's storage as a firmware build holds it: `static`, sized at compile time by the
+/// capacities' `const fn`s, handed out once.
+#[cfg(feature = "cut")]
+mod static_storage {
+    use core::cell::UnsafeCell;
+    use core::sync::atomic::{AtomicBool, Ordering};
+
+    use incise_core::{Capacities, MeshCapacity, ModelSize};
+
+    /// Cells of the box along x, y, z.
+    pub const CELLS: [usize; 3] = [4, 2, 2];
+    pub const NODES: usize = (CELLS[0] + 1) * (CELLS[1] + 1) * (CELLS[2] + 1);
+    pub const TETS: usize = 6 * CELLS[0] * CELLS[1] * CELLS[2];
+    pub const SIZE: ModelSize = ModelSize::new(&Capacities {
+        mesh: MeshCapacity {
+            nodes: NODES + 64,
+            tets: TETS + 256,
+            surface_triangles: 4 * (TETS + 256),
+        },
+        features: 16,
+        targets: 4,
+        factor_entries: 8192,
+        pairs: 256,
+        cut_vertices: 16,
+    });
+
+    struct Buffers {
+        reals: UnsafeCell<[f64; SIZE.real_len()]>,
+        indices: UnsafeCell<[u32; SIZE.index_len()]>,
+    }
+
+    // SAFETY: the buffers are only reached through `take`, which hands them out once.
+    unsafe impl Sync for Buffers {}
+
+    static BUFFERS: Buffers = Buffers {
+        reals: UnsafeCell::new([0.0; SIZE.real_len()]),
+        indices: UnsafeCell::new([0; SIZE.index_len()]),
+    };
+    static TAKEN: AtomicBool = AtomicBool::new(false);
+
+    /// The static buffers, the first time only.
+    pub fn take() -> Option<(&'static mut [f64], &'static mut [u32])> {
+        if TAKEN.swap(true, Ordering::AcqRel) {
+            return None;
+        }
+        // SAFETY: `TAKEN` lets this run once, so these are the only references ever made.
+        let (reals, indices) = unsafe { (&mut *BUFFERS.reals.get(), &mut *BUFFERS.indices.get()) };
+        Some((&mut reals[..], &mut indices[..]))
+    }
+}
+
+/// Builds a model of a box held at one end in static storage, embeds features and a target,
+/// cuts it across along a line in the image (the whole cut pipeline: snapping, splitting,
+/// separating, rebuilding the ordering, the symbolic analysis and the factor in place), checks
+/// the cut took and the target stayed inside its element, and steps once more; 0 on success.
+#[cfg(feature = "cut")]
+#[unsafe(no_mangle)]
+pub extern "C" fn incise_nostd_check_cut() -> i32 {
+    match cut() {
+        Ok(true) => 0,
+        Ok(false) => 2,
+        Err(_) => 1,
+    }
+}
+
+#[cfg(feature = "cut")]
+fn cut() -> Result<bool, incise_core::Error> {
+    use incise_core::nalgebra::{Matrix3, Vector3};
+    use incise_core::{
+        Camera, Intrinsics, Material, MeshInput, Model, ModelBuffers, ModelConfig, Observation,
+        SolverConfig, Strategy,
+    };
+    use static_storage::{CELLS, NODES, SIZE, TETS};
+    let (lx, ly, lz) = (0.04f64, 0.01, 0.01);
+    let mut rest = [[0.0f64; 3]; NODES];
+    let mut tets = [[0u32; 4]; TETS];
+    box_mesh(CELLS, [lx, ly, lz], &mut rest, &mut tets);
+    let id = |i: usize, j: usize, k: usize| (i + (CELLS[0] + 1) * (j + (CELLS[1] + 1) * k)) as u32;
+    let mut fixed = [0u32; (CELLS[1] + 1) * (CELLS[2] + 1)];
+    for k in 0..=CELLS[2] {
+        for j in 0..=CELLS[1] {
+            fixed[j + (CELLS[1] + 1) * k] = id(0, j, k);
+        }
+    }
+    let mesh = MeshInput {
+        rest: &rest,
+        tets: &tets,
+        fixed: &fixed,
+    };
+    let r = Matrix3::new(1.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, -1.0);
+    let eye = Vector3::new(0.02, 0.005, 0.2);
+    let camera = Camera::new(
+        Intrinsics {
+            fx: 2000.0,
+            fy: 2000.0,
+            cx: 320.0,
+            cy: 240.0,
+            width: 640,
+            height: 480,
+        },
+        r,
+        -(r * eye),
+        1e-4,
+    )?;
+    let config = ModelConfig {
+        material: Material {
+            young: 3.0e4,
+            poisson: 0.3,
+        },
+        camera,
+        solver: SolverConfig {
+            strategy: Strategy::Refactor,
+            newton_iterations: 2,
+            line_search_steps: 4,
+            spring_stiffness: 2e-7,
+            damping: 1e-3,
+            image_margin: 50.0,
+        },
+        detection: incise_core::DetectionConfig::paper(),
+    };
+    let Some((reals, indices)) = static_storage::take() else {
+        return Ok(false);
+    };
+    let mut model = Model::new(
+        &mesh,
+        &config,
+        &SIZE,
+        ModelBuffers::new(&SIZE, reals, indices)?,
+    )?;
+    let mut frame = [Observation {
+        id: 0,
+        uv: [0.0; 2],
+    }; 12];
+    for (n, o) in frame.iter_mut().enumerate() {
+        let p = Vector3::new(
+            0.003 + 0.0065 * (n % 6) as f64,
+            0.003 + 0.004 * (n / 6) as f64,
+            lz,
+        );
+        let uv = camera.project(&p, n)?;
+        *o = Observation {
+            id: n as u32,
+            uv: [uv.x, uv.y],
+        };
+    }
+    if model.embed_features(&frame)?.embedded != frame.len() {
+        return Ok(false);
+    }
+    model.embed_targets(&[[0.025, 0.005, 0.005]])?;
+    let (nodes, tets_before) = (model.mesh().n_nodes(), model.mesh().n_tets());
+    // A slit across the box at x = 2.3 cm from the far side (y = 0) to three quarters across.
+    let a = camera.project(&Vector3::new(0.023, -0.002, lz), 0)?;
+    let b = camera.project(&Vector3::new(0.023, 0.0075, lz), 0)?;
+    let report = model.cut_along(&[[a.x, a.y], [b.x, b.y]], 5.0)?;
+    let target_inside = model
+        .target_embedding()
+        .weights()
+        .iter()
+        .all(|w| w.iter().all(|&c| c >= 0.0));
+    let grew = model.mesh().n_nodes() > nodes && model.mesh().n_tets() >= tets_before;
+    // The cut model goes on registering: pull the features on the free end apart.
+    for o in frame.iter_mut() {
+        o.uv[0] += if o.uv[0] > a.x { 3.0 } else { 0.0 };
+    }
+    let step = model.step(&frame)?;
+    Ok(report.applied
+        && report.event.faces_cut > 0
+        && grew
+        && target_inside
+        && step.gradient_norm_after < step.gradient_norm_before)
+}
+
 /// Factorizes a stiffness-like matrix of a small box mesh and solves with it; 0 on success.
 #[unsafe(no_mangle)]
 pub extern "C" fn incise_nostd_check_sparse() -> i32 {
