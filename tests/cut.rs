@@ -1,7 +1,8 @@
 //! Cutting the mesh on the committed scenes (issue 10): after every cut event the mesh is
 //! valid (every element above the quality floor, the boundary closed and manifold), every
-//! feature and target is on its own side, and the new factorization matches faer on the new
-//! matrix; a cut that does not fit the capacities leaves the model exactly as it was.
+//! feature and target is on its own side, the new factorization matches faer on the new matrix,
+//! and the event's work is within its formula in the capacities; a cut that does not fit the
+//! capacities leaves the model exactly as it was.
 
 use std::path::{Path, PathBuf};
 
@@ -102,6 +103,21 @@ fn every_cut_event_keeps_the_mesh_valid_and_everything_on_its_side() {
                 .map_err(at)
                 .unwrap();
             let rel = check_factor(&mut model, 1e-8).map_err(at).unwrap();
+            // The event's work is within its formula in the capacities.
+            let (geometry, rebuild) = model.worst_case_cut_work();
+            let (g, r) = (report.cut.event.work, report.cut.work);
+            assert!(
+                g.within(&geometry),
+                "{name} frame {f}: {g:?} beyond {geometry:?}"
+            );
+            assert!(
+                r.assemblies <= rebuild.assemblies
+                    && r.element_tangents <= rebuild.element_tangents
+                    && r.feature_evaluations <= rebuild.feature_evaluations
+                    && r.factorizations <= rebuild.factorizations
+                    && r.factor_flops <= rebuild.factor_flops,
+                "{name} frame {f}: {r:?} beyond {rebuild:?}"
+            );
             eprintln!(
                 "{name}: cut at frame {f}: {} nodes, {} tetrahedra, {} faces cut, factor vs faer {rel:.1e}",
                 model.mesh().n_nodes(),

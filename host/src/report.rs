@@ -13,24 +13,34 @@ pub fn human_summary(s: &Summary) -> String {
     let opt = |v: Option<u32>| v.map_or("none".to_string(), |f| format!("frame {f}"));
     format!(
         "scene {}: {} frames, {} features ({} missed the model)\n\
-         cut: opens at {} (truth), detected at {}\n\
+         cut: opens at {} (truth), detected at {}, mesh cut {} time(s) ({} nodes, {} tetrahedra at the end){}\n\
          Dice last frame {:.3} (uncut {:.3}), mean after the cut opens {:.3}\n\
-         surface RMS {:.2} mm, target error {:.2} mm (uncut {:.2} mm) at the last frame\n\
-         step time median {:.2} ms, max {:.2} ms; model storage {:.1} KiB\n",
+         surface RMS {:.2} mm, target error {:.2} mm (uncut {:.2} mm, rest model {:.2} mm) at the last frame\n\
+         step time median {:.2} ms, max {:.2} ms{}; model storage {:.1} KiB\n",
         s.scene,
         s.frames,
         s.features,
         s.features_missed,
         opt(s.cut_open_frame),
         opt(s.cut_detected_frame),
+        s.cut_events,
+        s.nodes_final,
+        s.tets_final,
+        s.cut_refused
+            .as_ref()
+            .map_or(String::new(), |r| format!("; a cut was refused at {r}")),
         s.dice_final,
         s.dice_final_uncut,
         s.dice_mean_after_cut,
         s.surface_rmse_mm_final,
         s.tre_mm_final,
         s.tre_mm_final_uncut,
+        s.tre_mm_final_rest,
         s.ms_per_frame_median,
         s.ms_per_frame_max,
+        s.ms_cut_frame_max.map_or(String::new(), |m| format!(
+            " (a frame that cuts: {m:.2} ms)"
+        )),
         s.model_bytes as f64 / 1024.0
     )
 }
@@ -38,27 +48,35 @@ pub fn human_summary(s: &Summary) -> String {
 /// The results of several runs as a Markdown table.
 pub fn markdown_table(rows: &[Summary]) -> String {
     let opt = |v: Option<u32>| v.map_or("–".to_string(), |f| f.to_string());
-    let optf = |v: Option<f64>| v.map_or("–".to_string(), |x| format!("{x:.1}"));
+    let optf =
+        |v: Option<f64>, digits: usize| v.map_or("–".to_string(), |x| format!("{x:.digits$}"));
     let mut out = String::from(
-        "| scene | features | cut opens | cut detected | Hausdorff px | Dice uncut | Dice | Dice after cut | surface mm | TRE mm | TRE uncut mm | ms/frame (median, max) |\n\
-         | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n",
+        "| scene | features | cut opens | cut detected | mesh cut | Hausdorff px | Dice uncut | Dice | TRE rest mm | TRE uncut mm | TRE mm | surface mm | ms/frame steady | ms/frame cutting | nodes |\n\
+         | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n",
     );
     for s in rows {
         out.push_str(&format!(
-            "| {} | {} | {} | {} | {} | {:.3} | {:.3} | {:.3} | {:.2} | {:.2} | {:.2} | {:.1}, {:.1} |\n",
+            "| {} | {} | {} | {} | {} | {} | {:.3} | {:.3} | {:.2} | {:.2} | {:.2} | {:.2} | {:.1} | {} | {} |\n",
             s.scene,
             s.features,
             opt(s.cut_open_frame),
             opt(s.cut_detected_frame),
-            optf(s.cut_hausdorff_px),
+            s.cut_first_frame
+                .map_or("–".to_string(), |f| format!("{f} ({}×)", s.cut_events)),
+            optf(s.cut_hausdorff_px, 1),
             s.dice_final_uncut,
             s.dice_final,
-            s.dice_mean_after_cut,
-            s.surface_rmse_mm_final,
-            s.tre_mm_final,
+            s.tre_mm_final_rest,
             s.tre_mm_final_uncut,
-            s.ms_per_frame_median,
-            s.ms_per_frame_max
+            s.tre_mm_final,
+            s.surface_rmse_mm_final,
+            s.ms_steady_median,
+            optf(s.ms_cut_frame_max, 1),
+            if s.cut_events > 0 {
+                format!("{} → {}", s.nodes_initial, s.nodes_final)
+            } else {
+                s.nodes_final.to_string()
+            },
         ));
     }
     out

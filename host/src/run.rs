@@ -194,6 +194,8 @@ pub struct Summary {
     pub cut_events: usize,
     /// Frame of the first cut event.
     pub cut_first_frame: Option<usize>,
+    /// Nodes of the model at the start.
+    pub nodes_initial: usize,
     /// Nodes and tetrahedra of the model at the end (more than at the start once cut).
     pub nodes_final: usize,
     /// Tetrahedra of the model at the end.
@@ -204,6 +206,11 @@ pub struct Summary {
     pub ms_per_frame_median: f64,
     /// Largest time of `Model::step`, milliseconds.
     pub ms_per_frame_max: f64,
+    /// Median time of the steps that did not cut the mesh (the steady frame), milliseconds.
+    pub ms_steady_median: f64,
+    /// Largest time of a step that cut the mesh (the steady work plus the cut event: the
+    /// geometry, the new ordering, symbolic analysis and factorization), milliseconds.
+    pub ms_cut_frame_max: Option<f64>,
     /// Image width, pixels.
     pub image_width: u32,
     /// Image height, pixels.
@@ -819,6 +826,7 @@ pub fn run_scene_with(
         tre_mm_final_rest: trace.tre_rest_final * 1e3,
         cut_events: trace.cuts.frames.len(),
         cut_first_frame: trace.cuts.frames.first().copied(),
+        nodes_initial: scene.rest.len(),
         nodes_final: trace.mesh_final.0,
         tets_final: trace.mesh_final.1,
         cut_refused: trace
@@ -828,6 +836,21 @@ pub fn run_scene_with(
             .map(|(f, e)| format!("frame {f}: {e}")),
         ms_per_frame_median: median(&times),
         ms_per_frame_max: times.iter().copied().fold(0.0, f64::max),
+        ms_steady_median: median(
+            &trace
+                .frames
+                .iter()
+                .skip(1)
+                .filter(|r| !trace.cuts.frames.contains(&r.frame))
+                .map(|r| r.ms)
+                .collect::<Vec<_>>(),
+        ),
+        ms_cut_frame_max: trace
+            .cuts
+            .frames
+            .iter()
+            .map(|&f| trace.frames[f].ms)
+            .reduce(f64::max),
         image_width: camera.width,
         image_height: camera.height,
         model_bytes: trace.model_bytes,

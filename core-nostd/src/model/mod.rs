@@ -23,7 +23,7 @@ use nalgebra::Vector3;
 
 use crate::camera::Camera;
 #[cfg(feature = "cut")]
-use crate::cut::{self, CutEvent, CutReport};
+use crate::cut::{self, CutEvent, CutReport, CutWork};
 #[cfg(feature = "cut")]
 use crate::cutline::{CutLine, CutLineReport};
 use crate::detect::DetectionConfig;
@@ -765,6 +765,45 @@ impl<'a, T: Real> Model<'a, T> {
             }
         }
         w
+    }
+
+    /// The worst-case work of one cut event ([`Model::apply_cut`]): a formula of the
+    /// capacities. The geometry of each of the (at most two) parts of the line applied
+    /// ([`CutWork::bound`]), and the rebuild: one assembly with every tetrahedron's tangent and
+    /// every feature's spring, and one factorization whose multiply-adds are bounded by the
+    /// factor entries `L` and the unknowns `n` as `Σ c (c − 1) / 2 + 2 c ≤ L (n + 3) / 2` over
+    /// the column counts `c` (`Σ c = L`, `c < n`). The ordering and the symbolic analysis, run
+    /// once per event, are bounded by the same sizes and are not counted separately.
+    #[cfg(feature = "cut")]
+    pub fn worst_case_cut_work(&self) -> (CutWork, WorkCount) {
+        let cap = self.live.mesh.capacity();
+        let features = self.features.capacity() as u64;
+        let segments = self.cut.pixels.len().saturating_sub(1) as u64;
+        let part = CutWork::bound(
+            cap.nodes as u64,
+            cap.tets as u64,
+            cap.surface_triangles as u64,
+            segments,
+            features,
+            self.live.targets.capacity() as u64,
+        );
+        let geometry = CutWork {
+            node_tests: 2 * part.node_tests,
+            element_tests: 2 * part.element_tests,
+            faces_sorted: 2 * part.faces_sorted,
+            star_entries: 2 * part.star_entries,
+            embed_tests: 2 * part.embed_tests,
+        };
+        let sym = self.live.symbolic.capacity();
+        let rebuild = WorkCount {
+            assemblies: 1,
+            element_tangents: cap.tets as u64,
+            feature_evaluations: features,
+            factorizations: 1,
+            factor_flops: sym.nnz_l as u64 * (sym.n as u64 + 3) / 2,
+            ..WorkCount::default()
+        };
+        (geometry, rebuild)
     }
 
     /// The energies at the current positions (observations of the last frame, damping toward
