@@ -37,21 +37,22 @@
 //! and split, a sort of the `4 t` faces, and the stars of the nodes on the cut; it is counted in
 //! [`CutWork`] and bounded by [`CutWork::bound`].
 
+mod place;
+mod reembed;
 pub(crate) mod separate;
 pub(crate) mod split;
 pub(crate) mod surface;
 
 use crate::camera::Camera;
-use crate::embed::{Embedding, barycentric, clamp_weights, interpolate};
+use crate::embed::Embedding;
 use crate::error::{Error, Resource};
-use crate::mesh::{Mesh, orientation, shape_quality};
+use crate::mesh::Mesh;
 use crate::real::Real;
 use crate::solve::WorkCount;
-use crate::sparse::NONE;
 use crate::storage::Slab;
 
 use separate::{Incidence, StarScratch, cut_faces, duplicate_nodes};
-use split::{Children, Sign, Vertex, crosses, split};
+use split::Sign;
 use surface::{REALS_PER_VERTEX, SeparationSurface};
 
 /// Snapping tolerance: a crossing closer to a node than this fraction of the edge puts the
@@ -60,7 +61,7 @@ use surface::{REALS_PER_VERTEX, SeparationSurface};
 /// planes), and the line's drift between frames is absorbed.
 pub const SNAP_TOLERANCE: f64 = 0.25;
 
-/// Quality floor of every tetrahedron a cut creates or moves, in [`shape_quality`]: 0.02 is
+/// Quality floor of every tetrahedron a cut creates or moves, in [`crate::mesh::shape_quality`]: 0.02 is
 /// the quality of a tetrahedron whose volume is 2% of the regular one with the same edges.
 /// Below it the element's stiffness is too ill-conditioned to be worth its cost; SOFA's coarse
 /// liver, the worst mesh shipped, has none below 0.079.
@@ -283,7 +284,7 @@ impl CutReport {
     }
 }
 
-fn sign<T: Real>(phi: T) -> Sign {
+pub(crate) fn sign<T: Real>(phi: T) -> Sign {
     if phi > T::zero() {
         1
     } else if phi < T::zero() {
@@ -293,13 +294,13 @@ fn sign<T: Real>(phi: T) -> Sign {
     }
 }
 
-fn lerp<T: Real>(a: [T; 3], b: [T; 3], t: T) -> [T; 3] {
+pub(crate) fn lerp<T: Real>(a: [T; 3], b: [T; 3], t: T) -> [T; 3] {
     [0, 1, 2].map(|c| a[c] + (b[c] - a[c]) * t)
 }
 
 /// Side of a tetrahedron: the sign its nodes share (0 if all are on the surface or one is
 /// unknown).
-fn side_of<T: Real>(phi: &[T], tet: &[u32; 4]) -> Sign {
+pub(crate) fn side_of<T: Real>(phi: &[T], tet: &[u32; 4]) -> Sign {
     let mut s: Sign = 0;
     for &v in tet {
         let p = phi[v as usize];
@@ -318,7 +319,7 @@ fn side_of<T: Real>(phi: &[T], tet: &[u32; 4]) -> Sign {
 }
 
 /// Where the cut crosses edge `(a, b)`: the fraction from `a`.
-fn crossing<T: Real>(phi: &[T], a: u32, b: u32) -> T {
+pub(crate) fn crossing<T: Real>(phi: &[T], a: u32, b: u32) -> T {
     let (pa, pb) = (phi[a as usize], phi[b as usize]);
     pa / (pa - pb)
 }
@@ -352,9 +353,6 @@ pub(crate) fn apply<T: Real>(
         min_quality_milli: 1000,
         ..CutEvent::default()
     };
-    let floor = T::of(QUALITY_FLOOR);
-    let tau = T::of(SNAP_TOLERANCE);
-
     let mut rs = Slab::new(reals, Resource::RealStorage);
     let phi = rs.take(cap_nodes)?;
     let plane_store = rs.take(rs.remaining())?;
@@ -371,7 +369,6 @@ pub(crate) fn apply<T: Real>(
     if sep.segments() == 0 {
         return Ok(event);
     }
-
     if work.len() < work_len(cap_nodes, cap_tets) {
         return Err(Error::Capacity {
             resource: Resource::Workspace,
@@ -383,387 +380,34 @@ pub(crate) fn apply<T: Real>(
     let mark = ws.take(cap_nodes)?;
     let inc_ptr = ws.take(cap_nodes + 1)?;
     let inc_list = ws.take(4 * cap_tets)?;
-    // Per original tetrahedron: NONE if untouched, else where its appended pieces start.
     let status = ws.take(cap_tets)?;
-    // The nodes each split tetrahedron had before (its material points are located in them).
     let parents = ws.take(4 * cap_tets)?.as_chunks_mut::<4>().0;
     let edges = ws.take(12 * cap_tets)?.as_chunks_mut::<2>().0;
     let faces = ws.take(16 * cap_tets)?.as_chunks_mut::<4>().0;
     let cut_store = ws.take(6 * cap_tets)?.as_chunks_mut::<3>().0;
+    let (n0, t0) = (mesh.n_nodes(), mesh.n_tets());
 
-    // 1. Level set.
-    let n0 = mesh.n_nodes();
-    let t0 = mesh.n_tets();
-    for v in 0..n0 {
-        phi[v] = match sep.classify(&x[v]) {
-            Some((_, p)) => p,
-            // Behind the camera: no side, never cut.
-            None => T::zero() / T::zero(),
-        };
-    }
-    event.work.node_tests += (n0 * sep.segments()) as u64;
-    // Nodes a cut has already separated stay on the surface: a later part continues the cut
-    // through them instead of cutting a sliver off beside it.
-    for pair in lips.pairs() {
-        for &v in pair {
-            if let Some(p) = phi.get_mut(v as usize) {
-                *p = T::zero();
-            }
-        }
-    }
-
+    // 1. The level set, with the lips of earlier cuts on the surface.
+    level_set(&sep, &x[..n0], lips, &mut phi[..n0], &mut event.work);
     let incidence = Incidence::build(mesh.tets(), n0, inc_ptr, inc_list)?;
-
-    // 2. Snap. A node on the boundary moves only along a boundary edge, so that the organ's
-    // surface keeps its shape; inside, along any edge.
-    mark[..n0].fill(0);
-    for tri in mesh.surface() {
-        for &v in tri {
-            mark[v as usize] = 1;
-        }
-    }
-    let boundary_edge = |mesh: &Mesh<'_, T>, a: u32, b: u32| {
-        mesh.surface()
-            .iter()
-            .any(|tri| tri.contains(&a) && tri.contains(&b))
-    };
-    for v in 0..n0 {
-        let pv = phi[v];
-        if !(pv.finite() && pv != T::zero()) {
-            continue;
-        }
-        let on_boundary = mark[v] == 1;
-        let (mut nearest, mut along): (Option<T>, Option<(T, u32)>) = (None, None);
-        for &t in incidence.of(v) {
-            for &w in &mesh.tets()[t as usize] {
-                let pw = phi[w as usize];
-                if pw.finite() && sign(pw) == -sign(pv) {
-                    let t_cross = pv / (pv - pw);
-                    if nearest.is_none_or(|b| t_cross < b) {
-                        nearest = Some(t_cross);
-                    }
-                    let allowed =
-                        !on_boundary || (mark[w as usize] == 1 && boundary_edge(mesh, v as u32, w));
-                    if allowed && along.is_none_or(|(b, _)| t_cross < b) {
-                        along = Some((t_cross, w));
-                    }
-                }
-            }
-        }
-        let Some(t_near) = nearest else {
-            continue;
-        };
-        // Where the surface passes: along the nearest crossing edge.
-        let near_point = incidence
-            .of(v)
-            .iter()
-            .flat_map(|&t| mesh.tets()[t as usize])
-            .find(|&w| {
-                let pw = phi[w as usize];
-                pw.finite() && sign(pw) == -sign(pv) && pv / (pv - pw) == t_near
-            })
-            .map(|w| lerp(x[v], x[w as usize], t_near));
-        if !(t_near < tau && near_point.is_some_and(|p| sep.in_extent(&p))) {
-            continue;
-        }
-        let vi = v;
-        let movable = |(t_cross, w): (T, u32)| -> bool {
-            let wi = w as usize;
-            if !(t_cross < tau) || mesh.is_fixed(vi) {
-                return false;
-            }
-            let moved_rest = lerp(mesh.rest()[vi], mesh.rest()[wi], t_cross);
-            let moved_x = lerp(x[vi], x[wi], t_cross);
-            incidence.of(v).iter().all(|&t| {
-                let tet = mesh.tets()[t as usize];
-                let at = |p: &[[T; 3]], q: [T; 3]| {
-                    tet.map(|u| if u as usize == vi { q } else { p[u as usize] })
-                };
-                let q_old = shape_quality(&at(mesh.rest(), mesh.rest()[vi]));
-                let q_new = shape_quality(&at(mesh.rest(), moved_rest));
-                let cur_old = at(x, x[vi]);
-                let cur_new = at(x, moved_x);
-                let keeps_orientation = orientation(cur_old[0], cur_old[1], cur_old[2], cur_old[3])
-                    <= T::zero()
-                    || orientation(cur_new[0], cur_new[1], cur_new[2], cur_new[3]) > T::zero();
-                (q_new >= floor || q_new >= q_old) && keeps_orientation
-            })
-        };
-        match along.filter(|&a| movable(a)) {
-            Some((t_cross, w)) => {
-                let wi = w as usize;
-                let moved_rest = lerp(mesh.rest()[vi], mesh.rest()[wi], t_cross);
-                mesh.set_rest(vi, moved_rest);
-                x[vi] = lerp(x[vi], x[wi], t_cross);
-                previous[vi] = lerp(previous[vi], previous[wi], t_cross);
-                event.nodes_moved += 1;
-            }
-            None => event.nodes_declared += 1,
-        }
-        phi[vi] = T::zero();
-    }
-
-    // 3. Select the crossed tetrahedra inside the extent.
-    let signs_of = |phi: &[T], tet: &[u32; 4]| -> Option<[Sign; 4]> {
-        let mut s = [0; 4];
-        for (k, &v) in tet.iter().enumerate() {
-            let p = phi[v as usize];
-            if !p.finite() {
-                return None;
-            }
-            s[k] = sign(p);
-        }
-        Some(s)
-    };
-    const SELECTED: u32 = 1;
-    for (t, tet) in mesh.tets().iter().enumerate() {
-        status[t] = 0;
-        let Some(s) = signs_of(phi, tet) else {
-            continue;
-        };
-        if !crosses(&s) {
-            continue;
-        }
-        let mut inside = false;
-        for a in 0..4 {
-            for b in (a + 1)..4 {
-                if s[a] * s[b] < 0 {
-                    let (va, vb) = (tet[a], tet[b]);
-                    let p = lerp(x[va as usize], x[vb as usize], crossing(phi, va, vb));
-                    inside |= sep.in_extent(&p);
-                }
-            }
-            if s[a] == 0 {
-                inside |= sep.in_extent(&x[tet[a] as usize]);
-            }
-        }
-        if inside {
-            status[t] = SELECTED;
-        }
-    }
-    event.work.element_tests += t0 as u64;
-
-    // 3b. Stop the split where the extent ends: a crossed edge shared with a crossed
-    // tetrahedron that is not selected gets its nearer node declared on the surface.
-    for t in 0..t0 {
-        if status[t] != SELECTED {
-            continue;
-        }
-        let tet = mesh.tets()[t];
-        for a in 0..4 {
-            for b in (a + 1)..4 {
-                let (va, vb) = (tet[a], tet[b]);
-                if sign(phi[va as usize]) * sign(phi[vb as usize]) >= 0 {
-                    continue;
-                }
-                let outside = incidence.of(va as usize).iter().any(|&u| {
-                    status[u as usize] != SELECTED && mesh.tets()[u as usize].contains(&vb)
-                });
-                if outside {
-                    let near = if crossing(phi, va, vb) < T::of(0.5) {
-                        va
-                    } else {
-                        vb
-                    };
-                    phi[near as usize] = T::zero();
-                    event.nodes_declared += 1;
-                }
-            }
-        }
-    }
-
-    // 4. Quality: a split with a piece below the floor gets its most lopsided crossing
-    // declared on the surface, until none has.
-    let rest_of = |mesh: &Mesh<'_, T>, phi: &[T], v: Vertex| -> [T; 3] {
-        match v {
-            Vertex::Node(n) => mesh.rest()[n as usize],
-            Vertex::Edge(a, b) => lerp(
-                mesh.rest()[a as usize],
-                mesh.rest()[b as usize],
-                crossing(phi, a, b),
-            ),
-        }
-    };
-    for _pass in 0..=n0 {
-        let mut changed = false;
-        for t in 0..t0 {
-            if status[t] != SELECTED {
-                continue;
-            }
-            event.work.element_tests += 1;
-            let tet = mesh.tets()[t];
-            let Some(s) = signs_of(phi, &tet) else {
-                continue;
-            };
-            if !crosses(&s) {
-                continue;
-            }
-            let children = split(&tet, &s);
-            let worst = children
-                .as_slice()
-                .iter()
-                .map(|c| shape_quality(&c.map(|v| rest_of(mesh, phi, v))).abs())
-                .fold(T::one(), |m, q| m.min(q));
-            if worst >= floor {
-                continue;
-            }
-            let mut pick: Option<(T, u32)> = None;
-            for a in 0..4 {
-                for b in (a + 1)..4 {
-                    if s[a] * s[b] < 0 {
-                        let t_ab = crossing(phi, tet[a], tet[b]);
-                        let (d, node) = if t_ab < T::of(0.5) {
-                            (t_ab, tet[a])
-                        } else {
-                            (T::one() - t_ab, tet[b])
-                        };
-                        if pick.is_none_or(|(best, _)| d < best) {
-                            pick = Some((d, node));
-                        }
-                    }
-                }
-            }
-            if let Some((_, node)) = pick {
-                phi[node as usize] = T::zero();
-                event.nodes_declared += 1;
-                changed = true;
-            }
-        }
-        if !changed {
-            break;
-        }
-    }
-
-    // 5. Split: new nodes on the crossed edges, in the order of their keys.
-    let mut n_edges = 0;
-    for t in 0..t0 {
-        if status[t] != SELECTED {
-            continue;
-        }
-        let tet = mesh.tets()[t];
-        let Some(s) = signs_of(phi, &tet) else {
-            continue;
-        };
-        if !crosses(&s) {
-            continue;
-        }
-        for a in 0..4 {
-            for b in (a + 1)..4 {
-                if s[a] * s[b] < 0 {
-                    edges[n_edges] = [tet[a].min(tet[b]), tet[a].max(tet[b])];
-                    n_edges += 1;
-                }
-            }
-        }
-    }
-    let edges = &mut edges[..n_edges];
-    edges.sort_unstable();
-    let mut unique = 0;
-    for k in 0..edges.len() {
-        if k == 0 || edges[k] != edges[k - 1] {
-            edges[unique] = edges[k];
-            unique += 1;
-        }
-    }
-    let edges = &edges[..unique];
-    if n0 + unique > cap_nodes {
-        return Err(Error::Capacity {
-            resource: Resource::Nodes,
-            needed: n0 + unique,
-            available: cap_nodes,
-        });
-    }
-    for &[a, b] in edges {
-        let t_ab = crossing(phi, a, b);
-        let (ai, bi) = (a as usize, b as usize);
-        let fixed = mesh.is_fixed(ai) && mesh.is_fixed(bi);
-        let v = mesh.push_node(lerp(mesh.rest()[ai], mesh.rest()[bi], t_ab), fixed)? as usize;
-        x[v] = lerp(x[ai], x[bi], t_ab);
-        previous[v] = lerp(previous[ai], previous[bi], t_ab);
-        phi[v] = T::zero();
-    }
-    event.edge_nodes = unique;
-    let node_of = |v: Vertex| -> u32 {
-        match v {
-            Vertex::Node(n) => n,
-            Vertex::Edge(a, b) => edges
-                .binary_search(&[a, b])
-                .map_or(NONE, |k| (n0 + k) as u32),
-        }
-    };
-    let mut min_quality = T::one();
-    for t in 0..t0 {
-        let split_here =
-            status[t] == SELECTED && signs_of(phi, &mesh.tets()[t]).is_some_and(|s| crosses(&s));
-        if !split_here {
-            status[t] = NONE;
-            continue;
-        }
-        let tet = mesh.tets()[t];
-        let Some(s) = signs_of(phi, &tet) else {
-            status[t] = NONE;
-            continue;
-        };
-        let children: Children = split(&tet, &s);
-        parents[t] = tet;
-        // Where this tetrahedron's appended pieces start, and how many (at most five).
-        status[t] = ((mesh.n_tets() as u32) << 3) | (children.len as u32 - 1);
-        for (k, child) in children.as_slice().iter().enumerate() {
-            let mut nodes = child.map(node_of);
-            let corners = nodes.map(|v| mesh.rest()[v as usize]);
-            if orientation(corners[0], corners[1], corners[2], corners[3]) < T::zero() {
-                nodes.swap(2, 3);
-            }
-            let corners = nodes.map(|v| mesh.rest()[v as usize]);
-            min_quality = min_quality.min(shape_quality(&corners));
-            if k == 0 {
-                mesh.set_tet(t, nodes);
-            } else {
-                mesh.push_tet(nodes)?;
-                event.tets_added += 1;
-            }
-        }
-        event.tets_split += 1;
-    }
-    event.work.element_tests += t0 as u64;
-
-    // 6. Re-embed the points of split tetrahedra in the piece holding them.
-    for embedding in [&mut *features, &mut *targets] {
-        for k in 0..embedding.len() {
-            let t = embedding.tets()[k] as usize;
-            let first = status.get(t).copied().unwrap_or(NONE);
-            if t >= t0 || first == NONE {
-                continue;
-            }
-            // The material point in the parent as snapped (its original nodes, rest now).
-            let parent = parents[t];
-            let Some(p) = interpolate(mesh.rest(), &parent, &embedding.weights()[k]) else {
-                continue;
-            };
-            let mut best: Option<(T, u32, [T; 4])> = None;
-            let (start, count) = ((first >> 3) as usize, (first & 7) as usize);
-            for child in core::iter::once(t).chain(start..start + count) {
-                let corners = mesh.tets()[child].map(|v| mesh.rest()[v as usize]);
-                event.work.embed_tests += 1;
-                if let Some(w) = barycentric(&corners, p) {
-                    let score = w.iter().fold(T::one(), |m, &c| m.min(c));
-                    if best.as_ref().is_none_or(|(b, _, _)| score > *b) {
-                        best = Some((score, child as u32, w));
-                    }
-                }
-            }
-            if let Some((_, c, w)) = best
-                && let Some(w) = clamp_weights(w)
-            {
-                embedding.set(k, c, w);
-                event.points_reembedded += 1;
-            }
-        }
-    }
+    // 2–4. Nodes onto the surface, the tetrahedra to split, and where the split stops.
+    place::snap_nodes(mesh, x, previous, phi, &sep, &incidence, mark, &mut event);
+    place::select(mesh, x, phi, &sep, status, &mut event.work);
+    place::stop_at_extent_ends(mesh, phi, &incidence, status, &mut event);
+    place::keep_above_floor(mesh, phi, status, &mut event);
+    // 5. Split, then 6. the points of split tetrahedra into their pieces.
+    split::split_selected(mesh, x, previous, phi, status, parents, edges, &mut event)?;
+    reembed::into_pieces(
+        mesh,
+        [&mut *features, &mut *targets],
+        status,
+        parents,
+        t0,
+        &mut event,
+    );
 
     // 7. Separate along the cut faces. A piece with all four nodes on the surface (possible
     // where nodes were declared on it) takes the side of its centroid.
-    let n1 = mesh.n_nodes();
     let side = |t: usize| {
         let tet = mesh.tets()[t];
         let s = side_of(phi, &tet);
@@ -796,160 +440,102 @@ pub(crate) fn apply<T: Real>(
         return Ok(event);
     }
     let cut = &cut_store[..n_cut];
-    // Nodes on the cut, each once, in increasing order.
-    mark[..n1].fill(0);
-    for key in cut {
-        for &v in key {
-            mark[v as usize] = 1;
-        }
-    }
-    let mut on_cut_len = 0;
-    for v in 0..n1 {
-        if mark[v] == 1 {
-            mark[on_cut_len] = v as u32;
-            on_cut_len += 1;
-        }
-    }
-    let on_cut = &mark[..on_cut_len];
-    let incidence = Incidence::build(mesh.tets(), n1, inc_ptr, inc_list)?;
+    let on_cut = nodes_on(cut, mesh.n_nodes(), mark);
+    let incidence = Incidence::build(mesh.tets(), mesh.n_nodes(), inc_ptr, inc_list)?;
     // The face sort is done with: its room holds the stars.
-    let star_room = faces.as_flattened_mut();
-    let (star_faces, star_parent) = star_room.split_at_mut(12 * cap_tets);
-    let mut scratch = StarScratch {
+    let (star_faces, star_parent) = faces.as_flattened_mut().split_at_mut(12 * cap_tets);
+    let mut stars = StarScratch {
         faces: star_faces.as_chunks_mut::<3>().0,
         parent: star_parent,
     };
-    let x_ref = &mut *x;
-    let prev_ref = &mut *previous;
-    let phi_ref = &mut *phi;
     event.nodes_duplicated = duplicate_nodes(
         mesh,
         &incidence,
         cut,
         on_cut,
-        &mut scratch,
+        &mut stars,
         |mesh, v| {
             let vi = v as usize;
             let copy = mesh.push_node(mesh.rest()[vi], mesh.is_fixed(vi))? as usize;
-            x_ref[copy] = x_ref[vi];
-            prev_ref[copy] = prev_ref[vi];
-            phi_ref[copy] = T::zero();
+            x[copy] = x[vi];
+            previous[copy] = previous[vi];
+            phi[copy] = T::zero();
             lips.push([v, copy as u32])?;
             Ok(copy as u32)
         },
         &mut event.work.star_entries,
     )?;
-
     mesh.finish_edit(work)?;
 
-    // A feature on the wrong side of the cut (its piece against its observation) goes to
-    // the nearest point of the surface of its own side that faces the camera, as seen in the
-    // image. (Its piece can reach over the line: snapping bends the cut by up to the snapping
-    // tolerance.)
-    for k in 0..features.len().min(observed.len()) {
-        let Some(foot) = sep.foot(observed[k]) else {
-            continue;
-        };
-        if !foot.inside || foot.signed_px.abs() < T::one() {
-            continue;
-        }
-        let seen: Sign = sign(foot.signed_px);
-        let t = features.tets()[k] as usize;
-        let here = side_of(phi, &mesh.tets()[t]);
-        if here == seen {
-            continue;
-        }
-        event.work.embed_tests += mesh.surface().len() as u64;
-        let near = nearest_visible_point(mesh, x, surface.camera, observed[k], |tet| {
-            side_of(phi, &mesh.tets()[tet as usize]) == seen
-        });
-        if let Some((tet, w)) = near {
-            features.set(k, tet, w);
-            event.features_moved_across += 1;
-        }
-    }
-
-    event.min_quality_milli = (min_quality.to_f64() * 1000.0).clamp(0.0, 1000.0) as u32;
+    // 8. Features on the wrong side of the cut go to their own.
+    reembed::features_to_their_side(
+        mesh,
+        x,
+        features,
+        observed,
+        &sep,
+        surface.camera,
+        phi,
+        &mut event,
+    );
     Ok(event)
 }
 
-/// The point of the boundary surface, on a triangle facing the camera whose tetrahedron
-/// `accept` takes, whose image is nearest to pixel `uv`: as (tetrahedron, barycentric weights).
-/// Cost: one projection per boundary triangle.
-fn nearest_visible_point<T: Real>(
-    mesh: &Mesh<'_, T>,
+/// `φ` of every node: its signed distance to the plane of the segment nearest to its image
+/// (NaN behind the camera: no side, never cut). Nodes a cut has already separated stay on the
+/// surface: a later part continues the cut through them instead of cutting a sliver off
+/// beside it.
+fn level_set<T: Real>(
+    sep: &SeparationSurface<'_, T>,
     x: &[[T; 3]],
-    camera: &Camera<T>,
-    uv: [T; 2],
-    accept: impl Fn(u32) -> bool,
-) -> Option<(u32, [T; 4])> {
-    let centre = *camera.centre();
-    let mut best: Option<(T, u32, [T; 3])> = None;
-    for (tri, &tet) in mesh.surface().iter().zip(mesh.surface_tet()) {
-        if !accept(tet) {
-            continue;
-        }
-        let p = tri.map(|v| x[v as usize]);
-        // Facing the camera: the camera lies on the outer side of the triangle.
-        if orientation(p[0], p[1], p[2], [centre.x, centre.y, centre.z]) <= T::zero() {
-            continue;
-        }
-        let mut q = [[T::zero(); 2]; 3];
-        for (qk, pk) in q.iter_mut().zip(&p) {
-            let Ok(image) = camera.project(&nalgebra::Vector3::new(pk[0], pk[1], pk[2]), 0) else {
-                continue;
-            };
-            *qk = [image.x, image.y];
-        }
-        let (d2, b) = closest_in_triangle(q, uv);
-        if best.as_ref().is_none_or(|(bd, _, _)| d2 < *bd) {
-            let point = [0, 1, 2].map(|c| p[0][c] * b[0] + p[1][c] * b[1] + p[2][c] * b[2]);
-            best = Some((d2, tet, point));
+    lips: &Lips<'_>,
+    phi: &mut [T],
+    work: &mut CutWork,
+) {
+    for (p, xv) in phi.iter_mut().zip(x) {
+        *p = match sep.classify(xv) {
+            Some((_, p)) => p,
+            None => T::zero() / T::zero(),
+        };
+    }
+    work.node_tests += (x.len() * sep.segments()) as u64;
+    for pair in lips.pairs() {
+        for &v in pair {
+            if let Some(p) = phi.get_mut(v as usize) {
+                *p = T::zero();
+            }
         }
     }
-    let (_, tet, point) = best?;
-    let corners = mesh.tets().get(tet as usize)?.map(|v| x[v as usize]);
-    Some((tet, clamp_weights(barycentric(&corners, point)?)?))
 }
 
-/// Squared distance from `p` to the triangle `q` in the plane, and the barycentric weights of
-/// the closest point.
-fn closest_in_triangle<T: Real>(q: [[T; 2]; 3], p: [T; 2]) -> (T, [T; 3]) {
-    let d = |a: [T; 2], b: [T; 2]| (a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]);
-    let (e1, e2) = (
-        [q[1][0] - q[0][0], q[1][1] - q[0][1]],
-        [q[2][0] - q[0][0], q[2][1] - q[0][1]],
-    );
-    let det = e1[0] * e2[1] - e1[1] * e2[0];
-    if det.abs() > T::EPS {
-        let w = [p[0] - q[0][0], p[1] - q[0][1]];
-        let b1 = (w[0] * e2[1] - w[1] * e2[0]) / det;
-        let b2 = (e1[0] * w[1] - e1[1] * w[0]) / det;
-        if b1 >= T::zero() && b2 >= T::zero() && b1 + b2 <= T::one() {
-            return (T::zero(), [T::one() - b1 - b2, b1, b2]);
+/// The nodes of the cut faces, each once, in increasing order, written to the front of `mark`
+/// (at least `n_nodes` entries).
+fn nodes_on<'m>(cut: &[[u32; 3]], n_nodes: usize, mark: &'m mut [u32]) -> &'m [u32] {
+    mark[..n_nodes].fill(0);
+    for key in cut {
+        for &v in key {
+            mark[v as usize] = 1;
         }
     }
-    // Outside (or degenerate): the nearest point of the three edges.
-    let mut best = (d(p, q[0]), [T::one(), T::zero(), T::zero()]);
-    for k in 0..3 {
-        let (a, b) = (q[k], q[(k + 1) % 3]);
-        let e = [b[0] - a[0], b[1] - a[1]];
-        let len2 = e[0] * e[0] + e[1] * e[1];
-        let t = if len2 > T::EPS {
-            (((p[0] - a[0]) * e[0] + (p[1] - a[1]) * e[1]) / len2)
-                .max(T::zero())
-                .min(T::one())
-        } else {
-            T::zero()
-        };
-        let c = [a[0] + e[0] * t, a[1] + e[1] * t];
-        let dist = d(p, c);
-        if dist < best.0 {
-            let mut w = [T::zero(); 3];
-            w[k] = T::one() - t;
-            w[(k + 1) % 3] = t;
-            best = (dist, w);
+    let mut len = 0;
+    for v in 0..n_nodes {
+        if mark[v] == 1 {
+            mark[len] = v as u32;
+            len += 1;
         }
     }
-    best
+    &mark[..len]
+}
+
+/// Signs of the nodes of `tet` (`None` if one is unknown).
+pub(crate) fn signs_of<T: Real>(phi: &[T], tet: &[u32; 4]) -> Option<[Sign; 4]> {
+    let mut s = [0; 4];
+    for (k, &v) in tet.iter().enumerate() {
+        let p = phi[v as usize];
+        if !p.finite() {
+            return None;
+        }
+        s[k] = sign(p);
+    }
+    Some(s)
 }

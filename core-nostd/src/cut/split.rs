@@ -18,6 +18,14 @@
 //! index), or the new node on an edge (after every mesh node, by the edge's two nodes), which
 //! is also the order the new nodes get their indices in.
 
+use crate::error::{Error, Resource};
+use crate::mesh::{Mesh, orientation, shape_quality};
+use crate::real::Real;
+use crate::sparse::NONE;
+
+use super::place::SELECTED;
+use super::{CutEvent, crossing, lerp, signs_of};
+
 /// A vertex of a piece: a node of the mesh, or the new node where the cut crosses an edge.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub(crate) enum Vertex {
@@ -174,6 +182,124 @@ fn pyramid(out: &mut Children, apex: Vertex, q: [Vertex; 4]) {
     let (q0, q1, q2, q3) = (q[m], q[(m + 1) % 4], q[(m + 2) % 4], q[(m + 3) % 4]);
     out.push([apex, q0, q1, q2]);
     out.push([apex, q0, q2, q3]);
+}
+
+/// Splits every selected tetrahedron still crossed: a new node on each crossed edge (the
+/// edges sorted, so the new nodes are numbered in the order of their keys and shared by all the
+/// tetrahedra around their edge; positions interpolated along the edge), and each tetrahedron
+/// replaced by its pieces, the first in its place and the others appended together, each
+/// positively oriented at rest. On return `status[t]` is [`NONE`] for a tetrahedron not split,
+/// else `(first appended piece << 3) | appended pieces`, and `parents[t]` holds its former
+/// nodes. `edges` is scratch of six entries per tetrahedron.
+///
+/// # Errors
+/// [`Error::Capacity`] naming [`Resource::Nodes`] or [`Resource::Tetrahedra`] when the new
+/// nodes or pieces do not fit.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn split_selected<T: Real>(
+    mesh: &mut Mesh<'_, T>,
+    x: &mut [[T; 3]],
+    previous: &mut [[T; 3]],
+    phi: &mut [T],
+    status: &mut [u32],
+    parents: &mut [[u32; 4]],
+    edges: &mut [[u32; 2]],
+    event: &mut CutEvent,
+) -> Result<(), Error> {
+    let (n0, t0) = (mesh.n_nodes(), mesh.n_tets());
+    let crossed = |mesh: &Mesh<'_, T>, phi: &[T], t: usize| -> Option<[Sign; 4]> {
+        signs_of(phi, &mesh.tets()[t]).filter(|s| crosses(s))
+    };
+    let mut n_edges = 0;
+    for t in 0..t0 {
+        if status[t] != SELECTED {
+            continue;
+        }
+        let Some(s) = crossed(mesh, phi, t) else {
+            continue;
+        };
+        let tet = mesh.tets()[t];
+        for a in 0..4 {
+            for b in (a + 1)..4 {
+                if s[a] * s[b] < 0 {
+                    edges[n_edges] = [tet[a].min(tet[b]), tet[a].max(tet[b])];
+                    n_edges += 1;
+                }
+            }
+        }
+    }
+    let edges = &mut edges[..n_edges];
+    edges.sort_unstable();
+    let mut unique = 0;
+    for k in 0..edges.len() {
+        if k == 0 || edges[k] != edges[k - 1] {
+            edges[unique] = edges[k];
+            unique += 1;
+        }
+    }
+    let edges = &edges[..unique];
+    let available = mesh.capacity().nodes;
+    if n0 + unique > available {
+        return Err(Error::Capacity {
+            resource: Resource::Nodes,
+            needed: n0 + unique,
+            available,
+        });
+    }
+    for &[a, b] in edges {
+        let t_ab = crossing(phi, a, b);
+        let (ai, bi) = (a as usize, b as usize);
+        let fixed = mesh.is_fixed(ai) && mesh.is_fixed(bi);
+        let v = mesh.push_node(lerp(mesh.rest()[ai], mesh.rest()[bi], t_ab), fixed)? as usize;
+        x[v] = lerp(x[ai], x[bi], t_ab);
+        previous[v] = lerp(previous[ai], previous[bi], t_ab);
+        phi[v] = T::zero();
+    }
+    event.edge_nodes = unique;
+    let node_of = |v: Vertex| -> u32 {
+        match v {
+            Vertex::Node(n) => n,
+            Vertex::Edge(a, b) => edges
+                .binary_search(&[a, b])
+                .map_or(NONE, |k| (n0 + k) as u32),
+        }
+    };
+    let mut min_quality = T::one();
+    for t in 0..t0 {
+        let signs = if status[t] == SELECTED {
+            crossed(mesh, phi, t)
+        } else {
+            None
+        };
+        let Some(s) = signs else {
+            status[t] = NONE;
+            continue;
+        };
+        let tet = mesh.tets()[t];
+        let children = split(&tet, &s);
+        parents[t] = tet;
+        status[t] = ((mesh.n_tets() as u32) << 3) | (children.len as u32 - 1);
+        for (k, child) in children.as_slice().iter().enumerate() {
+            let mut nodes = child.map(node_of);
+            let corners = nodes.map(|v| mesh.rest()[v as usize]);
+            if orientation(corners[0], corners[1], corners[2], corners[3]) < T::zero() {
+                nodes.swap(2, 3);
+            }
+            min_quality = min_quality.min(shape_quality(&nodes.map(|v| mesh.rest()[v as usize])));
+            if k == 0 {
+                mesh.set_tet(t, nodes);
+            } else {
+                mesh.push_tet(nodes)?;
+                event.tets_added += 1;
+            }
+        }
+        event.tets_split += 1;
+    }
+    event.work.element_tests += t0 as u64;
+    event.min_quality_milli = event
+        .min_quality_milli
+        .min((min_quality.to_f64() * 1000.0).clamp(0.0, 1000.0) as u32);
+    Ok(())
 }
 
 #[cfg(test)]

@@ -1,0 +1,176 @@
+//! Moving the points a cut affects: features and targets in a split tetrahedron go to the
+//! piece holding their material point; a feature whose piece lies on the other side of the cut
+//! than its observation goes to the surface of its own side.
+
+use crate::camera::Camera;
+use crate::embed::{Embedding, barycentric, clamp_weights, interpolate};
+use crate::mesh::{Mesh, orientation};
+use crate::real::Real;
+use crate::sparse::NONE;
+
+use super::split::Sign;
+use super::surface::SeparationSurface;
+use super::{CutEvent, side_of, sign};
+
+/// Re-embeds the points of the split tetrahedra (`status` and `parents` as
+/// [`super::split::split_selected`] leaves them; `t0` tetrahedra before the split) in the piece
+/// holding their material point: the point in the parent as snapped (its former nodes, at their
+/// rest positions now), located among the parent's pieces by its barycentric weights.
+pub(super) fn into_pieces<T: Real>(
+    mesh: &Mesh<'_, T>,
+    embeddings: [&mut Embedding<'_, T>; 2],
+    status: &[u32],
+    parents: &[[u32; 4]],
+    t0: usize,
+    event: &mut CutEvent,
+) {
+    for embedding in embeddings {
+        for k in 0..embedding.len() {
+            let t = embedding.tets()[k] as usize;
+            let first = status.get(t).copied().unwrap_or(NONE);
+            if t >= t0 || first == NONE {
+                continue;
+            }
+            let Some(p) = interpolate(mesh.rest(), &parents[t], &embedding.weights()[k]) else {
+                continue;
+            };
+            let mut best: Option<(T, u32, [T; 4])> = None;
+            let (start, count) = ((first >> 3) as usize, (first & 7) as usize);
+            for child in core::iter::once(t).chain(start..start + count) {
+                let corners = mesh.tets()[child].map(|v| mesh.rest()[v as usize]);
+                event.work.embed_tests += 1;
+                if let Some(w) = barycentric(&corners, p) {
+                    let score = w.iter().fold(T::one(), |m, &c| m.min(c));
+                    if best.as_ref().is_none_or(|(b, _, _)| score > *b) {
+                        best = Some((score, child as u32, w));
+                    }
+                }
+            }
+            if let Some((_, c, w)) = best
+                && let Some(w) = clamp_weights(w)
+            {
+                embedding.set(k, c, w);
+                event.points_reembedded += 1;
+            }
+        }
+    }
+}
+
+/// A feature whose observation (`observed`, by slot) lies beside the cut line, clearly on one
+/// side, but whose piece lies on the other (its piece can reach over the line: snapping bends
+/// the cut by up to the snapping tolerance) goes to the nearest point, in the image, of the
+/// boundary of its own side that faces the camera.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn features_to_their_side<T: Real>(
+    mesh: &Mesh<'_, T>,
+    x: &[[T; 3]],
+    features: &mut Embedding<'_, T>,
+    observed: &[[T; 2]],
+    sep: &SeparationSurface<'_, T>,
+    camera: &Camera<T>,
+    phi: &[T],
+    event: &mut CutEvent,
+) {
+    for k in 0..features.len().min(observed.len()) {
+        let Some(foot) = sep.foot(observed[k]) else {
+            continue;
+        };
+        if !foot.inside || foot.signed_px.abs() < T::one() {
+            continue;
+        }
+        let seen: Sign = sign(foot.signed_px);
+        let t = features.tets()[k] as usize;
+        if side_of(phi, &mesh.tets()[t]) == seen {
+            continue;
+        }
+        event.work.embed_tests += mesh.surface().len() as u64;
+        let near = nearest_visible_point(mesh, x, camera, observed[k], |tet| {
+            side_of(phi, &mesh.tets()[tet as usize]) == seen
+        });
+        if let Some((tet, w)) = near {
+            features.set(k, tet, w);
+            event.features_moved_across += 1;
+        }
+    }
+}
+
+/// The point of the boundary surface, on a triangle facing the camera whose tetrahedron
+/// `accept` takes, whose image is nearest to pixel `uv`: as (tetrahedron, barycentric weights).
+/// Cost: one projection per boundary triangle.
+fn nearest_visible_point<T: Real>(
+    mesh: &Mesh<'_, T>,
+    x: &[[T; 3]],
+    camera: &Camera<T>,
+    uv: [T; 2],
+    accept: impl Fn(u32) -> bool,
+) -> Option<(u32, [T; 4])> {
+    let centre = *camera.centre();
+    let mut best: Option<(T, u32, [T; 3])> = None;
+    for (tri, &tet) in mesh.surface().iter().zip(mesh.surface_tet()) {
+        if !accept(tet) {
+            continue;
+        }
+        let p = tri.map(|v| x[v as usize]);
+        // Facing the camera: the camera lies on the outer side of the triangle.
+        if orientation(p[0], p[1], p[2], [centre.x, centre.y, centre.z]) <= T::zero() {
+            continue;
+        }
+        let mut q = [[T::zero(); 2]; 3];
+        for (qk, pk) in q.iter_mut().zip(&p) {
+            let Ok(image) = camera.project(&nalgebra::Vector3::new(pk[0], pk[1], pk[2]), 0) else {
+                continue;
+            };
+            *qk = [image.x, image.y];
+        }
+        let (d2, b) = closest_in_triangle(q, uv);
+        if best.as_ref().is_none_or(|(bd, _, _)| d2 < *bd) {
+            let point = [0, 1, 2].map(|c| p[0][c] * b[0] + p[1][c] * b[1] + p[2][c] * b[2]);
+            best = Some((d2, tet, point));
+        }
+    }
+    let (_, tet, point) = best?;
+    let corners = mesh.tets().get(tet as usize)?.map(|v| x[v as usize]);
+    Some((tet, clamp_weights(barycentric(&corners, point)?)?))
+}
+
+/// Squared distance from `p` to the triangle `q` in the plane, and the barycentric weights of
+/// the closest point.
+fn closest_in_triangle<T: Real>(q: [[T; 2]; 3], p: [T; 2]) -> (T, [T; 3]) {
+    let d = |a: [T; 2], b: [T; 2]| (a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]);
+    let (e1, e2) = (
+        [q[1][0] - q[0][0], q[1][1] - q[0][1]],
+        [q[2][0] - q[0][0], q[2][1] - q[0][1]],
+    );
+    let det = e1[0] * e2[1] - e1[1] * e2[0];
+    if det.abs() > T::EPS {
+        let w = [p[0] - q[0][0], p[1] - q[0][1]];
+        let b1 = (w[0] * e2[1] - w[1] * e2[0]) / det;
+        let b2 = (e1[0] * w[1] - e1[1] * w[0]) / det;
+        if b1 >= T::zero() && b2 >= T::zero() && b1 + b2 <= T::one() {
+            return (T::zero(), [T::one() - b1 - b2, b1, b2]);
+        }
+    }
+    // Outside (or degenerate): the nearest point of the three edges.
+    let mut best = (d(p, q[0]), [T::one(), T::zero(), T::zero()]);
+    for k in 0..3 {
+        let (a, b) = (q[k], q[(k + 1) % 3]);
+        let e = [b[0] - a[0], b[1] - a[1]];
+        let len2 = e[0] * e[0] + e[1] * e[1];
+        let t = if len2 > T::EPS {
+            (((p[0] - a[0]) * e[0] + (p[1] - a[1]) * e[1]) / len2)
+                .max(T::zero())
+                .min(T::one())
+        } else {
+            T::zero()
+        };
+        let c = [a[0] + e[0] * t, a[1] + e[1] * t];
+        let dist = d(p, c);
+        if dist < best.0 {
+            let mut w = [T::zero(); 3];
+            w[k] = T::one() - t;
+            w[(k + 1) % 3] = t;
+            best = (dist, w);
+        }
+    }
+    best
+}
