@@ -53,8 +53,10 @@ pub(super) fn snap_nodes<T: Real>(
         if !(pv.finite() && pv != T::zero()) {
             continue;
         }
-        // The nearest crossing on any edge, and on an edge the node may move along.
-        let (mut nearest, mut along): (Option<(T, u32)>, Option<(T, u32)>) = (None, None);
+        // The nearest crossing on any edge, and on an edge the node may move along: (fraction
+        // of the edge from the node, the node at its other end).
+        let mut nearest: Option<(T, u32)> = None;
+        let mut along: Option<(T, u32)> = None;
         for &t in incidence.of(v) {
             for &w in &mesh.tets()[t as usize] {
                 let pw = phi[w as usize];

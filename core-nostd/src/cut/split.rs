@@ -208,7 +208,7 @@ pub(super) fn split_selected<T: Real>(
 ) -> Result<(), Error> {
     let (n0, t0) = (mesh.n_nodes(), mesh.n_tets());
     let crossed = |mesh: &Mesh<'_, T>, phi: &[T], t: usize| -> Option<[Sign; 4]> {
-        signs_of(phi, &mesh.tets()[t]).filter(|s| crosses(s))
+        signs_of(phi, &mesh.tets()[t]).filter(crosses)
     };
     let mut n_edges = 0;
     for t in 0..t0 {
