@@ -229,7 +229,7 @@ pub fn read_vtu(path: &Path) -> Result<VtuMesh, VtuError> {
             .points
             .cast_into()
             .ok_or_else(|| fail(format!("piece {k}: the points are not numbers")))?;
-        if coords.len() % 3 != 0 {
+        if !coords.len().is_multiple_of(3) {
             return Err(fail(format!(
                 "piece {k}: {} point coordinates, not a multiple of 3",
                 coords.len()
