@@ -1,5 +1,6 @@
 //! VTK XML unstructured grids (`.vtu`, ASCII) of tetrahedral meshes, and `.pvd` collections that
-//! string them into a time series, for viewing in ParaView.
+//! string them into a time series, for viewing in ParaView; and [`read_vtu`], which reads the
+//! tetrahedra of a `.vtu` file (SOFA's fine liver) through the `vtkio` crate.
 //!
 //! ASCII rather than binary so that the files can be read and diffed; numbers are written in the
 //! shortest decimal form that reads back to the same `f64`, so the same input always gives the
@@ -11,6 +12,8 @@ use std::fmt::Display;
 use std::fs::File;
 use std::io::{self, BufWriter, Write};
 use std::path::Path;
+
+use vtkio::model::{CellType, DataSet, VertexNumbers};
 
 use crate::msh::RoundTrip;
 
@@ -153,6 +156,144 @@ pub fn write_pvd(path: &Path, steps: &[(f64, String)]) -> io::Result<()> {
     writeln!(w, "  </Collection>")?;
     writeln!(w, "</VTKFile>")?;
     w.flush()
+}
+
+/// The tetrahedra of a VTK XML unstructured grid, as read by [`read_vtu`].
+///
+/// What [`read_vtu`] promises on return: every coordinate is finite, `tets` is not empty and
+/// every index in it is below `nodes.len()`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct VtuMesh {
+    /// Point positions in the file's length unit (nothing is converted), in file order, the
+    /// points of all pieces one after the other.
+    pub nodes: Vec<[f64; 3]>,
+    /// The `VTK_TETRA` cells as 0-based indices into `nodes`, with the file's node order.
+    pub tets: Vec<[u32; 4]>,
+    /// How many cells of other types were dropped.
+    pub skipped_cells: usize,
+}
+
+/// Why a `.vtu` file could not be read: the file and what is wrong.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct VtuError {
+    /// The file, as given to [`read_vtu`].
+    pub file: String,
+    /// What is wrong.
+    pub message: String,
+}
+
+impl Display for VtuError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}: {}", self.file, self.message)
+    }
+}
+
+impl std::error::Error for VtuError {}
+
+/// Reads the tetrahedra (`VTK_TETRA`, type 10) of the VTK XML unstructured grid at `path`:
+/// ASCII, raw binary or base64 data, zlib-compressed or not, either byte order, one piece or
+/// several (their points are numbered one after the other). Other cell types are counted and
+/// dropped.
+///
+/// Parsing is `vtkio`'s, the VTK file reader of the Rust ecosystem; this function only checks
+/// what a simulation needs.
+///
+/// # Errors
+/// A [`VtuError`] naming `path`: a file that cannot be read or parsed, that is not an
+/// unstructured grid, points that are not 3-vectors of numbers or not finite, a tetrahedron
+/// that does not have four points or names a point that does not exist, or no tetrahedron at
+/// all.
+pub fn read_vtu(path: &Path) -> Result<VtuMesh, VtuError> {
+    let file = path.display().to_string();
+    let fail = |message: String| VtuError {
+        file: file.clone(),
+        message,
+    };
+    let vtk = vtkio::Vtk::import(path).map_err(|e| fail(format!("cannot read: {e}")))?;
+    let DataSet::UnstructuredGrid { pieces, .. } = vtk.data else {
+        return Err(fail(
+            "not an unstructured grid (VTK_UNSTRUCTURED_GRID)".into(),
+        ));
+    };
+    let mut out = VtuMesh {
+        nodes: vec![],
+        tets: vec![],
+        skipped_cells: 0,
+    };
+    for (k, piece) in pieces.into_iter().enumerate() {
+        let piece = piece
+            .into_loaded_piece_data(vtk.file_path.as_deref())
+            .map_err(|e| fail(format!("piece {k}: {e}")))?;
+        let first = out.nodes.len();
+        let coords: Vec<f64> = piece
+            .points
+            .cast_into()
+            .ok_or_else(|| fail(format!("piece {k}: the points are not numbers")))?;
+        if !coords.len().is_multiple_of(3) {
+            return Err(fail(format!(
+                "piece {k}: {} point coordinates, not a multiple of 3",
+                coords.len()
+            )));
+        }
+        for (i, p) in coords.chunks_exact(3).enumerate() {
+            if p.iter().any(|c| !c.is_finite()) {
+                return Err(fail(format!("piece {k}: point {i} is not finite: {p:?}")));
+            }
+            out.nodes.push([p[0], p[1], p[2]]);
+        }
+        let count = out.nodes.len() - first;
+        let (connectivity, offsets) = match piece.cells.cell_verts {
+            VertexNumbers::XML {
+                connectivity,
+                offsets,
+            } => (connectivity, offsets),
+            legacy @ VertexNumbers::Legacy { .. } => legacy.into_xml(),
+        };
+        if offsets.len() != piece.cells.types.len() {
+            return Err(fail(format!(
+                "piece {k}: {} cell offsets but {} cell types",
+                offsets.len(),
+                piece.cells.types.len()
+            )));
+        }
+        let mut start = 0usize;
+        for (c, (&end, ty)) in offsets.iter().zip(&piece.cells.types).enumerate() {
+            let end = usize::try_from(end).unwrap_or(usize::MAX);
+            let verts = connectivity.get(start..end).ok_or_else(|| {
+                fail(format!(
+                    "piece {k}: cell {c} ends at {end}, outside the {} connectivity entries",
+                    connectivity.len()
+                ))
+            })?;
+            start = end;
+            if *ty != CellType::Tetra {
+                out.skipped_cells += 1;
+                continue;
+            }
+            if verts.len() != 4 {
+                return Err(fail(format!(
+                    "piece {k}: tetrahedron {c} has {} points",
+                    verts.len()
+                )));
+            }
+            let mut tet = [0u32; 4];
+            for (slot, &v) in tet.iter_mut().zip(verts) {
+                let v = usize::try_from(v).unwrap_or(usize::MAX);
+                if v >= count {
+                    return Err(fail(format!(
+                        "piece {k}: tetrahedron {c} names point {v}, but there are {count}"
+                    )));
+                }
+                *slot = u32::try_from(first + v)
+                    .map_err(|_| fail(format!("piece {k}: more than 2^32 points")))?;
+            }
+            out.tets.push(tet);
+        }
+    }
+    if out.tets.is_empty() {
+        return Err(fail("no tetrahedron (VTK_TETRA) in the file".into()));
+    }
+    Ok(out)
 }
 
 fn invalid(message: String) -> io::Error {
@@ -431,5 +572,77 @@ mod tests {
         );
         let err = write_pvd(&path, &[(f64::INFINITY, "a.vtu".to_owned())]).unwrap_err();
         assert_eq!(err.kind(), io::ErrorKind::InvalidInput);
+    }
+
+    #[test]
+    fn read_back_what_write_vtu_wrote() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("m.vtu");
+        let points = POINTS.map(|p| p.map(|c| c * 0.1 + 1e-3));
+        write_vtu(&path, &points, &TETS, &[], &[]).unwrap();
+        let m = read_vtu(&path).unwrap();
+        assert_eq!(m.nodes, points);
+        assert_eq!(m.tets, TETS);
+        assert_eq!(m.skipped_cells, 0);
+    }
+
+    fn grid(cells: &str, types: &str) -> String {
+        format!(
+            r#"<?xml version="1.0"?>
+<VTKFile type="UnstructuredGrid" version="0.1" byte_order="BigEndian">
+  <UnstructuredGrid>
+    <Piece NumberOfPoints="4" NumberOfCells="2">
+      <Points>
+        <DataArray type="Float32" NumberOfComponents="3" format="ascii">
+          0 0 0 1 0 0 0 1 0 0 0 1
+        </DataArray>
+      </Points>
+      <Cells>
+        <DataArray type="Int32" Name="connectivity" format="ascii">{cells}</DataArray>
+        <DataArray type="Int32" Name="offsets" format="ascii">3 7</DataArray>
+        <DataArray type="UInt8" Name="types" format="ascii">{types}</DataArray>
+      </Cells>
+    </Piece>
+  </UnstructuredGrid>
+</VTKFile>
+"#
+        )
+    }
+
+    #[test]
+    fn other_cells_are_skipped_and_bad_cells_named() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("g.vtu");
+        // A triangle, then a tetrahedron.
+        std::fs::write(&path, grid("0 1 2 0 1 2 3", "5 10")).unwrap();
+        let m = read_vtu(&path).unwrap();
+        assert_eq!(m.tets, vec![[0, 1, 2, 3]]);
+        assert_eq!(m.skipped_cells, 1);
+        assert_eq!(m.nodes[3], [0.0, 0.0, 1.0]);
+        // A point that does not exist.
+        std::fs::write(&path, grid("0 1 2 0 1 2 9", "5 10")).unwrap();
+        let e = read_vtu(&path).unwrap_err();
+        assert!(e.message.contains("point 9"), "{e}");
+        // No tetrahedron at all.
+        std::fs::write(&path, grid("0 1 2 0 1 2 3", "5 9")).unwrap();
+        let e = read_vtu(&path).unwrap_err();
+        assert!(e.message.contains("no tetrahedron"), "{e}");
+        // Not a file.
+        let e = read_vtu(&dir.path().join("none.vtu")).unwrap_err();
+        assert!(e.to_string().contains("none.vtu"), "{e}");
+    }
+
+    /// SOFA's fine liver, read where it lies (see `shared/data/liver/SOURCE.md`).
+    #[test]
+    fn sofa_fine_liver() {
+        let path =
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/liver/liverFine.vtu");
+        let m = read_vtu(&path).unwrap();
+        assert_eq!(
+            (m.nodes.len(), m.tets.len(), m.skipped_cells),
+            (4293, 22019, 0)
+        );
+        // Centimetres, the frame of liver.msh: the first point of the file.
+        assert_eq!(m.nodes[0], [-2.43563f32, 3.76782, 2.1424].map(f64::from));
     }
 }

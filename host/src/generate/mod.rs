@@ -5,8 +5,9 @@
 //!   positive semidefinite Hessian), the real object's law, deliberately not the model's SVK.
 //! - [`sim`]: the quasi-static simulator of the real object, driven frame by frame through
 //!   prescribed (held or grasped) nodes.
-//! - [`object`]: the real object's mesh (a fine band, or an organ mesh refined eight-fold) and
-//!   the pre-cut slit, made by duplicating nodes on a surface of mesh faces.
+//! - [`object`]: the real object's mesh (a fine band, an organ's own fine mesh such as SOFA's
+//!   `liverFine.vtu`, or the organ model refined eight-fold) and the pre-cut slit, made by
+//!   duplicating nodes on a surface of mesh faces.
 //! - [`tracking`]: what a tracker would report: features on the visible surface, hidden when
 //!   occluded, with noise, drop-outs and jumps.
 //! - [`scenario`]: the `scenario.toml` a scene is generated from.

@@ -195,9 +195,21 @@ pub struct Slit {
 /// tetrahedra still connected through uncut faces, so the lips separate while the slit's front
 /// stays attached.
 pub fn cut_slit(mesh: &TetMesh, point: [f64; 3], normal: [f64; 3], region: [[f64; 3]; 2]) -> Slit {
+    cut_slit_where(mesh, point, normal, |p| {
+        (0..3).all(|k| p[k] >= region[0][k] && p[k] <= region[1][k])
+    })
+}
+
+/// [`cut_slit`] with any region: the faces between tetrahedra on either side of the plane
+/// `(point, normal)` whose centroid satisfies `inside` are cut.
+pub fn cut_slit_where(
+    mesh: &TetMesh,
+    point: [f64; 3],
+    normal: [f64; 3],
+    inside: impl Fn([f64; 3]) -> bool,
+) -> Slit {
     let side =
         |p: [f64; 3]| -> bool { (0..3).map(|k| (p[k] - point[k]) * normal[k]).sum::<f64>() > 0.0 };
-    let inside = |p: [f64; 3]| (0..3).all(|k| p[k] >= region[0][k] && p[k] <= region[1][k]);
     // Interior faces and their two tetrahedra.
     let mut faces: HashMap<[u32; 3], Vec<usize>> = HashMap::new();
     for (t, tet) in mesh.tets.iter().enumerate() {

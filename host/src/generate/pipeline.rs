@@ -7,16 +7,21 @@ use incise_core::Camera;
 use incise_core::nalgebra::{Rotation3, Unit, Vector3};
 use indicatif::{ProgressBar, ProgressStyle};
 
-use crate::generate::object::{TetMesh, cut_slit, interpolate, signed_volume6};
+use crate::generate::object::{
+    Slit, TetMesh, cut_slit, cut_slit_where, interpolate, signed_volume6,
+};
 use crate::generate::scenario::{GraspSpec, Scenario};
 use crate::generate::sim::Simulator;
 use crate::generate::tracking::{DepthBuffer, observe_frame, sample_features};
+use crate::metrics::dice;
 use crate::msh;
+use crate::render::silhouette;
 use crate::rng::Rng;
 use crate::scene::{
     CameraSection, GroundTruthSection, ModelSection, SceneFile, silhouette_path, write_obj,
     write_tracks,
 };
+use crate::vtu::read_vtu;
 
 /// A failure of the generator, with what it was doing.
 #[derive(Debug)]
@@ -49,6 +54,9 @@ pub struct Generated {
     pub model_size: (usize, usize),
     /// First frame at which the slit has opened by a pixel.
     pub cut_open_frame: Option<u32>,
+    /// Dice of the rest silhouettes of the model and the real object
+    /// ([`rest_silhouette_dice`]).
+    pub rest_silhouette_dice: f64,
 }
 
 /// The camera of a scenario.
@@ -204,12 +212,123 @@ impl Simulation {
     }
 }
 
-/// Builds the real object of the scenario at `scenario_path` and simulates every frame.
+/// The real object and the model of a scenario at rest, before any frame is simulated.
+#[derive(Clone, Debug)]
+pub struct Prepared {
+    /// The scenario.
+    pub scenario: Scenario,
+    /// The camera.
+    pub camera: Camera<f64>,
+    /// The model mesh (coarse, uncut).
+    pub model: TetMesh,
+    /// Nodes of the model held at rest.
+    pub model_fixed: Vec<u32>,
+    /// The model's Gmsh file, for a scenario made from a mesh file.
+    pub model_mesh_file: Option<PathBuf>,
+    /// The real mesh (fine, with the slit's nodes duplicated).
+    pub real: TetMesh,
+    /// The fine mesh before the slit.
+    pub fine: TetMesh,
+    /// `(original, duplicate)` nodes along the slit's lips.
+    pub lips: Vec<(u32, u32)>,
+    /// Nodes of the slit's front, where its lips meet.
+    pub slit_front: Vec<u32>,
+    /// Prescribed nodes of the real mesh, each with the grasp that moves it (`None`: held).
+    pub prescribed: Vec<(u32, Option<usize>)>,
+}
+
+impl Prepared {
+    /// Dice of the rest silhouettes of the model and of the real object through the camera,
+    /// roughly the best a model can score against the ground truth: about 1 when the real
+    /// object is the model refined, less for an independent real mesh (SOFA's fine liver).
+    pub fn rest_silhouette_dice(&self) -> f64 {
+        rest_silhouette_dice(&self.camera, &self.model, &self.real)
+    }
+}
+
+/// Dice of the silhouettes of `model` (rendered as `incise run` renders the model) and `real`
+/// (rendered as the ground truth is) at rest, through `camera`.
+pub fn rest_silhouette_dice(camera: &Camera<f64>, model: &TetMesh, real: &TetMesh) -> f64 {
+    let model_triangles: Vec<[u32; 3]> = model.boundary().iter().map(|b| b.0).collect();
+    let real_triangles: Vec<[u32; 3]> = real.boundary().iter().map(|b| b.0).collect();
+    let m = silhouette(camera, &model.nodes, &model_triangles);
+    let r = DepthBuffer::render(camera, &real.nodes, &real_triangles).mask();
+    dice(&m, &r)
+}
+
+/// A tetrahedral mesh file, Gmsh (`.msh`) or VTK XML (`.vtu`), scaled to metres and oriented.
+fn read_tet_mesh(path: &Path, scale: f64) -> Result<TetMesh, GenError> {
+    let is_vtu = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("vtu"));
+    let (nodes, tets) = if is_vtu {
+        let m = read_vtu(path).map_err(err)?;
+        (m.nodes, m.tets)
+    } else {
+        let m = msh::read_msh(path).map_err(err)?;
+        (m.nodes, m.tets)
+    };
+    let mut mesh = TetMesh {
+        nodes: nodes.iter().map(|p| p.map(|c| c * scale)).collect(),
+        tets,
+    };
+    mesh.orient_positive();
+    Ok(mesh)
+}
+
+/// The slit of a scenario cut into `fine`, or `None` without a `[slit]`.
+fn make_slit(s: &Scenario, fine: &TetMesh, camera: &Camera<f64>) -> Result<Option<Slit>, GenError> {
+    let Some(sl) = &s.slit else {
+        return Ok(None);
+    };
+    let in_region = |p: [f64; 3]| sl.region.as_ref().is_none_or(|b| in_box(p, b));
+    let cut = match (sl.image, sl.point, sl.normal) {
+        (Some([a, b]), None, None) => {
+            // The plane through the camera centre and the rays through both ends; the slit is
+            // the part of it that projects between the ends.
+            let (eye, d0) = camera.ray(a[0], a[1]);
+            let (_, d1) = camera.ray(b[0], b[1]);
+            let normal = d0.cross(&d1);
+            if normal.norm() < 1e-12 || (b[0] - a[0]).hypot(b[1] - a[1]) < 1.0 {
+                return Err(GenError(
+                    "[slit] image: the two ends must be at least a pixel apart".into(),
+                ));
+            }
+            let ab = [b[0] - a[0], b[1] - a[1]];
+            let len2 = ab[0] * ab[0] + ab[1] * ab[1];
+            cut_slit_where(fine, [eye.x, eye.y, eye.z], normal.into(), |p| {
+                camera.project(&Vector3::from(p), 0).is_ok_and(|uv| {
+                    let t = ((uv.x - a[0]) * ab[0] + (uv.y - a[1]) * ab[1]) / len2;
+                    (0.0..=1.0).contains(&t)
+                }) && in_region(p)
+            })
+        }
+        (None, Some(point), Some(normal)) => {
+            let Some(region) = sl.region else {
+                return Err(GenError("[slit] a plane slit needs a region".into()));
+            };
+            cut_slit(fine, point, normal, region)
+        }
+        _ => {
+            return Err(GenError(
+                "[slit] give either point, normal and region, or image (and maybe region)".into(),
+            ));
+        }
+    };
+    if cut.faces == 0 {
+        return Err(GenError(
+            "[slit] region holds no mesh face: nothing is cut".into(),
+        ));
+    }
+    Ok(Some(cut))
+}
+
+/// Builds the model and the real object (with its slit) of the scenario at `scenario_path`,
+/// at rest.
 ///
 /// # Errors
-/// A [`GenError`] for a bad scenario, a mesh that cannot be read, or a simulation that does
-/// not converge.
-pub fn simulate(scenario_path: &Path, progress: bool) -> Result<Simulation, GenError> {
+/// A [`GenError`] for a bad scenario or a mesh that cannot be read.
+pub fn prepare(scenario_path: &Path) -> Result<Prepared, GenError> {
     let s = Scenario::load(scenario_path).map_err(err)?;
     let base = scenario_path.parent().unwrap_or(Path::new("."));
     // The model mesh and the finer real mesh.
@@ -221,18 +340,15 @@ pub fn simulate(scenario_path: &Path, progress: bool) -> Result<Simulation, GenE
         }
         "mesh" => {
             let path = base.join(&s.object.mesh);
-            let mut m = msh::read_msh(&path).map_err(err)?;
-            m.orient_positive();
-            let nodes = m
-                .nodes
-                .iter()
-                .map(|p| p.map(|c| c * s.object.scale))
-                .collect();
-            let model = TetMesh {
-                nodes,
-                tets: m.tets,
+            let model = read_tet_mesh(&path, s.object.scale)?;
+            let fine = if s.object.real_mesh.is_empty() {
+                model.refine()
+            } else {
+                read_tet_mesh(
+                    &base.join(&s.object.real_mesh),
+                    s.object.real_scale.unwrap_or(s.object.scale),
+                )?
             };
-            let fine = model.refine();
             (model, fine, Some(path))
         }
         other => {
@@ -241,29 +357,19 @@ pub fn simulate(scenario_path: &Path, progress: bool) -> Result<Simulation, GenE
             )));
         }
     };
-    let (real, pairs, slit_front) = match &s.slit {
-        Some(sl) => {
-            let cut = cut_slit(&fine, sl.point, sl.normal, sl.region);
-            if cut.faces == 0 {
-                return Err(GenError(
-                    "[slit] region holds no mesh face: nothing is cut".into(),
-                ));
-            }
-            (cut.mesh, cut.pairs, cut.front)
-        }
+    let camera = scenario_camera(&s)?;
+    let (real, pairs, slit_front) = match make_slit(&s, &fine, &camera)? {
+        Some(cut) => (cut.mesh, cut.pairs, cut.front),
         None => (fine.clone(), vec![], vec![]),
     };
 
     // Held and grasped nodes of the real mesh; the model holds its nodes in the held boxes.
     let mut prescribed = vec![];
-    let mut grasp_of = vec![];
     for (v, &p) in real.nodes.iter().enumerate() {
         if s.motion.held.iter().any(|b| in_box(p, b)) {
-            prescribed.push(v as u32);
-            grasp_of.push(None);
+            prescribed.push((v as u32, None));
         } else if let Some(g) = s.motion.grasp.iter().position(|g| in_box(p, &g.region)) {
-            prescribed.push(v as u32);
-            grasp_of.push(Some(g));
+            prescribed.push((v as u32, Some(g)));
         }
     }
     let model_fixed: Vec<u32> = (0..model.nodes.len() as u32)
@@ -277,15 +383,56 @@ pub fn simulate(scenario_path: &Path, progress: bool) -> Result<Simulation, GenE
     if model_fixed.is_empty() {
         return Err(GenError("[motion] no model node lies in a held box".into()));
     }
-    if grasp_of.iter().all(Option::is_none) {
+    for (k, b) in s.motion.held.iter().enumerate() {
+        if !prescribed
+            .iter()
+            .any(|&(v, g)| g.is_none() && in_box(real.nodes[v as usize], b))
+        {
+            return Err(GenError(format!(
+                "[motion] held box {k} holds no node of the real object"
+            )));
+        }
+    }
+    if prescribed.iter().all(|(_, g)| g.is_none()) {
         return Err(GenError("[motion] no node lies in a grasped box".into()));
     }
+    Ok(Prepared {
+        scenario: s,
+        camera,
+        model,
+        model_fixed,
+        model_mesh_file: model_mesh_ref,
+        real,
+        fine,
+        lips: pairs,
+        slit_front,
+        prescribed,
+    })
+}
 
-    let camera = scenario_camera(&s)?;
+/// Builds the real object of the scenario at `scenario_path` and simulates every frame.
+///
+/// # Errors
+/// A [`GenError`] for a bad scenario, a mesh that cannot be read, or a simulation that does
+/// not converge.
+pub fn simulate(scenario_path: &Path, progress: bool) -> Result<Simulation, GenError> {
+    let Prepared {
+        scenario: s,
+        camera,
+        model,
+        model_fixed,
+        model_mesh_file,
+        real,
+        fine,
+        lips,
+        slit_front,
+        prescribed,
+    } = prepare(scenario_path)?;
+    let prescribed_nodes: Vec<u32> = prescribed.iter().map(|p| p.0).collect();
     let mut simulator = Simulator::new(
         &real.nodes,
         &real.tets,
-        &prescribed,
+        &prescribed_nodes,
         s.object.young,
         s.object.poisson,
     )
@@ -306,15 +453,15 @@ pub fn simulate(scenario_path: &Path, progress: bool) -> Result<Simulation, GenE
     let tolerance = 0.05 * extent;
 
     let bar = progress_bar(progress, &s.name, "simulating")?;
+    bar.set_length(u64::from(s.frames.saturating_sub(1)));
     let mut positions = vec![real.nodes.clone()];
     for frame in 1..s.frames {
         let goal: Vec<[f64; 3]> = prescribed
             .iter()
-            .zip(&grasp_of)
-            .map(|(&v, g)| {
+            .map(|&(v, g)| {
                 let p = real.nodes[v as usize];
                 match g {
-                    Some(g) => grasped_position(&s.motion.grasp[*g], p, frame),
+                    Some(g) => grasped_position(&s.motion.grasp[g], p, frame),
                     None => p,
                 }
             })
@@ -331,10 +478,10 @@ pub fn simulate(scenario_path: &Path, progress: bool) -> Result<Simulation, GenE
         camera,
         model,
         model_fixed,
-        model_mesh_file: model_mesh_ref,
+        model_mesh_file,
         real,
         fine,
-        lips: pairs,
+        lips,
         slit_front,
         boundary,
         positions,
@@ -537,6 +684,7 @@ pub fn write_scene(
         fine_size: (real.nodes.len(), real.tets.len()),
         model_size: (model.nodes.len(), model.tets.len()),
         cut_open_frame,
+        rest_silhouette_dice: rest_silhouette_dice(camera, model, real),
     })
 }
 
@@ -598,5 +746,134 @@ fn order_along_image_line(lips: &mut [(u32, u32)], nodes: &[[f64; 3]], camera: &
     keyed.sort_by(|a, b| a.0.total_cmp(&b.0));
     for (slot, (_, l)) in lips.iter_mut().zip(keyed) {
         *slot = l;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A small band scenario with a camera 20 cm above it, and the given `[slit]` lines.
+    fn band_scenario(dir: &Path, slit: &str) -> PathBuf {
+        let path = dir.join("scenario.toml");
+        std::fs::write(
+            &path,
+            format!(
+                r#"name = "t"
+seed = 1
+frames = 2
+[object]
+shape = "band"
+size = [0.04, 0.02, 0.006]
+fine_cells = [16, 8, 3]
+model_cells = [4, 2, 1]
+young = 1.0e5
+poisson = 0.45
+[slit]
+{slit}
+[motion]
+held = [[[-0.001, -0.001, -0.001], [0.0001, 0.021, 0.007]]]
+[[motion.grasp]]
+region = [[0.0399, -0.001, -0.001], [0.041, 0.021, 0.007]]
+displacement = [0.01, 0.0, 0.0]
+start = 0
+end = 1
+[camera]
+eye = [0.02, 0.01, 0.2]
+target = [0.02, 0.01, 0.0]
+up = [0.0, 1.0, 0.0]
+focal = 2000.0
+width = 640
+height = 480
+[tracking]
+features = 10
+noise_px = 0.0
+dropout = 0.0
+outlier_fraction = 0.0
+outlier_jump_px = 0.0
+[model]
+young = 1.0e5
+poisson = 0.45
+[solver]
+strategy = "refactor"
+newton_iterations = 1
+line_search_steps = 1
+spring_stiffness = 1.0e-4
+damping = 0.01
+"#
+            ),
+        )
+        .unwrap();
+        path
+    }
+
+    #[test]
+    fn image_slit_runs_along_the_camera_rays_through_the_whole_thickness() {
+        let dir = tempfile::tempdir().unwrap();
+        // The camera sees x = 0.02 at u = 320 and 10 px per mm; y = 0.01 at v = 240 (v grows
+        // toward -y). The segment: from below the band's lower edge (y = 0) to y = 0.015.
+        let path = band_scenario(dir.path(), "image = [[320.0, 360.0], [320.0, 190.0]]");
+        let p = prepare(&path).unwrap();
+        assert!(!p.lips.is_empty());
+        let x = &p.real.nodes;
+        // The lips lie in the plane x = 0.02 (the cells are 2.5 mm long), from y = 0 to the
+        // slit's end at 15 mm, and through the whole thickness.
+        assert!(p.lips.iter().all(|&(v, c)| {
+            let q = x[v as usize];
+            x[c as usize] == q && (q[0] - 0.02).abs() < 1e-12 && q[1] < 0.0151
+        }));
+        for z in [0.0, 0.002, 0.004, 0.006] {
+            assert!(
+                p.lips
+                    .iter()
+                    .any(|&(v, _)| (x[v as usize][2] - z).abs() < 1e-12),
+                "no lip at depth {z}"
+            );
+        }
+        // The slit reaches the end of the segment (the cells are 2.5 mm wide), and beyond it
+        // the band stays joined (no lip above 15 mm, checked above).
+        assert!(p.lips.iter().any(|&(v, _)| x[v as usize][1] > 0.0124));
+        // The same slit as a plane and a box.
+        let plane = band_scenario(
+            dir.path(),
+            "point = [0.02, 0.0, 0.0]\nnormal = [1.0, 0.0, 0.0]\n\
+             region = [[0.019, -0.001, -0.001], [0.021, 0.015, 0.007]]",
+        );
+        let q = prepare(&plane).unwrap();
+        assert_eq!(q.lips, p.lips);
+    }
+
+    #[test]
+    fn a_slit_is_a_plane_or_an_image_segment_not_both() {
+        let dir = tempfile::tempdir().unwrap();
+        let both = band_scenario(
+            dir.path(),
+            "point = [0.02, 0.0, 0.0]\nnormal = [1.0, 0.0, 0.0]\n\
+             image = [[320.0, 360.0], [320.0, 190.0]]",
+        );
+        let e = prepare(&both).unwrap_err();
+        assert!(e.0.contains("either"), "{e}");
+        let short = band_scenario(dir.path(), "image = [[320.0, 360.0], [320.2, 360.0]]");
+        let e = prepare(&short).unwrap_err();
+        assert!(e.0.contains("apart"), "{e}");
+        let outside = band_scenario(dir.path(), "image = [[10.0, 10.0], [20.0, 10.0]]");
+        let e = prepare(&outside).unwrap_err();
+        assert!(e.0.contains("nothing is cut"), "{e}");
+    }
+
+    /// The liver scene: the model is SOFA's coarse liver, the real object SOFA's fine liver
+    /// (an independent mesh of the same organ, read where it lies); seen from the scene's
+    /// camera their rest silhouettes must agree well above the Dice a registered model is
+    /// asked to reach (0.97).
+    #[test]
+    fn liver_model_and_real_object_agree_at_rest() {
+        let scenario =
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/liver-lobe/scenario.toml");
+        let p = prepare(&scenario).unwrap();
+        assert_eq!((p.model.nodes.len(), p.model.tets.len()), (181, 596));
+        assert_eq!((p.fine.nodes.len(), p.fine.tets.len()), (4293, 22019));
+        let d = p.rest_silhouette_dice();
+        eprintln!("liver rest silhouette Dice, model vs real: {d:.4}");
+        assert!(d >= 0.985, "{d}");
     }
 }

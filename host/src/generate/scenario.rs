@@ -58,13 +58,21 @@ pub struct ObjectSection {
     /// Band: cells of the coarse model mesh along each axis.
     #[serde(default)]
     pub model_cells: [usize; 3],
-    /// Mesh: the Gmsh file, relative to the scenario file; it is the model, and its uniform
-    /// refinement (each tetrahedron into eight) is the real object.
+    /// Mesh: the Gmsh file, relative to the scenario file; it is the model, and (without
+    /// `real_mesh`) its uniform refinement (each tetrahedron into eight) is the real object.
     #[serde(default)]
     pub mesh: String,
     /// Mesh: metres per mesh unit.
     #[serde(default = "one")]
     pub scale: f64,
+    /// Mesh: the real object's own mesh (Gmsh `.msh` or VTK XML `.vtu`), relative to the
+    /// scenario file, instead of the model refined: an independent, finer mesh of the same
+    /// organ in the same frame (SOFA's `liverFine.vtu` for the liver). Empty: the refinement.
+    #[serde(default)]
+    pub real_mesh: String,
+    /// Metres per unit of `real_mesh` (default: `scale`).
+    #[serde(default)]
+    pub real_scale: Option<f64>,
     /// Young's modulus of the real object (Neo-Hookean), pascals.
     pub young: f64,
     /// Poisson ratio of the real object.
@@ -82,16 +90,29 @@ fn default_targets() -> usize {
     20
 }
 
-/// `[slit]`: a pre-cut through the object, the part of a plane inside a region.
+/// `[slit]`: a pre-cut through the object, given one of two ways:
+///
+/// - `point`, `normal` and `region`: the part of a plane inside an axis-aligned box;
+/// - `image`: the surface swept by the camera rays through a segment of the image at rest,
+///   through the whole object (optionally only inside `region`). It is the surface that the
+///   model's cut (the image line extruded along the camera rays) should find: a cut made
+///   straight down into the object as the camera sees it.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct SlitSection {
     /// A point of the plane, metres (after scaling).
-    pub point: [f64; 3],
+    #[serde(default)]
+    pub point: Option<[f64; 3]>,
     /// Its normal.
-    pub normal: [f64; 3],
+    #[serde(default)]
+    pub normal: Option<[f64; 3]>,
     /// The slit is the part of the plane inside this axis-aligned box `[min, max]`, metres.
-    pub region: [[f64; 3]; 2],
+    #[serde(default)]
+    pub region: Option<[[f64; 3]; 2]>,
+    /// The slit seen in the image at rest: from pixel `[u, v]` to pixel `[u, v]`, extruded
+    /// along the camera rays.
+    #[serde(default)]
+    pub image: Option<[[f64; 2]; 2]>,
 }
 
 /// `[motion]`: boxes of nodes held still and boxes grasped and moved.
