@@ -106,6 +106,7 @@ fn config(cam: incise_core::Camera<f64>, strategy: Strategy) -> ModelConfig<f64>
             line_search_steps: 3,
             spring_stiffness: 1e-7,
             damping: 1e-3,
+            depth_prior: 0.0,
             image_margin: 50.0,
         },
         detection: incise_core::DetectionConfig {

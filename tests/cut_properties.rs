@@ -281,6 +281,7 @@ fn run(c: &Case) -> Result<Outcome, TestCaseError> {
             line_search_steps: 2,
             spring_stiffness: 1e-6,
             damping: 0.01,
+            depth_prior: 0.0,
             image_margin: 50.0,
         },
         detection: DetectionConfig::paper(),

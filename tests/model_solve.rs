@@ -31,6 +31,7 @@ fn config(
             line_search_steps: 4,
             spring_stiffness: k,
             damping,
+            depth_prior: 0.0,
             image_margin: 50.0,
         },
         detection: incise_core::DetectionConfig {
@@ -414,6 +415,7 @@ fn the_model_runs_in_f32() {
             line_search_steps: 4,
             spring_stiffness: 2.0e-6,
             damping: 1e-3,
+            depth_prior: 0.0,
             image_margin: 50.0,
         },
         detection: incise_core::DetectionConfig {

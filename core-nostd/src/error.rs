@@ -86,6 +86,8 @@ pub enum Parameter {
     SpringStiffness,
     /// Damping ratio (non-negative, finite).
     Damping,
+    /// Depth prior (non-negative, finite).
+    DepthPrior,
     /// Camera intrinsics (positive focal lengths, finite centre, positive image size).
     Intrinsics,
     /// Camera pose (finite, rotation orthonormal with determinant 1).
@@ -105,6 +107,7 @@ impl fmt::Display for Parameter {
             Parameter::PoissonRatio => "Poisson ratio must lie in (-1, 0.5)",
             Parameter::SpringStiffness => "spring stiffness must be positive and finite",
             Parameter::Damping => "damping must be non-negative and finite",
+            Parameter::DepthPrior => "the depth prior must be non-negative and finite",
             Parameter::Intrinsics => {
                 "camera intrinsics need positive focal lengths, a finite centre and a positive image size"
             }

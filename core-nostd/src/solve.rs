@@ -13,6 +13,16 @@
 //!   keeps the Hessian positive definite when features are lost and steadies the depth the
 //!   monocular springs cannot see; at a frame's fixed point it vanishes, so it does not bias a
 //!   converged registration.
+//! - `W_R = ½ Σ_a r_a ((x_a − X_a) · e_a)²`, a prior on depth: each node's displacement along
+//!   the camera ray through its rest position `X_a` (unit direction `e_a`), with `r_a` a fraction
+//!   ([`SolverConfig::depth_prior`]) of its rest stiffness. A monocular camera sees no motion
+//!   along its rays, so without it the model "explains" a stretch it sees by bulging toward
+//!   the camera and bending, which an elastic model finds cheaper than stretching (a band
+//!   pulled along its length arched 7 mm toward the camera and its unobserved end dipped 8 mm).
+//!   The prior says: without evidence, the organ keeps its depth. It is weak next to the
+//!   material (a tenth of the rest stiffness by default), so depth still follows what the
+//!   elasticity and the features imply; it does not vanish at a fixed point, so it biases
+//!   motion that truly goes along the rays.
 //!
 //! Every loop runs a number of times fixed by the configuration and the scene's sizes, so a
 //! frame's cost does not depend on the data.
@@ -30,6 +40,9 @@ use crate::material::{
 use crate::mesh::Mesh;
 use crate::real::Real;
 use crate::sparse::{NONE, UpperCsc};
+
+/// The default of [`SolverConfig::depth_prior`]: a tenth of the rest stiffness.
+pub const DEFAULT_DEPTH_PRIOR: f64 = 0.1;
 
 /// Upper bound on [`SolverConfig::newton_iterations`].
 pub const MAX_NEWTON_ITERATIONS: u32 = 64;
@@ -66,6 +79,9 @@ pub struct SolverConfig<T> {
     /// Damping toward the previous frame, as a fraction of each node's rest stiffness
     /// (dimensionless, `≥ 0`).
     pub damping: T,
+    /// Prior on depth: stiffness against each node's displacement along its camera ray, as a
+    /// fraction of its rest stiffness (dimensionless, `≥ 0`; 0 switches it off).
+    pub depth_prior: T,
     /// Observations farther than this outside the image are rejected, pixels.
     pub image_margin: T,
 }
@@ -99,6 +115,11 @@ impl<T: Real> SolverConfig<T> {
                 parameter: Parameter::Damping,
             });
         }
+        if !(self.depth_prior.finite() && self.depth_prior >= T::zero()) {
+            return Err(Error::InvalidParameter {
+                parameter: Parameter::DepthPrior,
+            });
+        }
         if !(self.image_margin.finite() && self.image_margin >= T::zero()) {
             return Err(Error::InvalidParameter {
                 parameter: Parameter::ImageMargin,
@@ -117,6 +138,8 @@ pub struct Energies<T> {
     pub spring: T,
     /// Damping energy `W_D`.
     pub damping: T,
+    /// Depth prior energy `W_R`.
+    pub depth: T,
     /// An estimate of the rounding error of the total: node positions are only known to
     /// `ε·|x|`, so each energy term is uncertain by its local force times that (filled by the
     /// assembly, zero from an energy-only evaluation). The line search cannot see decreases
@@ -127,7 +150,7 @@ pub struct Energies<T> {
 impl<T: Real> Energies<T> {
     /// `W_I + W_S + W_D`.
     pub fn total(&self) -> T {
-        self.elastic + self.spring + self.damping
+        self.elastic + self.spring + self.damping + self.depth
     }
 }
 
@@ -170,6 +193,8 @@ pub(crate) struct Problem<'p, 'a, T: Real> {
     pub spring_stiffness: T,
     /// Damping weight per node.
     pub damping: &'p [T],
+    /// Depth-prior weight per node.
+    pub depth_weight: &'p [T],
     /// Positions of the previous frame (damping anchor).
     pub anchor: &'p [[T; 3]],
     /// Per tetrahedron, per node pair ([`PAIRS`]) and column, the position in the pattern's
@@ -231,6 +256,7 @@ impl<T: Real> Problem<'_, '_, T> {
         work.element_evaluations += self.mesh.n_tets() as u64;
         e.spring = self.spring_energy(x, work)?;
         e.damping = self.damping_energy(x);
+        e.depth = self.depth_energy(x);
         work.energy_evaluations += 1;
         Ok(e)
     }
@@ -253,6 +279,31 @@ impl<T: Real> Problem<'_, '_, T> {
             work.feature_evaluations += 1;
         }
         Ok(sum)
+    }
+
+    /// Unit direction of the camera ray through node `v`'s rest position.
+    fn ray_at_rest(&self, v: usize) -> Vector3<T> {
+        let r = node_of(self.mesh.rest(), v as u32) - self.camera.centre();
+        let n = r.norm();
+        if n > T::zero() { r / n } else { r }
+    }
+
+    fn depth_energy(&self, x: &[[T; 3]]) -> T {
+        let rest = self.mesh.rest();
+        let mut sum = T::zero();
+        for (v, &c) in self
+            .depth_weight
+            .iter()
+            .enumerate()
+            .take(self.mesh.n_nodes())
+        {
+            if c == T::zero() {
+                continue;
+            }
+            let s = (node_of(x, v as u32) - node_of(rest, v as u32)).dot(&self.ray_at_rest(v));
+            sum += T::of(0.5) * c * s * s;
+        }
+        sum
     }
 
     fn damping_energy(&self, x: &[[T; 3]]) -> T {
@@ -384,6 +435,25 @@ impl<T: Real> Problem<'_, '_, T> {
                 for d in 0..3 {
                     let end = self.col_ptr[3 * f as usize + d + 1] as usize;
                     h[end - 1] += c;
+                }
+            }
+            // The prior on depth: `r (d · e) e` and `r e eᵀ`.
+            let r = self.depth_weight[v];
+            if r > T::zero() {
+                let e_ray = self.ray_at_rest(v);
+                let u = node_of(x, v as u32) - node_of(self.mesh.rest(), v as u32);
+                let s = u.dot(&e_ray);
+                e.depth += T::of(0.5) * r * s * s;
+                add_gradient(grad, free, v as u32, &(e_ray * (r * s)));
+                force_sum += (e_ray * (r * s)).abs().sum();
+                if let Some(h) = hessian.as_deref_mut() {
+                    // Column 3f + c of the diagonal block ends with its rows 3f ..= 3f + c.
+                    for col in 0..3 {
+                        let end = self.col_ptr[3 * f as usize + col + 1] as usize;
+                        for row in 0..=col {
+                            h[end - 1 - col + row] += r * e_ray[row] * e_ray[col];
+                        }
+                    }
                 }
             }
         }

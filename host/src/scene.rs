@@ -151,9 +151,17 @@ pub struct SolverSection {
     pub spring_stiffness: f64,
     /// Damping toward the previous frame, fraction of the rest stiffness.
     pub damping: f64,
+    /// Prior on depth (against motion along the camera rays), fraction of the rest stiffness.
+    #[serde(default = "default_depth_prior")]
+    pub depth_prior: f64,
     /// Observations farther outside the image are rejected, pixels.
     #[serde(default = "default_margin")]
     pub image_margin: f64,
+}
+
+/// The core's default prior on depth (see `incise_core::solve`).
+pub fn default_depth_prior() -> f64 {
+    incise_core::solve::DEFAULT_DEPTH_PRIOR
 }
 
 fn default_pcg() -> u32 {
@@ -380,6 +388,7 @@ impl SceneFile {
             line_search_steps: s.line_search_steps,
             spring_stiffness: s.spring_stiffness,
             damping: s.damping,
+            depth_prior: s.depth_prior,
             image_margin: s.image_margin,
         };
         config

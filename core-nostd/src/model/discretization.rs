@@ -11,7 +11,7 @@ use crate::error::{Error, Resource};
 use crate::material::{Lame, TangentProjection, element_energy_gradient_tangent};
 use crate::mesh::{Mesh, MeshInput};
 use crate::real::Real;
-use crate::solve::build_scatter;
+use crate::solve::{SolverConfig, build_scatter};
 use crate::sparse::{Symbolic, UpperCsc};
 use crate::storage::Slab;
 
@@ -27,6 +27,8 @@ pub(crate) struct Discretization<'a, T> {
     pub previous: &'a mut [[T; 3]],
     /// Damping weight per node.
     pub damping: &'a mut [T],
+    /// Depth-prior weight per node.
+    pub depth_weight: &'a mut [T],
     /// Stiffness pattern (upper triangle, unknowns in free-node order): column pointers…
     pub col_ptr: &'a mut [u32],
     /// … and row indices; `nnz_a` of them in use.
@@ -59,6 +61,7 @@ impl<'a, T: Real> Discretization<'a, T> {
             x: reals.take(3 * n)?.as_chunks_mut::<3>().0,
             previous: reals.take(3 * n)?.as_chunks_mut::<3>().0,
             damping: reals.take(n)?,
+            depth_weight: reals.take(n)?,
             features: Embedding::with_capacity(c.features, reals, indices)?,
             targets: Embedding::with_capacity(c.targets, reals, indices)?,
             col_ptr: indices.take(size.unknowns + 1)?,
@@ -75,12 +78,13 @@ impl<'a, T: Real> Discretization<'a, T> {
     }
 
     /// Loads `input` at rest (positions and previous positions at the rest positions, no
-    /// feature, no target), computes the damping weights and builds the system.
+    /// feature, no target), computes the nodes' damping and depth-prior weights and builds the
+    /// system.
     pub fn load(
         &mut self,
         input: &MeshInput<'_, T>,
         lame: &Lame<T>,
-        damping: T,
+        solver: &SolverConfig<T>,
         work: &mut [u32],
     ) -> Result<(), Error> {
         self.mesh.load(input, work)?;
@@ -91,7 +95,7 @@ impl<'a, T: Real> Discretization<'a, T> {
         self.targets.clear();
         #[cfg(feature = "cut")]
         self.lips.clear();
-        self.compute_damping(lame, damping);
+        self.compute_node_weights(lame, solver);
         self.rebuild_system(work)
     }
 
@@ -104,15 +108,17 @@ impl<'a, T: Real> Discretization<'a, T> {
         self.x[..n].copy_from_slice(&other.x[..n]);
         self.previous[..n].copy_from_slice(&other.previous[..n]);
         self.damping[..n].copy_from_slice(&other.damping[..n]);
+        self.depth_weight[..n].copy_from_slice(&other.depth_weight[..n]);
         self.features.copy_from(&other.features);
         self.targets.copy_from(&other.targets);
         #[cfg(feature = "cut")]
         self.lips.copy_from(&other.lips);
     }
 
-    /// Damping weights from the rest stiffness: `fraction` times a third of the trace of each
+    /// Damping and depth-prior weights from the rest stiffness: the solver's fractions
+    /// ([`SolverConfig::damping`], [`SolverConfig::depth_prior`]) of a third of the trace of each
     /// node's diagonal block of the rest tangent.
-    pub fn compute_damping(&mut self, lame: &Lame<T>, fraction: T) {
+    pub fn compute_node_weights(&mut self, lame: &Lame<T>, solver: &SolverConfig<T>) {
         let n = self.mesh.n_nodes();
         let damping = &mut self.damping[..n];
         damping.fill(T::zero());
@@ -133,8 +139,9 @@ impl<'a, T: Real> Discretization<'a, T> {
                 damping[v as usize] += eval.tangent[l][l].trace() / T::of(3.0);
             }
         }
-        for c in damping.iter_mut() {
-            *c *= fraction;
+        for (r, c) in self.depth_weight[..n].iter_mut().zip(damping.iter_mut()) {
+            *r = *c * solver.depth_prior;
+            *c *= solver.damping;
         }
     }
 

@@ -231,7 +231,7 @@ impl<'a, T: Real> Model<'a, T> {
             scratch: rs.take(cut::real_len(caps.mesh.nodes, caps.cut_vertices))?,
         };
         let work = is.take(size.work_len())?;
-        live.load(input, &lame, config.solver.damping, work)?;
+        live.load(input, &lame, &config.solver, work)?;
         Ok(Model {
             config: *config,
             lame,
@@ -1029,7 +1029,7 @@ impl<'a, T: Real> Model<'a, T> {
         if !event.changes_mesh() {
             return Ok(report);
         }
-        spare.compute_damping(&self.lame, self.config.solver.damping);
+        spare.compute_node_weights(&self.lame, &self.config.solver);
         spare.rebuild_system(self.work)?;
         let mut work = WorkCount::default();
         assemble_on(
@@ -1205,6 +1205,7 @@ fn problem_of<'p, 'a, T: Real>(
         embedding: &d.features,
         spring_stiffness: config.solver.spring_stiffness,
         damping: &d.damping[..n],
+        depth_weight: &d.depth_weight[..n],
         anchor: &d.previous[..n],
         scatter: &d.scatter[..d.mesh.n_tets()],
         col_ptr: &d.col_ptr[..d.n_unknowns() + 1],

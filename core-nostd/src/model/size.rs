@@ -92,7 +92,7 @@ impl ModelSize {
         c.mesh.real_len()
             + 3 * n // positions
             + 3 * n // previous positions (damping reference)
-            + n // damping weights
+            + 2 * n // damping and depth-prior weights
             + Embedding::<f64>::real_len(c.features)
             + Embedding::<f64>::real_len(c.targets)
     }
