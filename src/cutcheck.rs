@@ -179,11 +179,11 @@ pub fn check_targets_stay(
 }
 
 /// Signed distance of pixel `q` to the polyline (positive on its left, `u` right and `v` down,
-/// from the first vertex to the last) and whether `q` lies beside it (not beyond an end).
-pub fn side_of_polyline(line: &[[f64; 2]], q: [f64; 2]) -> Option<(f64, bool)> {
+/// from the first vertex to the last), when its nearest point lies inside a segment (beside a
+/// vertex the side is ambiguous where the line turns back).
+pub fn side_of_polyline(line: &[[f64; 2]], q: [f64; 2]) -> Option<f64> {
     let mut best: Option<(f64, f64, bool)> = None;
-    let last = line.len().checked_sub(2)?;
-    for k in 0..=last {
+    for k in 0..line.len().checked_sub(1)? {
         let (a, b) = (line[k], line[k + 1]);
         let t = [b[0] - a[0], b[1] - a[1]];
         let len2 = t[0] * t[0] + t[1] * t[1];
@@ -195,16 +195,15 @@ pub fn side_of_polyline(line: &[[f64; 2]], q: [f64; 2]) -> Option<(f64, bool)> {
         let sc = s.clamp(0.0, 1.0);
         let d = ((w[0] - t[0] * sc).powi(2) + (w[1] - t[1] * sc).powi(2)).sqrt();
         let signed = (t[0] * w[1] - t[1] * w[0]) / len2.sqrt();
-        let beside = !((k == 0 && s < 0.0) || (k == last && s > 1.0));
         if best.is_none_or(|(bd, _, _)| d < bd) {
-            best = Some((d, signed, beside));
+            best = Some((d, signed, s > 0.0 && s < 1.0));
         }
     }
-    best.map(|(_, s, b)| (s, b))
+    best.filter(|b| b.2).map(|b| b.1)
 }
 
-/// Every feature whose observation lies beside the cut line and more than `margin` pixels off
-/// it has its virtual feature on the same side of the line (the cut may bend by the snapping
+/// Every feature whose observation lies beside a segment of the cut line (not beside a vertex)
+/// and more than `margin` pixels off it has its virtual feature on the same side of the line (the cut may bend by the snapping
 /// tolerance of an element, which `margin` must cover). Returns how many features were checked.
 pub fn check_feature_sides(
     model: &Model<'_, f64>,
@@ -214,14 +213,14 @@ pub fn check_feature_sides(
     let mut checked = 0;
     for slot in 0..model.features().len() {
         let obs = model.features().targets()[slot];
-        let Some((seen, beside)) = side_of_polyline(line, obs) else {
+        let Some(seen) = side_of_polyline(line, obs) else {
             continue;
         };
-        if !beside || seen.abs() <= margin {
+        if seen.abs() <= margin {
             continue;
         }
         let uv = model.projected_feature(slot).map_err(|e| e.to_string())?;
-        let (here, _) = side_of_polyline(line, uv).unwrap_or((0.0, false));
+        let here = side_of_polyline(line, uv).unwrap_or(0.0);
         if here * seen < 0.0 {
             return Err(format!(
                 "feature {slot} is seen at {obs:?} ({seen:.1} px off the line) but its virtual \

@@ -74,9 +74,10 @@ pub const fn work_len(nodes: usize, tets: usize) -> usize {
     nodes + (nodes + 1) + 4 * tets + tets + 4 * tets + 12 * tets + 16 * tets + 6 * tets + 8
 }
 
-/// Scalars of scratch a cut needs: `φ` per node and a plane per polyline segment.
+/// Scalars of scratch a cut needs: `φ` and the two ends' `ψ` per node, and a plane per
+/// polyline segment.
 pub const fn real_len(nodes: usize, cut_vertices: usize) -> usize {
-    nodes + REALS_PER_VERTEX * cut_vertices
+    3 * nodes + REALS_PER_VERTEX * cut_vertices
 }
 
 /// The separation surface as the model hands it to [`apply`].
@@ -170,9 +171,11 @@ pub struct CutWork {
 impl CutWork {
     /// The most an event can cost for a model of `nodes` nodes, `tets` tetrahedra, `triangles`
     /// boundary triangles (all at capacity), `segments` polyline segments, `features` and
-    /// `targets`: every node tested against every segment, every tetrahedron visited once per
-    /// quality pass (at most one pass per node, each declaring one node on the surface), all
-    /// faces sorted, every node's star sorted, and every point re-embedded.
+    /// `targets`: every node tested against every segment; three splits (the surface, then the
+    /// planes of up to two ends), each visiting every tetrahedron to select, to split, and once
+    /// per quality pass (at most one pass per node, each declaring one node on the level set);
+    /// all faces sorted; every node's star sorted; every point re-embedded after each split,
+    /// and every feature checked against every boundary triangle.
     pub fn bound(
         nodes: u64,
         tets: u64,
@@ -183,10 +186,11 @@ impl CutWork {
     ) -> Self {
         CutWork {
             node_tests: nodes * segments,
-            element_tests: tets * (3 + nodes),
+            element_tests: 3 * tets * (4 + nodes),
             faces_sorted: 4 * tets,
             star_entries: 12 * tets,
-            embed_tests: (features + targets) * split::MAX_CHILDREN as u64 + features * triangles,
+            embed_tests: 3 * (features + targets) * split::MAX_CHILDREN as u64
+                + features * triangles,
         }
     }
 
@@ -208,8 +212,12 @@ pub struct CutEvent {
     /// Nodes declared on the surface without moving (a move would have spoilt an element, the
     /// node is fixed, or the split stops there).
     pub nodes_declared: usize,
-    /// Tetrahedra split.
+    /// Tetrahedra split (along the surface, and where the cut ends inside the object).
     pub tets_split: usize,
+    /// Of those, the ones split by the plane an end inside the object ends on.
+    pub tets_split_at_ends: usize,
+    /// Ends of the cut inside the object (where it stops, on a plane across the line).
+    pub ends_inside: usize,
     /// Tetrahedra added by the splits.
     pub tets_added: usize,
     /// Nodes added on crossed edges.
@@ -239,6 +247,8 @@ impl CutEvent {
         self.nodes_moved += other.nodes_moved;
         self.nodes_declared += other.nodes_declared;
         self.tets_split += other.tets_split;
+        self.tets_split_at_ends += other.tets_split_at_ends;
+        self.ends_inside += other.ends_inside;
         self.tets_added += other.tets_added;
         self.edge_nodes += other.edge_nodes;
         self.faces_cut += other.faces_cut;
@@ -355,6 +365,7 @@ pub(crate) fn apply<T: Real>(
     };
     let mut rs = Slab::new(reals, Resource::RealStorage);
     let phi = rs.take(cap_nodes)?;
+    let psi_store = rs.take(2 * cap_nodes)?;
     let plane_store = rs.take(rs.remaining())?;
     let sep = SeparationSurface::new(
         surface.polyline,
@@ -396,15 +407,62 @@ pub(crate) fn apply<T: Real>(
     place::stop_at_extent_ends(mesh, phi, &incidence, status, &mut event);
     place::keep_above_floor(mesh, phi, status, &mut event);
     // 5. Split, then 6. the points of split tetrahedra into their pieces.
-    split::split_selected(mesh, x, previous, phi, status, parents, edges, &mut event)?;
-    reembed::into_pieces(
-        mesh,
-        [&mut *features, &mut *targets],
-        status,
-        parents,
-        t0,
-        &mut event,
-    );
+    split::split_selected(mesh, x, previous, phi, status, parents, edges, &mut [], &mut event)?;
+    reembed::into_pieces(mesh, [&mut *features, &mut *targets], status, parents, t0, &mut event);
+    // 6b. At an end inside the object, the cut ends exactly on the end's plane: the
+    // tetrahedra whose faces on the surface it crosses are split by it too (`ψ`, the second
+    // level set of a crack's tip).
+    let (psi0, psi1) = psi_store.split_at_mut(cap_nodes);
+    let mut psi: [Option<&mut [T]>; 2] = [None, None];
+    for (k, psi_k) in [psi0, psi1].into_iter().enumerate() {
+        let Some(plane) = sep.tip(k) else {
+            continue;
+        };
+        event.ends_inside += 1;
+        let n = mesh.n_nodes();
+        for (p, xv) in psi_k.iter_mut().zip(&x[..n]) {
+            *p = plane[0] * xv[0] + plane[1] * xv[1] + plane[2] * xv[2] - plane[3];
+        }
+        let t_before = mesh.n_tets();
+        let split_before = event.tets_split;
+        let incidence = Incidence::build(mesh.tets(), n, inc_ptr, inc_list)?;
+        place::select_at_tip(mesh, x, phi, psi_k, &sep, k, status, edges, &mut event.work);
+        place::stop_at_extent_ends(mesh, psi_k, &incidence, status, &mut event);
+        place::keep_above_floor(mesh, psi_k, status, &mut event);
+        match psi[0].as_deref_mut() {
+            Some(psi_other) => split::split_selected(
+                mesh,
+                x,
+                previous,
+                psi_k,
+                status,
+                parents,
+                edges,
+                &mut [&mut *phi, psi_other],
+                &mut event,
+            )?,
+            None => split::split_selected(
+                mesh,
+                x,
+                previous,
+                psi_k,
+                status,
+                parents,
+                edges,
+                &mut [&mut *phi],
+                &mut event,
+            )?,
+        }
+        event.tets_split_at_ends += event.tets_split - split_before;
+        let points = [&mut *features, &mut *targets];
+        reembed::into_pieces(mesh, points, status, parents, t_before, &mut event);
+        psi[k] = Some(psi_k);
+    }
+    let before_tips = |key: &[u32; 3]| {
+        psi.iter()
+            .flatten()
+            .all(|p| key.iter().all(|&v| p[v as usize] <= T::zero()))
+    };
 
     // 7. Separate along the cut faces. A piece with all four nodes on the surface (possible
     // where nodes were declared on it) takes the side of its centroid.
@@ -426,7 +484,7 @@ pub(crate) fn apply<T: Real>(
             let c = [0, 1, 2].map(|k| {
                 (x[key[0] as usize][k] + x[key[1] as usize][k] + x[key[2] as usize][k]) / T::of(3.0)
             });
-            sep.in_extent(&c)
+            sep.in_extent(&c) && before_tips(key)
         },
         faces,
         cut_store,

@@ -117,7 +117,10 @@ pub(super) fn snap_nodes<T: Real>(
 }
 
 /// Marks in `status` ([`SELECTED`], else 0) the crossed tetrahedra whose crossing (a point where
-/// the surface crosses an edge, or a node on it) lies inside the extent.
+/// the surface crosses an edge, or a node on it) lies inside the extent — or, at an end inside
+/// the object, within the tetrahedron's own size of it: the surface is split a little past
+/// such an end, and the plane the cut ends on then cuts it exactly
+/// ([`select_at_tip`]).
 pub(super) fn select<T: Real>(
     mesh: &Mesh<'_, T>,
     x: &[[T; 3]],
@@ -134,17 +137,30 @@ pub(super) fn select<T: Real>(
         if !crosses(&s) {
             continue;
         }
+        // The tetrahedron's size in the image: the largest distance between two of its
+        // nodes' images (0 if one cannot be projected).
+        let image = tet.map(|v| sep.project(&x[v as usize]));
+        let mut size = T::zero();
+        for a in 0..4 {
+            for b in a + 1..4 {
+                if let (Some(p), Some(q)) = (image[a], image[b]) {
+                    let d = [p[0] - q[0], p[1] - q[1]];
+                    size = size.max((d[0] * d[0] + d[1] * d[1]).sqrt());
+                }
+            }
+        }
+        let counts = |p: &[T; 3]| sep.in_extent(p) || sep.near_inner_end(p, size);
         let mut inside = false;
         for a in 0..4 {
             for b in (a + 1)..4 {
                 if s[a] * s[b] < 0 {
                     let (va, vb) = (tet[a], tet[b]);
                     let p = lerp(x[va as usize], x[vb as usize], crossing(phi, va, vb));
-                    inside |= sep.in_extent(&p);
+                    inside |= counts(&p);
                 }
             }
             if s[a] == 0 {
-                inside |= sep.in_extent(&x[tet[a] as usize]);
+                inside |= counts(&x[tet[a] as usize]);
             }
         }
         if inside {
@@ -152,6 +168,80 @@ pub(super) fn select<T: Real>(
         }
     }
     work.element_tests += mesh.n_tets() as u64;
+}
+
+/// Marks in `status` ([`SELECTED`], else 0) the tetrahedra the plane of end `k` (`psi`) must
+/// split for the cut to end on it: the faces on the surface (`phi = 0` at three nodes) that the
+/// plane crosses near the end (within two tube widths in the image, or the face's own size),
+/// and every tetrahedron around their crossed edges, so that those edges are split in all
+/// their tetrahedra. `edges` is scratch of six entries per tetrahedron.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn select_at_tip<T: Real>(
+    mesh: &Mesh<'_, T>,
+    x: &[[T; 3]],
+    phi: &[T],
+    psi: &[T],
+    sep: &SeparationSurface<'_, T>,
+    k: usize,
+    status: &mut [u32],
+    edges: &mut [[u32; 2]],
+    work: &mut CutWork,
+) {
+    let reach = T::of(2.0) * sep.tube_px();
+    let mut n_edges = 0;
+    for tet in mesh.tets() {
+        // The face on the surface (the nodes with φ = 0), if the tetrahedron has one.
+        let mut face = [0u32; 3];
+        let mut n = 0;
+        for &v in tet {
+            if phi[v as usize] == T::zero() && n < 3 {
+                face[n] = v;
+                n += 1;
+            }
+        }
+        if n < 3 {
+            continue;
+        }
+        let fs = face.map(|v| sign(psi[v as usize]));
+        if !(fs.contains(&1) && fs.contains(&-1)) {
+            continue;
+        }
+        // Where the plane crosses the face lies on the ray through the end if the face lies
+        // on the surface, off it by up to the face's size if its nodes were declared on it.
+        let size = face
+            .iter()
+            .filter_map(|&v| sep.distance_to_end(k, &x[v as usize]))
+            .fold(reach, |m, d| m.max(d));
+        for a in 0..3 {
+            for b in a + 1..3 {
+                let (va, vb) = (face[a], face[b]);
+                if fs[a] * fs[b] >= 0 {
+                    continue;
+                }
+                let cross = lerp(x[va as usize], x[vb as usize], crossing(psi, va, vb));
+                let near = sep.distance_to_end(k, &cross).is_some_and(|d| d <= size);
+                if near && n_edges < edges.len() {
+                    edges[n_edges] = [va.min(vb), va.max(vb)];
+                    n_edges += 1;
+                }
+            }
+        }
+    }
+    let edges = &mut edges[..n_edges];
+    edges.sort_unstable();
+    for (t, tet) in mesh.tets().iter().enumerate() {
+        status[t] = 0;
+        let around = (0..4).any(|a| {
+            (a + 1..4).any(|b| {
+                let key = [tet[a].min(tet[b]), tet[a].max(tet[b])];
+                edges.binary_search(&key).is_ok()
+            })
+        });
+        if around {
+            status[t] = SELECTED;
+        }
+    }
+    work.element_tests += 2 * mesh.n_tets() as u64;
 }
 
 /// Stops the split where the extent ends: a crossed edge of a selected tetrahedron that is

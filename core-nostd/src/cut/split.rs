@@ -188,9 +188,11 @@ fn pyramid(out: &mut Children, apex: Vertex, q: [Vertex; 4]) {
 /// edges sorted, so the new nodes are numbered in the order of their keys and shared by all the
 /// tetrahedra around their edge; positions interpolated along the edge), and each tetrahedron
 /// replaced by its pieces, the first in its place and the others appended together, each
-/// positively oriented at rest. On return `status[t]` is [`NONE`] for a tetrahedron not split,
-/// else `(first appended piece << 3) | appended pieces`, and `parents[t]` holds its former
-/// nodes. `edges` is scratch of six entries per tetrahedron.
+/// positively oriented at rest. The new nodes lie on the level set (`phi = 0`); each array of
+/// `carry` (other values per node) is interpolated onto them along their edge. On return
+/// `status[t]` is [`NONE`] for a tetrahedron not split, else `(first appended piece << 3) |
+/// appended pieces`, and `parents[t]` holds its former nodes. `edges` is scratch of six
+/// entries per tetrahedron.
 ///
 /// # Errors
 /// [`Error::Capacity`] naming [`Resource::Nodes`] or [`Resource::Tetrahedra`] when the new
@@ -204,6 +206,7 @@ pub(super) fn split_selected<T: Real>(
     status: &mut [u32],
     parents: &mut [[u32; 4]],
     edges: &mut [[u32; 2]],
+    carry: &mut [&mut [T]],
     event: &mut CutEvent,
 ) -> Result<(), Error> {
     let (n0, t0) = (mesh.n_nodes(), mesh.n_tets());
@@ -254,8 +257,11 @@ pub(super) fn split_selected<T: Real>(
         x[v] = lerp(x[ai], x[bi], t_ab);
         previous[v] = lerp(previous[ai], previous[bi], t_ab);
         phi[v] = T::zero();
+        for values in carry.iter_mut() {
+            values[v] = values[ai] + (values[bi] - values[ai]) * t_ab;
+        }
     }
-    event.edge_nodes = unique;
+    event.edge_nodes += unique;
     let node_of = |v: Vertex| -> u32 {
         match v {
             Vertex::Node(n) => n,

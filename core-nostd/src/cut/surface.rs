@@ -43,6 +43,9 @@ pub(crate) struct SeparationSurface<'s, T: Real> {
     polyline: &'s [[T; 2]],
     /// The two end vertices after extension.
     ends: [[T; 2]; 2],
+    /// For an end inside the object, the plane the cut ends on (`ψ = n · p − offset`, negative
+    /// on the cut's side): through the end, across the line, along the extrusion.
+    tips: [Option<[T; 4]>; 2],
     /// Per segment: unit normal and offset, `φ(p) = n · p − offset`.
     planes: &'s [[T; 4]],
     camera: &'s Camera<T>,
@@ -93,27 +96,30 @@ impl<'s, T: Real> SeparationSurface<'s, T> {
         // spacing (the expected shortfall), and taken through the silhouette when the model's
         // edge lies within a spacing: no feature beyond could have shown the cut going on, and
         // a bridge that thin left uncut would hold the lips together.
-        let extend = |from: [T; 2], toward: [T; 2], open: bool| -> [T; 2] {
+        // Returns the end and whether it lies inside the object (then the cut ends there).
+        let extend = |from: [T; 2], toward: [T; 2], open: bool| -> ([T; 2], bool) {
             let d = sub(from, toward);
             let len = dot2(d, d).sqrt();
             if !(open && len > T::EPS) {
-                return from;
+                return (from, false);
             }
             let along = |s: T| [from[0] + d[0] / len * s, from[1] + d[1] / len * s];
             if first_hit(mesh, x, camera, along(ext)).is_some() {
-                along(ext * T::of(0.5))
+                (along(ext * T::of(0.5)), true)
             } else {
-                along(ext)
+                (along(ext), false)
             }
         };
-        let ends = if m >= 2 {
-            [
+        let ((end0, inner0), (end1, inner1)) = if m >= 2 {
+            (
                 extend(polyline[0], polyline[1], open_ends[0]),
                 extend(polyline[m - 1], polyline[m - 2], open_ends[1]),
-            ]
+            )
         } else {
-            [[T::zero(); 2]; 2]
+            (([T::zero(); 2], false), ([T::zero(); 2], false))
         };
+        let ends = [end0, end1];
+        let inner = [inner0, inner1];
         let vertex = |k: usize| -> [T; 2] {
             if k == 0 {
                 ends[0]
@@ -192,9 +198,61 @@ impl<'s, T: Real> SeparationSurface<'s, T> {
             }
             planes[k] = plane;
         }
+        // The planes the cut ends on, at the ends inside the object.
+        let mut tips = [None, None];
+        for (k, tip) in tips.iter_mut().enumerate() {
+            if !inner[k] || m < 2 {
+                continue;
+            }
+            let (e, back) = if k == 0 {
+                (ends[0], vertex(1))
+            } else {
+                (ends[1], vertex(m - 2))
+            };
+            let d = sub(e, back);
+            let len = dot2(d, d).sqrt();
+            if !(len > T::EPS) {
+                continue;
+            }
+            let out = [d[0] / len, d[1] / len];
+            let at_end = point_on_model(e);
+            let behind = point_on_model(back);
+            let (normal, offset) = match depth {
+                None => {
+                    let (c, r_end) = camera.ray(e[0], e[1]);
+                    let (_, r_across) = camera.ray(e[0] - out[1], e[1] + out[0]);
+                    let nv = r_end.cross(&r_across);
+                    (nv, nv.dot(&c))
+                }
+                Some(dv) => {
+                    let dv = Vector3::new(dv[0], dv[1], dv[2]);
+                    let dn = dv / dv.norm();
+                    let along = at_end - behind;
+                    let nv = along - dn * along.dot(&dn);
+                    (nv, nv.dot(&at_end))
+                }
+            };
+            let norm = normal.norm();
+            if !(norm > T::zero() && norm.finite()) {
+                continue;
+            }
+            let (normal, offset) = (normal / norm, offset / norm);
+            let sign = if normal.dot(&behind) - offset > T::zero() {
+                -T::one()
+            } else {
+                T::one()
+            };
+            *tip = Some([
+                normal.x * sign,
+                normal.y * sign,
+                normal.z * sign,
+                offset * sign,
+            ]);
+        }
         Ok(SeparationSurface {
             polyline,
             ends,
+            tips,
             planes,
             camera,
             tube_px: ext,
@@ -210,6 +268,48 @@ impl<'s, T: Real> SeparationSurface<'s, T> {
         } else {
             self.polyline[k]
         }
+    }
+
+    /// The plane the cut ends on at end `k` (0: the first vertex, 1: the last), when that
+    /// end lies inside the object.
+    pub fn tip(&self, k: usize) -> Option<[T; 4]> {
+        self.tips.get(k).copied().flatten()
+    }
+
+    /// The image of `p`, pixels (`None` behind the camera).
+    pub fn project(&self, p: &[T; 3]) -> Option<[T; 2]> {
+        let uv = self
+            .camera
+            .project(&Vector3::new(p[0], p[1], p[2]), 0)
+            .ok()?;
+        Some([uv.x, uv.y])
+    }
+
+    /// Where the image of `p` lies relative to end `k` of the polyline: its distance in pixels.
+    pub fn distance_to_end(&self, k: usize, p: &[T; 3]) -> Option<T> {
+        let uv = self
+            .camera
+            .project(&Vector3::new(p[0], p[1], p[2]), 0)
+            .ok()?;
+        let d = sub([uv.x, uv.y], *self.ends.get(k)?);
+        Some(dot2(d, d).sqrt())
+    }
+
+    /// Whether the image of `p` lies within `slack` pixels (plus the tube's half-width) of an
+    /// end inside the object: the surface must reach past such an end for the plane it ends
+    /// on to cut it exactly.
+    pub fn near_inner_end(&self, p: &[T; 3], slack: T) -> bool {
+        (0..2).any(|k| {
+            self.tips[k].is_some()
+                && self
+                    .distance_to_end(k, p)
+                    .is_some_and(|d| d <= slack + self.tube_px)
+        })
+    }
+
+    /// The tube's half-width, pixels.
+    pub fn tube_px(&self) -> T {
+        self.tube_px
     }
 
     /// Segments of the polyline.
