@@ -413,4 +413,3 @@ fn most_random_cases_cut_and_some_overflow() {
     assert!(applied >= cases / 2, "{applied} of {cases} cases cut");
     assert!(refused >= 5, "{refused} refused");
 }
-

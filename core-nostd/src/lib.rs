@@ -12,7 +12,8 @@
 //! The per-frame path, top to bottom, is [`model::Model::step`]: take the frame's observations
 //! ([`features`]), then a fixed number of Newton steps ([`solve`]) on the elastic energy of the
 //! mesh ([`mesh`], [`material`]) plus the springs to the observations through the camera
-//! ([`camera`]), each solved with the sparse factorization ([`sparse`]).
+//! ([`camera`]), each solved with the sparse factorization ([`sparse`]); with the `cut`
+//! feature, then detection, the cut line, and a cut of the mesh where the line has grown.
 //!
 //! Modules, one per concern:
 //! - [`model`]: the model built in caller storage, and the per-frame step.
@@ -23,6 +24,8 @@
 //! - [`detect`]: cut detection from motion discontinuities (the detector needs the `cut`
 //!   feature; its configuration is always there).
 //! - `cutline` (`cut` feature): the cut polyline, its fronts, and the separation surface.
+//! - `cut` (`cut` feature): cutting the volume mesh along the separation surface (snap, split,
+//!   separate, re-embed), on a spare copy of the model's storage swapped in on success.
 //! - [`material`]: Saint Venant–Kirchhoff elasticity on linear tetrahedra: Lamé parameters,
 //!   rest geometry, element energy, forces and the (optionally PSD-projected) 12 × 12 tangent.
 //! - [`sparse`]: symmetric sparse patterns, a minimum-degree ordering, the symbolic analysis and

@@ -6,7 +6,7 @@
 //!
 //! Modules, one per concern:
 //! - [`msh`]: Gmsh mesh files (versions 1, 2.2 and 4.1, ASCII).
-//! - [`vtu`]: VTK unstructured-grid output for ParaView.
+//! - [`vtu`]: VTK unstructured grids: output for ParaView, and input of tetrahedral meshes.
 //! - [`render`]: rasterised silhouettes and overlay pictures.
 //! - [`metrics`]: Dice, surface and target errors, polyline distances.
 //! - [`generate`]: the synthetic-scene generator (`incise gen`) (the "real" object, its motion and its images).

@@ -407,8 +407,25 @@ pub(crate) fn apply<T: Real>(
     place::stop_at_extent_ends(mesh, phi, &incidence, status, &mut event);
     place::keep_above_floor(mesh, phi, status, &mut event);
     // 5. Split, then 6. the points of split tetrahedra into their pieces.
-    split::split_selected(mesh, x, previous, phi, status, parents, edges, &mut [], &mut event)?;
-    reembed::into_pieces(mesh, [&mut *features, &mut *targets], status, parents, t0, &mut event);
+    split::split_selected(
+        mesh,
+        x,
+        previous,
+        phi,
+        status,
+        parents,
+        edges,
+        &mut [],
+        &mut event,
+    )?;
+    reembed::into_pieces(
+        mesh,
+        [&mut *features, &mut *targets],
+        status,
+        parents,
+        t0,
+        &mut event,
+    );
     // 6b. At an end inside the object, the cut ends exactly on the end's plane: the
     // tetrahedra whose faces on the surface it crosses are split by it too (`ψ`, the second
     // level set of a crack's tip).
