@@ -70,10 +70,9 @@ fn cuts_are_detected_within_five_frames_and_on_the_true_line() {
         "band-side-cut: line {:.1}% of the diagonal off",
         100.0 * off
     );
-    // The middle cut opens into a wide eye: detected in time, but the line's ends stay about a
-    // growth step (25 px) short of or beside the true slit's ends, 3.2% of the diagonal. Its
-    // accuracy is left to issue 11 (detection without per-scene tuning) rather than met here by
-    // tuning this scene's thresholds.
+    // The middle cut opens into a wide eye: detected in time, but with the detector's
+    // defaults the line's lower part bends beside the true slit (about 5% of the diagonal; see
+    // the README's detection section), so only its timing is checked here.
     let (s, _) = run_scene(&load("band-middle-cut"), &RunOptions::default()).unwrap();
     assert!(s.cut_events >= 1, "{s:?}");
     assert_detected_in_time("band-middle-cut", &s);
@@ -157,6 +156,66 @@ fn the_separation_surface_is_the_line_extruded_along_the_camera_rays() {
                 "quad {k} corner {corner} projects to {uv}, not to vertex {v:?}"
             );
             assert!(((p - centre).dot(&view) - depth).abs() < 1e-9);
+        }
+    }
+}
+
+#[test]
+fn detection_work_stays_within_its_formula_on_every_frame() {
+    // The detector's and the cut line's work per frame, counted as they run, against the
+    // formula in the capacities: on the scenes that start and grow a line (the robust fit is
+    // the largest single cost) and on one with many tracking failures.
+    for name in ["band-side-cut", "band-middle-cut", "block-extreme"] {
+        let scene = load(name);
+        let toml = scene.dir.join("scene.toml");
+        let config = ModelConfig {
+            material: Material {
+                young: scene.file.model.young,
+                poisson: scene.file.model.poisson,
+            },
+            camera: scene.file.camera(&toml).unwrap(),
+            solver: scene.file.solver(&toml).unwrap(),
+            detection: scene.file.detection.config(),
+        };
+        let input = MeshInput {
+            rest: &scene.rest,
+            tets: &scene.tets,
+            fixed: &scene.file.model.fixed,
+        };
+        let mut storage = ModelStorage::new(&input, &scene.file.capacities).unwrap();
+        let mut model = storage.model(&input, &config).unwrap();
+        model.embed_features(&scene.frames[0]).unwrap();
+        let (detect_bound, line_bound) = model.worst_case_detection_work();
+        let (mut started, mut most) = (false, 0u64);
+        for (f, frame) in scene.frames.iter().enumerate().skip(1) {
+            let known: Vec<Observation<f64>> = frame
+                .iter()
+                .copied()
+                .filter(|o| model.features().slot_of(o.id).is_some())
+                .collect();
+            let report = model.step(&known).unwrap();
+            let (d, l) = (report.detection.work, report.cut_line.work);
+            assert!(
+                d.within(&detect_bound),
+                "{name} frame {f}: {d:?} > {detect_bound:?}"
+            );
+            assert!(
+                l.within(&line_bound),
+                "{name} frame {f}: {l:?} > {line_bound:?}"
+            );
+            assert!(
+                d.pair_visits > 0 && d.comparisons > 0,
+                "{name}: work is counted"
+            );
+            started |= l.fit_tests > 0;
+            most = most.max(d.comparisons);
+        }
+        eprintln!(
+            "{name}: most comparisons {most} of {} allowed; line started: {started}",
+            detect_bound.comparisons
+        );
+        if name != "block-extreme" {
+            assert!(started, "{name}: the line's start was counted");
         }
     }
 }

@@ -33,6 +33,92 @@ pub struct CutLineReport {
     pub added: usize,
     /// Whether a front could not advance because the vertex capacity is full.
     pub capped: bool,
+    /// Work done this frame.
+    pub work: LineWork,
+}
+
+/// Work of the cut line in one frame, counted in data-independent units; bounded by
+/// [`LineWork::bound`].
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct LineWork {
+    /// Point-to-line distance tests of the robust fit that starts the line.
+    pub fit_tests: u64,
+    /// Separation points and lip midpoints visited by the fronts and by the vertices following
+    /// their evidence.
+    pub point_visits: u64,
+    /// Features visited to anchor a vertex (each anchoring scans every slot once and tries
+    /// the 20 triangles of the six nearest).
+    pub anchor_visits: u64,
+}
+
+impl LineWork {
+    /// The most work of one frame with `vertices` vertices of capacity, `points` separation
+    /// points (the pair capacity) and `features` slots, whichever of
+    /// starting or growing the line the frame does:
+    /// - starting: `F (F − 1) / 2 · F + 2 F` fit tests with `F = min(points, FIT_POINTS)` (every
+    ///   candidate line through two points against every point, then three passes over the
+    ///   inliers),
+    ///   and two anchorings;
+    /// - growing: each vertex follows its evidence (`points` visits) and each front
+    ///   looks ahead (`points`), with one anchoring per vertex and per front.
+    ///
+    /// An anchoring scans the slots at most three times (each side, then both), each scan
+    /// `features + 20` visits.
+    pub const fn bound(vertices: u64, points: u64, features: u64) -> LineWork {
+        let f = if points < FIT_POINTS as u64 {
+            points
+        } else {
+            FIT_POINTS as u64
+        };
+        let start_fit = f * f.saturating_sub(1) / 2 * f + 3 * f;
+        let grow_points = (vertices + 2) * points;
+        let anchor = ANCHOR_COST * (features + 20);
+        let start_anchor = 2 * anchor;
+        let grow_anchor = (vertices + 2) * anchor;
+        LineWork {
+            fit_tests: start_fit,
+            point_visits: grow_points,
+            anchor_visits: if start_anchor > grow_anchor {
+                start_anchor
+            } else {
+                grow_anchor
+            },
+        }
+    }
+
+    /// Whether every count is at most `other`'s.
+    pub fn within(&self, other: &LineWork) -> bool {
+        self.fit_tests <= other.fit_tests
+            && self.point_visits <= other.point_visits
+            && self.anchor_visits <= other.anchor_visits
+    }
+}
+
+/// The line's rules in pixels: the configuration's lengths (in feature spacings) times the
+/// spacing measured at frame 0.
+#[derive(Clone, Copy, Debug)]
+struct Rules<T> {
+    tolerance: T,
+    min_step: T,
+    max_step: T,
+    cos_alpha: T,
+    min_support: u32,
+    init_points: usize,
+    max_line_spread: T,
+}
+
+impl<T: Real> Rules<T> {
+    fn new(config: &DetectionConfig<T>, spacing: T) -> Self {
+        Rules {
+            tolerance: config.line_tolerance * spacing,
+            min_step: config.min_step * spacing,
+            max_step: config.max_step * spacing,
+            cos_alpha: (config.alpha_degrees * T::pi() / T::of(180.0)).cos(),
+            min_support: config.min_support,
+            init_points: config.init_points as usize,
+            max_line_spread: config.max_line_spread,
+        }
+    }
 }
 
 /// Separation points considered when the line is started: bounds the robust fit's cost to
@@ -42,8 +128,8 @@ pub const FIT_POINTS: usize = 64;
 /// The polyline in fixed storage: each vertex anchored to three feature slots.
 #[derive(Debug)]
 pub struct CutLine<'a, T> {
-    anchors: &'a mut [[u32; 3]],
-    weights: &'a mut [[T; 3]],
+    anchors: &'a mut [[u32; ANCHORS]],
+    weights: &'a mut [[T; ANCHORS]],
     n: usize,
     /// Directions of the two fronts in the image (start, end), unit length.
     direction: [[T; 2]; 2],
@@ -83,12 +169,12 @@ fn cross<T: Real>(a: [T; 2], b: [T; 2]) -> T {
 impl<'a, T: Real> CutLine<'a, T> {
     /// Scalars of storage for `capacity` vertices.
     pub const fn real_len(capacity: usize) -> usize {
-        3 * capacity
+        ANCHORS * capacity
     }
 
     /// Indices of storage for `capacity` vertices.
     pub const fn index_len(capacity: usize) -> usize {
-        3 * capacity
+        ANCHORS * capacity
     }
 
     /// An empty line with room for `capacity` vertices.
@@ -101,8 +187,11 @@ impl<'a, T: Real> CutLine<'a, T> {
         indices: &mut Slab<'a, u32>,
     ) -> Result<Self, Error> {
         Ok(CutLine {
-            anchors: indices.take(3 * capacity)?.as_chunks_mut::<3>().0,
-            weights: reals.take(3 * capacity)?.as_chunks_mut::<3>().0,
+            anchors: indices
+                .take(ANCHORS * capacity)?
+                .as_chunks_mut::<ANCHORS>()
+                .0,
+            weights: reals.take(ANCHORS * capacity)?.as_chunks_mut::<ANCHORS>().0,
             n: 0,
             direction: [[T::zero(); 2]; 2],
             moved: [0; 2],
@@ -167,6 +256,11 @@ impl<'a, T: Real> CutLine<'a, T> {
         if self.n >= 2 {
             self.applied = Some([0, self.n - 1]);
         }
+    }
+
+    /// The most vertices the storage holds.
+    pub fn capacity(&self) -> usize {
+        self.anchors.len()
     }
 
     /// Number of vertices.
@@ -293,44 +387,47 @@ impl<'a, T: Real> CutLine<'a, T> {
     /// front advances only on points inserted after it last moved (the paper's "new cut lines
     /// are only inserted when a sufficient number of separation points have been inserted"),
     /// so a discrepancy that stays put, such as the strain at a cut's tip that a coarse model
-    /// cannot follow, cannot push a front along frame after frame. `lips` are further evidence
-    /// of where the cut is (the midpoints of a cut model's lips): vertices follow them as they
-    /// follow separation points. `features` are the latest image positions of the feature
+    /// cannot follow, cannot push a front along frame after frame. `features` are the latest image positions of the feature
     /// slots (vertices are anchored to them); `usable[i] != 0` marks slots that may anchor a
-    /// new vertex; `scratch` holds the projected vertices (at least the capacity).
+    /// new vertex; `scratch` holds the projected vertices (at least the capacity); `spacing`
+    /// is the features' spacing at frame 0 (pixels), the unit of the configured lengths.
     #[allow(clippy::too_many_arguments)]
     pub fn update(
         &mut self,
         frame: u32,
         points: &[[T; 2]],
         since: &[u32],
-        lips: &[[T; 2]],
         features: &[[T; 2]],
         usable: &[u32],
         config: &DetectionConfig<T>,
+        spacing: T,
         scratch: &mut [[T; 2]],
     ) -> CutLineReport {
+        let rules = Rules::new(config, spacing);
+        let mut work = LineWork::default();
         let mut added = 0;
         if self.n == 0 {
-            if points.len() >= config.init_points as usize && self.anchors.len() >= 2 {
-                added = self.start(frame, points, features, usable, config);
+            if points.len() >= rules.init_points && self.anchors.len() >= 2 {
+                added = self.start(frame, points, features, usable, &rules, &mut work);
             }
         } else {
             let m = self.project(features, scratch);
             if m == self.n {
-                self.follow_points(points, lips, features, usable, config, &scratch[..m]);
+                self.follow_points(points, features, usable, &rules, &scratch[..m], &mut work);
                 let m = self.project(features, scratch);
                 for end in 0..2 {
                     let v = if end == 0 { scratch[0] } else { scratch[m - 1] };
-                    let fresh = |k: usize| since.get(k).is_some_and(|&f| f > self.moved[end]);
+                    let fresh = |k: usize| since.get(k).is_some_and(|&f| f >= self.moved[end]);
+                    work.point_visits += points.len() as u64;
                     if let Some((p, dir)) =
-                        Self::advance(v, self.direction[end], points, fresh, config)
+                        Self::advance(v, self.direction[end], points, fresh, &rules)
                     {
                         if self.n == self.anchors.len() {
                             self.capped = true;
                             continue;
                         }
-                        if let Some((anchor, w)) = anchor_at(p, features, usable) {
+                        work.anchor_visits += ANCHOR_COST * (features.len() as u64 + 20);
+                        if let Some((anchor, w)) = anchor_across(p, dir, features, usable) {
                             self.insert(end, anchor, w);
                             self.direction[end] = dir;
                             self.moved[end] = frame;
@@ -345,6 +442,7 @@ impl<'a, T: Real> CutLine<'a, T> {
             vertices: self.n,
             added,
             capped: self.capped,
+            work,
         }
     }
 
@@ -355,13 +453,16 @@ impl<'a, T: Real> CutLine<'a, T> {
         points: &[[T; 2]],
         features: &[[T; 2]],
         usable: &[u32],
-        config: &DetectionConfig<T>,
+        rules: &Rules<T>,
+        work: &mut LineWork,
     ) -> usize {
         // Of the lines through two separation points, the one with most points within the
         // tolerance: spurious clusters (a tracking failure, a region where the model is poor)
         // then do not tilt the line.
         let pts = &points[..points.len().min(FIT_POINTS)];
-        let tol = config.line_tolerance_px;
+        let tol = rules.tolerance;
+        let f = pts.len() as u64;
+        work.fit_tests += f * f.saturating_sub(1) / 2 * f + 3 * f;
         let mut best = (0usize, 0usize, 0usize);
         for i in 0..pts.len() {
             for j in i + 1..pts.len() {
@@ -379,7 +480,7 @@ impl<'a, T: Real> CutLine<'a, T> {
                 }
             }
         }
-        if best.0 < config.init_points as usize {
+        if best.0 < rules.init_points {
             return 0;
         }
         let (pi, d) = (pts[best.1], sub(pts[best.2], pts[best.1]));
@@ -403,7 +504,7 @@ impl<'a, T: Real> CutLine<'a, T> {
         let half_trace = (sxx + syy) * T::of(0.5);
         let root = ((sxx - syy) * (sxx - syy) * T::of(0.25) + sxy * sxy).sqrt();
         let (major, minor) = (half_trace + root, (half_trace - root).max(T::zero()));
-        if !(major > T::zero()) || (minor / major).sqrt() > config.max_line_spread {
+        if !(major > T::zero()) || (minor / major).sqrt() > rules.max_line_spread {
             return 0;
         }
         let angle = T::of(0.5) * (T::of(2.0) * sxy).atan2(sxx - syy);
@@ -416,9 +517,10 @@ impl<'a, T: Real> CutLine<'a, T> {
         }
         let a = [c[0] + e[0] * lo, c[1] + e[1] * lo];
         let b = [c[0] + e[0] * hi, c[1] + e[1] * hi];
+        work.anchor_visits += 2 * ANCHOR_COST * (features.len() as u64 + 20);
         match (
-            anchor_at(a, features, usable),
-            anchor_at(b, features, usable),
+            anchor_across(a, e, features, usable),
+            anchor_across(b, e, features, usable),
         ) {
             (Some((aa, wa)), Some((ab, wb))) if hi > lo => {
                 self.anchors[0] = aa;
@@ -439,17 +541,17 @@ impl<'a, T: Real> CutLine<'a, T> {
     /// same fraction of the way between the lips as they part, which need not be the middle;
     /// the separation points (midpoints of pairs across the cut) are. Each vertex with enough
     /// of them within a maximum step moves across the line (not along it) to their mean and is
-    /// anchored again there. Where the model is cut there are no separation points left; the
-    /// midpoints of its lips (`lips`) are exact rather than noisy, so one within two maximum
-    /// steps is evidence enough. `projected` are the vertices' current pixels.
+    /// anchored again there. Where the model is cut there are no separation points left and
+    /// the vertex stays where its anchors on both lips hold it. `projected` are the vertices'
+    /// current pixels.
     fn follow_points(
         &mut self,
         points: &[[T; 2]],
-        lips: &[[T; 2]],
         features: &[[T; 2]],
         usable: &[u32],
-        config: &DetectionConfig<T>,
+        rules: &Rules<T>,
         projected: &[[T; 2]],
+        work: &mut LineWork,
     ) {
         let m = projected.len();
         if m < 2 {
@@ -472,24 +574,18 @@ impl<'a, T: Real> CutLine<'a, T> {
                 (length(w) <= reach).then(|| w[0] * normal[0] + w[1] * normal[1])
             };
             let (mut offset, mut count) = (T::zero(), 0u32);
-            for d in points.iter().filter_map(|p| across(p, config.max_step_px)) {
+            work.point_visits += points.len() as u64;
+            for d in points.iter().filter_map(|p| across(p, rules.max_step)) {
                 offset += d;
                 count += 1;
             }
-            if count < config.min_support {
-                (offset, count) = (T::zero(), 0);
-                let reach = T::of(2.0) * config.max_step_px;
-                for d in lips.iter().filter_map(|p| across(p, reach)) {
-                    offset += d;
-                    count += 1;
-                }
-                if count == 0 {
-                    continue;
-                }
+            if count < rules.min_support {
+                continue;
             }
             let shift = offset / T::of(f64::from(count));
             let target = [v[0] + normal[0] * shift, v[1] + normal[1] * shift];
-            if let Some((anchor, w)) = anchor_at(target, features, usable) {
+            work.anchor_visits += ANCHOR_COST * (features.len() as u64 + 20);
+            if let Some((anchor, w)) = anchor_across(target, t, features, usable) {
                 self.anchors[k] = anchor;
                 self.weights[k] = w;
             }
@@ -497,16 +593,16 @@ impl<'a, T: Real> CutLine<'a, T> {
     }
 
     /// Where a front at `v` heading `u` moves, if enough `fresh` points ahead, inside the
-    /// angle `α` and within three maximum steps, support it: toward their mean, by at most the
+    /// angle `α` and within [`REACH_STEPS`] maximum steps, support it: toward their mean, by at most the
     /// maximum step.
     fn advance(
         v: [T; 2],
         u: [T; 2],
         points: &[[T; 2]],
         fresh: impl Fn(usize) -> bool,
-        config: &DetectionConfig<T>,
+        rules: &Rules<T>,
     ) -> Option<([T; 2], [T; 2])> {
-        let cos_alpha = (config.alpha_degrees * T::pi() / T::of(180.0)).cos();
+        let cos_alpha = rules.cos_alpha;
         let (mut sum, mut count) = ([T::zero(); 2], 0u32);
         for (k, p) in points.iter().enumerate() {
             if !fresh(k) {
@@ -515,7 +611,7 @@ impl<'a, T: Real> CutLine<'a, T> {
             let w = sub(*p, v);
             let d = length(w);
             if d > T::EPS
-                && d <= T::of(3.0) * config.max_step_px
+                && d <= T::of(REACH_STEPS) * rules.max_step
                 && (w[0] * u[0] + w[1] * u[1]) >= cos_alpha * d
             {
                 sum[0] += w[0];
@@ -523,7 +619,7 @@ impl<'a, T: Real> CutLine<'a, T> {
                 count += 1;
             }
         }
-        if count < config.min_support {
+        if count < rules.min_support {
             return None;
         }
         let mean = [
@@ -531,15 +627,15 @@ impl<'a, T: Real> CutLine<'a, T> {
             sum[1] / T::of(f64::from(count)),
         ];
         let len = length(mean);
-        if len < config.min_step_px || !(len > T::zero()) {
+        if len < rules.min_step || !(len > T::zero()) {
             return None;
         }
         let dir = [mean[0] / len, mean[1] / len];
-        let step = len.min(config.max_step_px).max(config.min_step_px);
+        let step = len.min(rules.max_step).max(rules.min_step);
         Some(([v[0] + dir[0] * step, v[1] + dir[1] * step], dir))
     }
 
-    fn insert(&mut self, end: usize, anchor: [u32; 3], w: [T; 3]) {
+    fn insert(&mut self, end: usize, anchor: [u32; ANCHORS], w: [T; ANCHORS]) {
         if end == 0 {
             if let Some(r) = self.applied.as_mut() {
                 *r = [r[0] + 1, r[1] + 1];
@@ -558,6 +654,60 @@ impl<'a, T: Real> CutLine<'a, T> {
     }
 }
 
+/// How far ahead of a front (in maximum steps) separation points draw it.
+const REACH_STEPS: f64 = 5.0;
+
+/// Scans of the feature slots per anchoring ([`anchor_across`]: each side, then both).
+const ANCHOR_COST: u64 = 3;
+
+/// Features a vertex is anchored to: three on each side of the line.
+const ANCHORS: usize = 6;
+
+/// Anchors image point `p` on a line running along `tangent` to the features on both sides:
+/// half of it follows three features on one side (their affine combination, which may
+/// extrapolate a little), half three on the other. As the cut opens, each half moves with its
+/// lip and the vertex stays midway between them; anchored to one triangle across the cut, it
+/// would slide toward whichever lip holds more of the triangle's weight. Where one side has no
+/// usable feature near (the line's end at the object's edge), the three features around `p`
+/// hold it. `None` when neither works.
+fn anchor_across<T: Real>(
+    p: [T; 2],
+    tangent: [T; 2],
+    features: &[[T; 2]],
+    usable: &[u32],
+) -> Option<([u32; ANCHORS], [T; ANCHORS])> {
+    let normal = [-tangent[1], tangent[0]];
+    let side = |sign: T| {
+        move |f: &[T; 2]| {
+            let d = sub(*f, p);
+            (d[0] * normal[0] + d[1] * normal[1]) * sign > T::zero()
+        }
+    };
+    let half = T::of(0.5);
+    match (
+        anchor_where(p, features, usable, side(T::one())),
+        anchor_where(p, features, usable, side(-T::one())),
+    ) {
+        (Some((a, wa)), Some((b, wb))) => Some((
+            [a[0], a[1], a[2], b[0], b[1], b[2]],
+            [
+                wa[0] * half,
+                wa[1] * half,
+                wa[2] * half,
+                wb[0] * half,
+                wb[1] * half,
+                wb[2] * half,
+            ],
+        )),
+        _ => anchor_at(p, features, usable).map(|(a, w)| {
+            (
+                [a[0], a[1], a[2], a[0], a[1], a[2]],
+                [w[0], w[1], w[2], T::zero(), T::zero(), T::zero()],
+            )
+        }),
+    }
+}
+
 /// Anchors image point `p` to three usable features around it, as their affine combination
 /// (weights sum to one): of the triangles of its six nearest usable features, the one that
 /// contains `p` most centrally (largest smallest weight). A point on a cut is then held by
@@ -569,12 +719,22 @@ fn anchor_at<T: Real>(
     features: &[[T; 2]],
     usable: &[u32],
 ) -> Option<([u32; 3], [T; 3])> {
+    anchor_where(p, features, usable, |_| true)
+}
+
+/// [`anchor_at`] among the features that `keep` accepts.
+fn anchor_where<T: Real>(
+    p: [T; 2],
+    features: &[[T; 2]],
+    usable: &[u32],
+    keep: impl Fn(&[T; 2]) -> bool,
+) -> Option<([u32; 3], [T; 3])> {
     // The six nearest usable features, by insertion into a small sorted list.
     const K: usize = 6;
     let mut near: [(T, u32); K] = [(T::max_value().unwrap_or(T::one()), u32::MAX); K];
     let mut found = 0;
     for (i, f) in features.iter().enumerate() {
-        if usable.get(i).is_none_or(|&u| u == 0) {
+        if usable.get(i).is_none_or(|&u| u == 0) || !keep(f) {
             continue;
         }
         let d = length(sub(*f, p));
@@ -656,8 +816,8 @@ mod tests {
         let features = grid();
         let usable = [1u32; 121];
         let config = DetectionConfig::<f64>::paper();
-        let mut reals = [0.0; 64];
-        let mut indices = [0u32; 64];
+        let mut reals = [0.0; 128];
+        let mut indices = [0u32; 128];
         let mut rs = Slab::new(&mut reals, crate::error::Resource::RealStorage);
         let mut is = Slab::new(&mut indices, crate::error::Resource::IndexStorage);
         let mut line = CutLine::new(16, &mut rs, &mut is).unwrap();
@@ -673,10 +833,10 @@ mod tests {
             3,
             &points[..11],
             &[4; 11],
-            &[],
             &features,
             &usable,
             &config,
+            25.0,
             &mut scratch,
         );
         assert_eq!((r.detected_frame, r.vertices, r.added), (Some(3), 2, 2));
@@ -695,16 +855,16 @@ mod tests {
             4,
             &points[..8],
             &[4; 8],
-            &[],
             &features,
             &usable,
             &config,
+            25.0,
             &mut scratch,
         );
         assert_eq!(r.added, 1);
         let m = line.project(&features, &mut scratch);
         let new_end = scratch[..m].iter().map(|p| p[1]).fold(0.0, f64::max);
-        assert!(new_end > far_end && new_end <= far_end + config.max_step_px + 1e-9);
+        assert!(new_end > far_end && new_end <= far_end + config.max_step * 25.0 + 1e-9);
     }
 
     #[test]
@@ -712,7 +872,7 @@ mod tests {
         let features = grid();
         let usable = [1u32; 121];
         let config = DetectionConfig::<f64>::paper();
-        let (mut reals, mut indices) = ([0.0; 6], [0u32; 6]);
+        let (mut reals, mut indices) = ([0.0; 12], [0u32; 12]);
         let mut rs = Slab::new(&mut reals, crate::error::Resource::RealStorage);
         let mut is = Slab::new(&mut indices, crate::error::Resource::IndexStorage);
         // Room for two vertices only: the start.
@@ -726,10 +886,10 @@ mod tests {
             1,
             &points,
             &[1; 8],
-            &[],
             &features,
             &usable,
             &config,
+            25.0,
             &mut scratch,
         );
         assert_eq!((r.vertices, r.capped), (2, false));
@@ -740,10 +900,10 @@ mod tests {
             2,
             &points,
             &[2; 8],
-            &[],
             &features,
             &usable,
             &config,
+            25.0,
             &mut scratch,
         );
         assert_eq!((r.vertices, r.added, r.capped), (2, 0, true));

@@ -19,20 +19,31 @@ use crate::error::Error;
 use crate::real::Real;
 
 /// Parameters of the detection and of the cut line.
+///
+/// Nothing here is in pixels except the optional overrides: thresholds are in robust standard
+/// deviations of what the detector measures in the frame itself, and lengths in feature spacings
+/// (the side of the square each feature covers at frame 0, `√(area / features)`), so that one set
+/// of defaults serves a close band and a wide liver, 300 features or 1000, 0.3 px of noise or 2.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct DetectionConfig<T> {
     /// Whether detection runs at all (a scene can switch it off at run time; the `cut` feature
     /// removes it from the build).
     pub enabled: bool,
     /// Neighbour radius `r` in pixels; 0 derives it from the features' density at frame 0
-    /// (2.5 times their mean spacing).
+    /// ([`DetectionConfig::radius_spacings`] feature spacings).
     pub radius_px: T,
-    /// Outlier threshold `ε` on `μ_ij / μ̄` (the paper used 7).
-    pub epsilon: T,
-    /// Temporal-filter threshold `ε_t` on `E_i / Ē`.
-    pub temporal_epsilon: T,
-    /// Differences below this many pixels are never outliers (so that a near-perfect fit, whose
-    /// mean is near zero, does not flag noise).
+    /// Neighbour radius in feature spacings when `radius_px` is 0: 2.5 gives each feature about
+    /// twenty neighbours (π·2.5²), enough for its robust statistics.
+    pub radius_spacings: T,
+    /// A pair is an outlier when its residual difference `μ_ij` exceeds what the frame explains
+    /// by this many robust standard deviations (see [`crate::detect`]).
+    pub outlier_sigmas: T,
+    /// A feature is a tracking failure when its residual changes from one frame to the next by
+    /// more than the median change plus this many robust standard deviations of the changes.
+    pub temporal_sigmas: T,
+    /// Differences below this many pixels are never outliers: the floor for scenes without
+    /// noise, where the robust deviation is near zero (a tracker localises to a few tenths of a
+    /// pixel at best).
     pub min_difference_px: T,
     /// Frames in a row a pair must be an outlier before it counts as split.
     pub persistence: u32,
@@ -40,15 +51,15 @@ pub struct DetectionConfig<T> {
     pub init_points: u32,
     /// Angular restriction `α` of a front's advance, degrees.
     pub alpha_degrees: T,
-    /// Shortest advance of a front, pixels.
-    pub min_step_px: T,
-    /// Longest advance of a front, pixels.
-    pub max_step_px: T,
+    /// Shortest advance of a front, feature spacings.
+    pub min_step: T,
+    /// Longest advance of a front, feature spacings.
+    pub max_step: T,
     /// Separation points ahead of a front needed to advance it.
     pub min_support: u32,
     /// Separation points within this distance of a candidate line count for it when the line
-    /// is started (a robust fit), pixels.
-    pub line_tolerance_px: T,
+    /// is started (a robust fit), feature spacings.
+    pub line_tolerance: T,
     /// The separation points must lie along a line to start the cut line: the spread across
     /// the fitted line over the spread along it, `√(λ_min / λ_max)`, may not exceed this.
     pub max_line_spread: T,
@@ -65,21 +76,23 @@ pub struct DetectionConfig<T> {
 }
 
 impl<T: Real> DetectionConfig<T> {
-    /// The paper's settings (`ε = 7`) with the rest chosen for the shipped scenes.
+    /// The defaults, calibrated by the data of each frame (why each value is what it is:
+    /// the README's "Cut detection" section and the field docs).
     pub fn paper() -> Self {
         DetectionConfig {
             enabled: true,
             radius_px: T::zero(),
-            epsilon: T::of(7.0),
-            temporal_epsilon: T::of(10.0),
-            min_difference_px: T::of(1.0),
+            radius_spacings: T::of(2.5),
+            outlier_sigmas: T::of(OUTLIER_SIGMAS),
+            temporal_sigmas: T::of(TEMPORAL_SIGMAS),
+            min_difference_px: T::of(0.5),
             persistence: 2,
             init_points: 6,
             alpha_degrees: T::of(35.0),
-            min_step_px: T::of(2.0),
-            max_step_px: T::of(25.0),
+            min_step: T::of(0.1),
+            max_step: T::of(1.0),
             min_support: 3,
-            line_tolerance_px: T::of(8.0),
+            line_tolerance: T::of(0.3),
             max_line_spread: T::of(0.25),
             max_outlier_fraction: T::of(0.85),
             opening_only: true,
@@ -95,26 +108,25 @@ impl<T: Real> DetectionConfig<T> {
         let pos = |x: T| x.finite() && x > T::zero();
         let ok = self.radius_px.finite()
             && self.radius_px >= T::zero()
-            && pos(self.epsilon)
-            && pos(self.temporal_epsilon)
+            && pos(self.radius_spacings)
+            && pos(self.outlier_sigmas)
+            && pos(self.temporal_sigmas)
             && self.min_difference_px.finite()
             && self.min_difference_px >= T::zero()
             && self.persistence >= 1
+            && self.persistence < 255
             && self.init_points >= 2
             && self.alpha_degrees.finite()
             && self.alpha_degrees > T::zero()
             && self.alpha_degrees <= T::of(90.0)
-            && pos(self.max_step_px)
-            && self.min_step_px.finite()
-            && self.min_step_px >= T::zero()
-            && self.min_step_px <= self.max_step_px
+            && pos(self.max_step)
+            && self.min_step.finite()
+            && self.min_step >= T::zero()
+            && self.min_step <= self.max_step
             && self.min_support >= 1
-            && self.line_tolerance_px.finite()
-            && self.line_tolerance_px > T::zero()
-            && self.max_line_spread.finite()
-            && self.max_line_spread > T::zero()
-            && self.max_outlier_fraction.finite()
-            && self.max_outlier_fraction > T::zero()
+            && pos(self.line_tolerance)
+            && pos(self.max_line_spread)
+            && pos(self.max_outlier_fraction)
             && self
                 .depth
                 .is_none_or(|d| d.iter().all(|c| c.finite()) && d.iter().any(|c| *c != T::zero()));
@@ -128,6 +140,11 @@ impl<T: Real> DetectionConfig<T> {
     }
 }
 
+/// Default [`DetectionConfig::outlier_sigmas`].
+pub const OUTLIER_SIGMAS: f64 = 6.0;
+/// Default [`DetectionConfig::temporal_sigmas`].
+pub const TEMPORAL_SIGMAS: f64 = 10.0;
+
 /// What the detector saw in one frame.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct DetectionReport<T> {
@@ -137,16 +154,57 @@ pub struct DetectionReport<T> {
     pub pairs_active: usize,
     /// Pairs dropped so far because a feature was filtered out.
     pub pairs_lost: usize,
-    /// Pairs whose `μ_ij` exceeded `ε·μ̄` this frame.
+    /// Pairs whose `μ_ij` exceeded its threshold this frame.
     pub outliers: usize,
     /// Pairs counted as split this frame (outliers for `persistence` frames in a row).
     pub split: usize,
     /// Features taken out by the temporal filter so far.
     pub features_filtered: usize,
-    /// Mean `μ̄` over the active pairs, pixels.
-    pub mean_difference_px: T,
+    /// Median `μ` over the active pairs, pixels.
+    pub median_difference_px: T,
+    /// Robust standard deviation of `μ` over the active pairs (1.4826 × MAD), pixels.
+    pub deviation_px: T,
     /// Separation points this frame.
     pub separation_points: usize,
+    /// Work done this frame.
+    pub work: DetectionWork,
+}
+
+/// Work of the detector in one frame, counted in data-independent units; bounded by
+/// [`DetectionWork::bound`].
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct DetectionWork {
+    /// Feature visits (temporal filter, per-feature statistics).
+    pub feature_visits: u64,
+    /// Pair visits (differences, thresholds, persistence).
+    pub pair_visits: u64,
+    /// Comparisons of the robust statistics' sorts.
+    pub comparisons: u64,
+}
+
+impl DetectionWork {
+    /// The most work of one frame with `features` feature slots, `pairs` pairs and `degree`
+    /// pairs at most per feature (at most `pairs`):
+    /// - feature visits `4 n`: the temporal filter's three passes and the per-feature levels;
+    /// - pair visits `5 P`: differences, per-feature lists, levels, outliers, persistence;
+    /// - comparisons: the median and MAD of the changes (`2 S(n)`) and of the differences
+    ///   (`2 S(P)`), and each feature's lower tertile (`Σ S(dᵢ) ≤ S(2P)` as `Σ dᵢ = 2P`),
+    ///   with `S(m) = 2 m ⌈log₂ m⌉ + 2 m` heapsort's bound.
+    pub const fn bound(features: u64, pairs: u64) -> DetectionWork {
+        use crate::robust::sort_bound;
+        DetectionWork {
+            feature_visits: 4 * features,
+            pair_visits: 5 * pairs,
+            comparisons: 2 * sort_bound(features) + 2 * sort_bound(pairs) + sort_bound(2 * pairs),
+        }
+    }
+
+    /// Whether every count is at most `other`'s.
+    pub fn within(&self, other: &DetectionWork) -> bool {
+        self.feature_visits <= other.feature_visits
+            && self.pair_visits <= other.pair_visits
+            && self.comparisons <= other.comparisons
+    }
 }
 
 #[cfg(feature = "cut")]
@@ -154,9 +212,10 @@ pub use detector::{Detector, GRID_CELLS};
 
 #[cfg(feature = "cut")]
 mod detector {
-    use super::{DetectionConfig, DetectionReport};
+    use super::{DetectionConfig, DetectionReport, DetectionWork};
     use crate::error::{Error, Resource};
     use crate::real::Real;
+    use crate::robust::{MAD_TO_SIGMA, median_mad, quantile_sorted, sort};
     use crate::storage::Slab;
 
     const STREAK: u32 = 0xff;
@@ -170,6 +229,9 @@ mod detector {
     /// Cells of the spatial grid that finds neighbours at frame 0.
     pub const GRID_CELLS: usize = 4096;
 
+    /// Marks a pair not measured this frame in the difference buffer.
+    const UNMEASURED: f64 = -1.0;
+
     /// The detector's state, in fixed storage.
     #[derive(Debug)]
     pub struct Detector<'a, T> {
@@ -181,6 +243,16 @@ mod detector {
         feature_state: &'a mut [u32],
         /// Per feature, this frame: measured pairs and outlier pairs.
         pair_counts: &'a mut [[u32; 2]],
+        /// Per feature, the pairs it belongs to (`incident[incident_start[i]..incident_start[i + 1]]`).
+        incident_start: &'a mut [u32],
+        incident: &'a mut [u32],
+        /// Per pair, this frame: `μ_ij`, or [`UNMEASURED`].
+        difference: &'a mut [T],
+        /// Per feature, this frame: the smooth part of the residual field around it, as a
+        /// difference per pixel of pair length (the lower tertile of `μ / ℓ` over its pairs).
+        slope: &'a mut [T],
+        /// Sort space for the robust statistics.
+        scratch: &'a mut [T],
         points: &'a mut [[T; 2]],
         /// Per point: the frame its pair (last) became split.
         point_since: &'a mut [u32],
@@ -189,19 +261,24 @@ mod detector {
         n_points: usize,
         grid: &'a mut [u32],
         radius: T,
+        spacing: T,
         pairs_lost: usize,
         features_filtered: usize,
+    }
+
+    fn norm<T: Real>(a: [T; 2], b: [T; 2]) -> T {
+        ((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1])).sqrt()
     }
 
     impl<'a, T: Real> Detector<'a, T> {
         /// Scalars of storage for `features` features and `pairs` pairs.
         pub const fn real_len(features: usize, pairs: usize) -> usize {
-            4 * features + 2 * pairs
+            5 * features + 4 * pairs + 2 * if pairs > features { pairs } else { features }
         }
 
         /// Indices of storage.
         pub const fn index_len(features: usize, pairs: usize) -> usize {
-            5 * pairs + 3 * features + GRID_CELLS + 1 + features
+            5 * pairs + 3 * features + GRID_CELLS + 1 + features + (features + 1) + 2 * pairs
         }
 
         /// Empty detector storage.
@@ -221,13 +298,19 @@ mod detector {
                 feature_state: indices.take(features)?,
                 pair_counts: indices.take(2 * features)?.as_chunks_mut::<2>().0,
                 grid: indices.take(GRID_CELLS + 1 + features)?,
+                incident_start: indices.take(features + 1)?,
+                incident: indices.take(2 * pairs)?,
                 previous: reals.take(2 * features)?.as_chunks_mut::<2>().0,
                 current: reals.take(2 * features)?.as_chunks_mut::<2>().0,
+                difference: reals.take(pairs)?,
+                slope: reals.take(features)?,
+                scratch: reals.take(2 * pairs.max(features))?,
                 points: reals.take(2 * pairs)?.as_chunks_mut::<2>().0,
                 point_since: indices.take(pairs)?,
                 split_since: indices.take(pairs)?,
                 n_points: 0,
                 radius: T::zero(),
+                spacing: T::zero(),
                 pairs_lost: 0,
                 features_filtered: 0,
             })
@@ -242,9 +325,13 @@ mod detector {
             h.reals(self.current.iter().flatten());
             h.words(self.feature_state.iter());
             h.words(self.pair_counts.iter().flatten());
+            h.words(self.incident_start.iter());
+            h.words(self.incident.iter());
+            h.reals(self.difference.iter());
+            h.reals(self.slope.iter());
             h.reals(self.points[..self.n_points].iter().flatten());
             h.words(&self.point_since[..self.n_points]);
-            h.reals([self.radius].iter());
+            h.reals([self.radius, self.spacing].iter());
             h.words(
                 [
                     self.n_pairs as u32,
@@ -261,6 +348,11 @@ mod detector {
             &self.pairs[..self.n_pairs]
         }
 
+        /// The most neighbour pairs the storage holds.
+        pub fn pair_capacity(&self) -> usize {
+            self.pairs.len()
+        }
+
         /// Whether pair `k` has been counted as split.
         pub fn is_split(&self, k: usize) -> bool {
             self.pair_state.get(k).is_some_and(|s| s & SPLIT != 0)
@@ -269,6 +361,12 @@ mod detector {
         /// The neighbour radius in use, pixels.
         pub fn radius(&self) -> T {
             self.radius
+        }
+
+        /// The features' spacing at frame 0, `√(area / features)` over their bounding box,
+        /// pixels: the unit of the cut line's lengths.
+        pub fn spacing(&self) -> T {
+            self.spacing
         }
 
         /// The separation points of the last frame, pixels.
@@ -318,12 +416,12 @@ mod detector {
                 }
             }
             let (w, h) = (hi[0] - lo[0], hi[1] - lo[1]);
+            let area = (w * h).max(T::one());
+            self.spacing = (area / T::of(n as f64)).sqrt();
             self.radius = if config.radius_px > T::zero() {
                 config.radius_px
             } else {
-                // 2.5 times the mean spacing of the features over their bounding box.
-                let area = (w * h).max(T::one());
-                T::of(2.5) * (area / T::of(n as f64)).sqrt()
+                config.radius_spacings * self.spacing
             };
             let r = self.radius;
             // Cells at least `r` wide, no more than the grid holds.
@@ -387,6 +485,27 @@ mod detector {
                     }
                 }
             }
+            // Each feature's pairs, by counting sort.
+            let start = &mut self.incident_start[..=n];
+            start.fill(0);
+            for &[i, j] in &self.pairs[..self.n_pairs] {
+                start[i as usize + 1] += 1;
+                start[j as usize + 1] += 1;
+            }
+            for f in 0..n {
+                start[f + 1] += start[f];
+            }
+            for (k, &[i, j]) in self.pairs[..self.n_pairs].iter().enumerate() {
+                for f in [i, j] {
+                    let slot = &mut start[f as usize];
+                    self.incident[*slot as usize] = k as u32;
+                    *slot += 1;
+                }
+            }
+            for f in (1..=n).rev() {
+                start[f] = start[f - 1];
+            }
+            start[0] = 0;
             for i in 0..n {
                 self.previous[i] = d[i];
                 self.feature_state[i] = HAS_PREVIOUS;
@@ -408,34 +527,59 @@ mod detector {
                 .len()
                 .min(observed.len())
                 .min(targets.len())
-                .min(self.feature_state.len());
-            let norm = |a: [T; 2], b: [T; 2]| {
-                ((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1])).sqrt()
-            };
+                .min(self.feature_state.len())
+                .min(self.incident_start.len().saturating_sub(1));
+            let mut work = DetectionWork::default();
+            let newly_filtered = self.temporal_filter(d, observed, n, config, &mut work);
+            let (active, median, deviation) =
+                self.measure_pairs(newly_filtered, targets, n, &mut work);
+            let outliers = self.classify_pairs(median, deviation, targets, n, config, &mut work);
+            let split = self.separation_points(frame, targets, config, &mut work);
+            DetectionReport {
+                pairs: self.n_pairs,
+                pairs_active: active,
+                pairs_lost: self.pairs_lost,
+                outliers,
+                split,
+                features_filtered: self.features_filtered,
+                median_difference_px: median,
+                deviation_px: deviation,
+                separation_points: self.n_points,
+                work,
+            }
+        }
 
-            // Temporal filter: the frame-to-frame change of each residual against the mean change.
-            let (mut sum, mut count) = (T::zero(), 0usize);
+        /// Step 1, the temporal filter: a feature whose residual changes from the last frame
+        /// far more than the others' (beyond the median change plus `temporal_sigmas` robust
+        /// deviations) is a tracking failure and is taken out of detection for good. Returns
+        /// whether a feature was taken out this frame.
+        fn temporal_filter(
+            &mut self,
+            d: &[[T; 2]],
+            observed: &[u32],
+            n: usize,
+            config: &DetectionConfig<T>,
+            work: &mut DetectionWork,
+        ) -> bool {
+            let eligible = OBSERVED | HAS_PREVIOUS;
+            let mut count = 0usize;
             for i in 0..n {
                 let s = &mut self.feature_state[i];
                 *s = (*s & !OBSERVED) | if observed[i] != 0 { OBSERVED } else { 0 };
                 self.current[i] = d[i];
-                if *s & (OBSERVED | HAS_PREVIOUS | FILTERED) == OBSERVED | HAS_PREVIOUS {
-                    sum += norm(d[i], self.previous[i]);
+                if *s & (eligible | FILTERED) == eligible {
+                    self.scratch[count] = norm(d[i], self.previous[i]);
                     count += 1;
                 }
             }
-            let mean_change = if count > 0 {
-                sum / T::of(count as f64)
-            } else {
-                T::zero()
-            };
-            let limit = (config.temporal_epsilon * mean_change).max(config.min_difference_px);
+            let (median, mad, comparisons) = median_mad(&mut self.scratch[..count]);
+            work.comparisons += comparisons;
+            let limit = (median + config.temporal_sigmas * T::of(MAD_TO_SIGMA) * mad)
+                .max(config.min_difference_px);
             let mut newly_filtered = false;
             for i in 0..n {
                 let s = self.feature_state[i];
-                if s & (OBSERVED | HAS_PREVIOUS | FILTERED) == OBSERVED | HAS_PREVIOUS
-                    && norm(d[i], self.previous[i]) > limit
-                {
+                if s & (eligible | FILTERED) == eligible && norm(d[i], self.previous[i]) > limit {
                     self.feature_state[i] |= FILTERED;
                     self.features_filtered += 1;
                     newly_filtered = true;
@@ -447,13 +591,29 @@ mod detector {
                     self.feature_state[i] |= HAS_PREVIOUS;
                 }
             }
+            work.feature_visits += 3 * n as u64;
+            newly_filtered
+        }
 
-            // Pairs: drop those of filtered features, then the mean difference over the rest.
-            let usable = |s: &[u32], i: u32| {
-                s.get(i as usize)
-                    .is_some_and(|&f| f & (OBSERVED | FILTERED) == OBSERVED)
-            };
-            let (mut sum, mut active) = (T::zero(), 0usize);
+        fn usable(&self, f: u32) -> bool {
+            self.feature_state
+                .get(f as usize)
+                .is_some_and(|&s| s & (OBSERVED | FILTERED) == OBSERVED)
+        }
+
+        /// Step 2, the differences: `μ_ij` of every pair whose features are both usable, their
+        /// median and robust deviation over the frame, and each feature's local slope (the
+        /// lower tertile of `μ / ℓ` over its measured pairs: the smooth part of the residual
+        /// field around it, which a cut through a third of its neighbourhood does not move).
+        /// Returns `(active pairs, median, deviation)`.
+        fn measure_pairs(
+            &mut self,
+            newly_filtered: bool,
+            targets: &[[T; 2]],
+            n: usize,
+            work: &mut DetectionWork,
+        ) -> (usize, T, T) {
+            let mut active = 0usize;
             for k in 0..self.n_pairs {
                 let [i, j] = self.pairs[k];
                 if newly_filtered
@@ -467,68 +627,113 @@ mod detector {
                     self.pair_state[k] |= DROPPED;
                     self.pairs_lost += 1;
                 }
-                if self.pair_state[k] & DROPPED == 0
-                    && usable(self.feature_state, i)
-                    && usable(self.feature_state, j)
+                self.difference[k] = if self.pair_state[k] & DROPPED == 0
+                    && self.usable(i)
+                    && self.usable(j)
+                    && (i as usize) < n
+                    && (j as usize) < n
                 {
-                    sum += norm(self.current[i as usize], self.current[j as usize]);
+                    let mu = norm(self.current[i as usize], self.current[j as usize]);
+                    self.scratch[active] = mu;
                     active += 1;
-                }
+                    mu
+                } else {
+                    T::of(UNMEASURED)
+                };
             }
-            let mean = if active > 0 {
-                sum / T::of(active as f64)
-            } else {
-                T::zero()
-            };
-            let threshold = (config.epsilon * mean).max(config.min_difference_px);
-            let is_outlier = |k: usize,
-                              s: &[u32],
-                              cur: &[[T; 2]],
-                              pairs: &[[u32; 2]],
-                              st: &[u32]|
-             -> Option<bool> {
-                let [i, j] = pairs[k];
-                if st[k] & DROPPED != 0 || !(usable(s, i) && usable(s, j)) {
-                    return None;
+            let (median, mad, comparisons) = median_mad(&mut self.scratch[..active]);
+            work.comparisons += comparisons;
+            for f in 0..n {
+                let mut m = 0;
+                let (lo, hi) = (
+                    self.incident_start[f] as usize,
+                    self.incident_start[f + 1] as usize,
+                );
+                for &k in &self.incident[lo..hi] {
+                    let mu = self.difference[k as usize];
+                    if mu >= T::zero() {
+                        let [i, j] = self.pairs[k as usize];
+                        let len = norm(targets[i as usize], targets[j as usize]);
+                        self.scratch[m] = mu / len.max(T::EPS);
+                        m += 1;
+                    }
                 }
-                let (di, dj) = (cur[i as usize], cur[j as usize]);
-                let mu = norm(di, dj);
-                if !(mu > threshold) {
-                    return Some(false);
-                }
-                if !config.opening_only {
-                    return Some(true);
-                }
-                // An opening cut leaves the model behind on both lips: across it, the residuals
-                // diverge along the line joining the two features.
-                let (a, b) = (targets[i as usize], targets[j as usize]);
-                let (ux, uy) = (b[0] - a[0], b[1] - a[1]);
-                let len = (ux * ux + uy * uy).sqrt();
-                let opening = ((dj[0] - di[0]) * ux + (dj[1] - di[1]) * uy) / len.max(T::EPS);
-                Some(opening >= T::of(0.5) * mu)
-            };
-            // Per feature: how many of its measured pairs are outliers.
+                work.pair_visits += (hi - lo) as u64;
+                work.comparisons += sort(&mut self.scratch[..m]);
+                self.slope[f] = if m >= 3 {
+                    quantile_sorted(&self.scratch[..m], T::of(1.0 / 3.0))
+                } else {
+                    T::zero()
+                };
+            }
+            work.pair_visits += self.n_pairs as u64;
+            work.feature_visits += n as u64;
+            (active, median, T::of(MAD_TO_SIGMA) * mad)
+        }
+
+        /// Step 3, the outliers: a pair is one when `μ_ij` exceeds what the frame explains —
+        /// the larger of the frame's median and the smooth field over the pair's length
+        /// (`min(sᵢ, sⱼ) ℓ_ij`) — by `outlier_sigmas` robust deviations; with `opening_only`,
+        /// only when the residuals diverge along the pair. Counts each feature's measured and
+        /// outlier pairs; returns the outliers.
+        fn classify_pairs(
+            &mut self,
+            median: T,
+            deviation: T,
+            targets: &[[T; 2]],
+            n: usize,
+            config: &DetectionConfig<T>,
+            work: &mut DetectionWork,
+        ) -> usize {
             for c in self.pair_counts[..n].iter_mut() {
                 *c = [0, 0];
             }
+            let margin = (config.outlier_sigmas * deviation).max(config.min_difference_px);
             let mut outliers = 0;
             for k in 0..self.n_pairs {
-                if let Some(out) = is_outlier(
-                    k,
-                    self.feature_state,
-                    self.current,
-                    self.pairs,
-                    self.pair_state,
-                ) {
-                    for f in self.pairs[k] {
-                        if let Some(c) = self.pair_counts.get_mut(f as usize) {
-                            c[0] += 1;
-                            c[1] += u32::from(out);
-                        }
-                    }
-                    outliers += usize::from(out);
+                let mu = self.difference[k];
+                if mu < T::zero() {
+                    continue;
                 }
+                let [i, j] = self.pairs[k];
+                let (a, b) = (targets[i as usize], targets[j as usize]);
+                let len = norm(a, b);
+                let smooth = self.slope[i as usize].min(self.slope[j as usize]) * len;
+                let mut out = mu > median.max(smooth) + margin;
+                if out && config.opening_only {
+                    // An opening cut leaves the model behind on both lips: across it, the
+                    // residuals diverge along the line joining the two features.
+                    let (di, dj) = (self.current[i as usize], self.current[j as usize]);
+                    let (ux, uy) = (b[0] - a[0], b[1] - a[1]);
+                    let opening = ((dj[0] - di[0]) * ux + (dj[1] - di[1]) * uy) / len.max(T::EPS);
+                    out = opening >= T::of(0.5) * mu;
+                }
+                if !out {
+                    // Marks "measured, not an outlier" below the unmeasured mark.
+                    self.difference[k] = -mu - T::of(2.0);
+                }
+                for f in [i, j] {
+                    let c = &mut self.pair_counts[f as usize];
+                    c[0] += 1;
+                    c[1] += u32::from(out);
+                }
+                outliers += usize::from(out);
             }
+            work.pair_visits += self.n_pairs as u64;
+            outliers
+        }
+
+        /// Step 4, persistence and separation points: an outlier pair between two features that
+        /// agree with most of their other neighbours extends its streak; after `persistence`
+        /// frames in a row it is split, and its midpoint between the tracked features is a
+        /// separation point. Returns the split pairs.
+        fn separation_points(
+            &mut self,
+            frame: u32,
+            targets: &[[T; 2]],
+            config: &DetectionConfig<T>,
+            work: &mut DetectionWork,
+        ) -> usize {
             let trusted = |c: &[[u32; 2]], f: u32| {
                 c.get(f as usize).is_some_and(|&[all, bad]| {
                     T::of(f64::from(bad)) <= config.max_outlier_fraction * T::of(f64::from(all))
@@ -537,19 +742,16 @@ mod detector {
             let mut split = 0;
             self.n_points = 0;
             for k in 0..self.n_pairs {
-                let Some(out) = is_outlier(
-                    k,
-                    self.feature_state,
-                    self.current,
-                    self.pairs,
-                    self.pair_state,
-                ) else {
+                let mu = self.difference[k];
+                // Unmeasured pairs keep their streak (a dropped frame does not reset it).
+                if mu == T::of(UNMEASURED) {
                     continue;
-                };
+                }
+                let out = mu >= T::zero();
                 let [i, j] = self.pairs[k];
                 let state = self.pair_state[k];
-                // An outlier pair only counts between two features that agree with most of their other
-                // neighbours.
+                // An outlier pair only counts between two features that agree with most of
+                // their other neighbours.
                 let counts = out && trusted(self.pair_counts, i) && trusted(self.pair_counts, j);
                 let streak = if counts {
                     ((state & STREAK) + 1).min(STREAK)
@@ -574,16 +776,8 @@ mod detector {
                 }
                 self.pair_state[k] = next;
             }
-            DetectionReport {
-                pairs: self.n_pairs,
-                pairs_active: active,
-                pairs_lost: self.pairs_lost,
-                outliers,
-                split,
-                features_filtered: self.features_filtered,
-                mean_difference_px: mean,
-                separation_points: self.n_points,
-            }
+            work.pair_visits += self.n_pairs as u64;
+            split
         }
     }
 
@@ -601,14 +795,14 @@ mod detector {
         }
 
         struct Store {
-            reals: [f64; 8192],
-            indices: [u32; 16384],
+            reals: [f64; 16384],
+            indices: [u32; 24576],
         }
 
         fn store() -> Store {
             Store {
-                reals: [0.0; 8192],
-                indices: [0; 16384],
+                reals: [0.0; 16384],
+                indices: [0; 24576],
             }
         }
 
@@ -687,11 +881,16 @@ mod detector {
             let uv = grid(20, 10.0);
             det.init(&uv, &[[0.0; 2]; 400], &config()).unwrap();
             let mut d = [[0.0; 2]; 400];
-            // Small noise-like residuals, then feature 210 jumps by 20 px for three frames.
+            // Noise-like residuals, then feature 210 jumps by 20 px for three frames.
             for frame in 0..8 {
                 for k in 0..400 {
-                    let phase = (k * 7 + frame * 13) % 11;
-                    d[k] = [0.1 * phase as f64 - 0.5, 0.05 * phase as f64 - 0.25];
+                    // Uniform noise in ±0.5 px from a multiplicative hash.
+                    let h = |salt: u64| {
+                        let x = ((k as u64 * 40_503 + frame as u64 * 9_973 + salt) * 2_654_435_761)
+                            % 1_000_003;
+                        x as f64 / 1_000_003.0 - 0.5
+                    };
+                    d[k] = [h(1), h(7)];
                 }
                 if (2..5).contains(&frame) {
                     d[210][0] += 20.0;

@@ -54,6 +54,7 @@ pub mod material;
 pub mod mesh;
 pub mod model;
 pub mod real;
+pub mod robust;
 pub mod solve;
 pub mod sparse;
 pub mod storage;
@@ -67,7 +68,9 @@ pub use nalgebra;
 pub use camera::{Camera, Intrinsics};
 #[cfg(feature = "cut")]
 pub use cut::{CutEvent, CutReport, CutWork};
-pub use detect::DetectionConfig;
+#[cfg(feature = "cut")]
+pub use cutline::LineWork;
+pub use detect::{DetectionConfig, DetectionWork};
 pub use features::{EmbedReport, Observation};
 pub use mesh::{MeshCapacity, MeshInput};
 pub use model::{

@@ -170,12 +170,16 @@ pub struct Summary {
     pub pairs_lost: usize,
     /// Features taken out of detection by the temporal filter.
     pub features_filtered: usize,
+    /// The features' spacing at frame 0, pixels: the unit of the cut line's lengths.
+    pub feature_spacing_px: f64,
     /// Frame at which a cut was detected, if any.
     pub cut_detected_frame: Option<u32>,
     /// Frame at which the true cut opens (ground truth), if the scene has one.
     pub cut_open_frame: Option<u32>,
     /// Hausdorff distance of the final detected polyline to the true cut, pixels.
     pub cut_hausdorff_px: Option<f64>,
+    /// The same, in percent of the image diagonal.
+    pub cut_hausdorff_percent: Option<f64>,
     /// Dice of the last frame with cutting switched off.
     pub dice_final_uncut: f64,
     /// Dice of the last frame.
@@ -251,6 +255,8 @@ pub struct DetectionTrace {
     pub pairs_lost: usize,
     /// Features taken out by the temporal filter, by the end.
     pub features_filtered: usize,
+    /// The features' spacing at frame 0 (the unit of the cut line's lengths), pixels.
+    pub spacing_px: f64,
     /// The cut line at the last frame, pixels.
     pub polyline: Vec<[f64; 2]>,
     /// Its Hausdorff distance to the true cut at the last frame, pixels.
@@ -586,6 +592,7 @@ pub fn run_with(
                 detection.pairs = report.detection.pairs;
                 detection.pairs_lost = report.detection.pairs_lost;
                 detection.features_filtered = report.detection.features_filtered;
+                detection.spacing_px = model.detector().spacing();
                 if detection.detected_frame.is_none() {
                     detection.detected_frame = report.cut_line.detected_frame.map(|_| f as u32);
                 }
@@ -814,9 +821,14 @@ pub fn run_scene_with(
         pairs: trace.detection.pairs,
         pairs_lost: trace.detection.pairs_lost,
         features_filtered: trace.detection.features_filtered,
+        feature_spacing_px: trace.detection.spacing_px,
         cut_detected_frame: trace.detection.detected_frame,
         cut_open_frame: open,
         cut_hausdorff_px: trace.detection.hausdorff_px,
+        cut_hausdorff_percent: trace
+            .detection
+            .hausdorff_px
+            .map(|h| 100.0 * h / f64::from(camera.width).hypot(f64::from(camera.height))),
         dice_final_uncut: uncut.dice_final,
         dice_final: trace.dice_final,
         dice_mean_after_cut: after.iter().sum::<f64>() / after.len().max(1) as f64,

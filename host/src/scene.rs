@@ -73,8 +73,8 @@ pub struct SceneFile {
     pub camera: CameraSection,
     /// The per-frame solve.
     pub solver: SolverSection,
-    /// Cut detection parameters.
-    #[serde(default)]
+    /// Cut detection parameters (written only where they differ from the defaults).
+    #[serde(default, skip_serializing_if = "DetectionSection::is_default")]
     pub detection: DetectionSection,
     /// Capacities of the core's fixed storage.
     #[serde(default)]
@@ -173,19 +173,23 @@ fn default_margin() -> f64 {
 }
 
 /// `[detection]`: the cut detection of the paper's §2.2–2.3 (see
-/// [`incise_core::DetectionConfig`] for each parameter).
+/// [`incise_core::DetectionConfig`] for each parameter). Every field has a default that
+/// calibrates itself from the data; a scene needs this section only to switch detection off or
+/// to study a setting.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields, default)]
 pub struct DetectionSection {
     /// Whether cutting is on for this scene.
     pub enabled: bool,
-    /// Neighbour radius, pixels (0: derived from the feature density).
+    /// Neighbour radius, pixels (0: `radius_spacings` feature spacings).
     pub radius: f64,
-    /// Outlier threshold `ε` on `μ_ij / μ̄` (the paper used 7).
-    pub epsilon: f64,
-    /// Temporal-filter threshold on `E_i / Ē`.
-    pub temporal_epsilon: f64,
-    /// Differences below this are never outliers, pixels.
+    /// Neighbour radius in feature spacings when `radius` is 0.
+    pub radius_spacings: f64,
+    /// Outlier margin in robust standard deviations of the frame's residual differences.
+    pub outlier_sigmas: f64,
+    /// Temporal-filter margin in robust standard deviations of the residual changes.
+    pub temporal_sigmas: f64,
+    /// Differences below this are never outliers, pixels (the floor for noise-free data).
     pub min_difference: f64,
     /// Frames in a row a pair must be an outlier to count as split.
     pub persistence: u32,
@@ -193,13 +197,13 @@ pub struct DetectionSection {
     pub init_points: u32,
     /// Angular restriction of a front, degrees.
     pub alpha: f64,
-    /// Shortest advance of a front, pixels.
+    /// Shortest advance of a front, feature spacings.
     pub min_step: f64,
-    /// Longest advance of a front, pixels.
+    /// Longest advance of a front, feature spacings.
     pub max_step: f64,
     /// Separation points ahead needed to advance a front.
     pub min_support: u32,
-    /// Distance within which separation points support a candidate line, pixels.
+    /// Distance within which separation points support a candidate line, feature spacings.
     pub line_tolerance: f64,
     /// Largest spread across the fitted line, relative to along it, to start the cut line.
     pub max_line_spread: f64,
@@ -218,16 +222,17 @@ impl Default for DetectionSection {
         DetectionSection {
             enabled: p.enabled,
             radius: p.radius_px,
-            epsilon: p.epsilon,
-            temporal_epsilon: p.temporal_epsilon,
+            radius_spacings: p.radius_spacings,
+            outlier_sigmas: p.outlier_sigmas,
+            temporal_sigmas: p.temporal_sigmas,
             min_difference: p.min_difference_px,
             persistence: p.persistence,
             init_points: p.init_points,
             alpha: p.alpha_degrees,
-            min_step: p.min_step_px,
-            max_step: p.max_step_px,
+            min_step: p.min_step,
+            max_step: p.max_step,
             min_support: p.min_support,
-            line_tolerance: p.line_tolerance_px,
+            line_tolerance: p.line_tolerance,
             max_line_spread: p.max_line_spread,
             opening_only: p.opening_only,
             max_outlier_fraction: p.max_outlier_fraction,
@@ -237,21 +242,27 @@ impl Default for DetectionSection {
 }
 
 impl DetectionSection {
+    /// Whether every field has its default (the scene then needs no `[detection]` section).
+    pub fn is_default(&self) -> bool {
+        *self == DetectionSection::default()
+    }
+
     /// The core's configuration.
     pub fn config(&self) -> incise_core::DetectionConfig<f64> {
         incise_core::DetectionConfig {
             enabled: self.enabled,
             radius_px: self.radius,
-            epsilon: self.epsilon,
-            temporal_epsilon: self.temporal_epsilon,
+            radius_spacings: self.radius_spacings,
+            outlier_sigmas: self.outlier_sigmas,
+            temporal_sigmas: self.temporal_sigmas,
             min_difference_px: self.min_difference,
             persistence: self.persistence,
             init_points: self.init_points,
             alpha_degrees: self.alpha,
-            min_step_px: self.min_step,
-            max_step_px: self.max_step,
+            min_step: self.min_step,
+            max_step: self.max_step,
             min_support: self.min_support,
-            line_tolerance_px: self.line_tolerance,
+            line_tolerance: self.line_tolerance,
             max_line_spread: self.max_line_spread,
             opening_only: self.opening_only,
             max_outlier_fraction: self.max_outlier_fraction,

@@ -25,10 +25,10 @@ use crate::camera::Camera;
 #[cfg(feature = "cut")]
 use crate::cut::{self, CutEvent, CutReport, CutWork};
 #[cfg(feature = "cut")]
-use crate::cutline::{CutLine, CutLineReport};
+use crate::cutline::{CutLine, CutLineReport, LineWork};
 use crate::detect::DetectionConfig;
 #[cfg(feature = "cut")]
-use crate::detect::{DetectionReport, Detector};
+use crate::detect::{DetectionReport, DetectionWork, Detector};
 use crate::embed::{interpolate, locate_at_rest};
 use crate::error::{Error, Resource};
 use crate::features::{EmbedReport, Features, Observation};
@@ -167,8 +167,6 @@ struct CutState<'a, T> {
     /// Scratch: projections of the virtual features at frame 0, then the cut line's vertices
     /// each frame.
     pixels: &'a mut [[T; 2]],
-    /// Scratch: the midpoints of the cut's lips in the image.
-    lip_points: &'a mut [[T; 2]],
     /// Scratch of the mesh cut ([`cut::real_len`]).
     scratch: &'a mut [T],
 }
@@ -227,7 +225,6 @@ impl<'a, T: Real> Model<'a, T> {
                 .take(2 * caps.features.max(caps.cut_vertices))?
                 .as_chunks_mut::<2>()
                 .0,
-            lip_points: rs.take(2 * caps.mesh.nodes)?.as_chunks_mut::<2>().0,
             scratch: rs.take(cut::real_len(caps.mesh.nodes, caps.cut_vertices))?,
         };
         let work = is.take(size.work_len())?;
@@ -767,6 +764,19 @@ impl<'a, T: Real> Model<'a, T> {
         w
     }
 
+    /// The worst-case work of the cut detection and the cut line in one [`Model::step`]: a
+    /// formula of the capacities ([`DetectionWork::bound`], [`LineWork::bound`]), whether the
+    /// frame starts the line (its robust fit) or grows it.
+    #[cfg(feature = "cut")]
+    pub fn worst_case_detection_work(&self) -> (DetectionWork, LineWork) {
+        let features = self.features.capacity() as u64;
+        let pairs = self.cut.detector.pair_capacity() as u64;
+        (
+            DetectionWork::bound(features, pairs),
+            LineWork::bound(self.cut.line.capacity() as u64, pairs, features),
+        )
+    }
+
     /// The worst-case work of one cut event ([`Model::apply_cut`]): a formula of the
     /// capacities. The geometry of each of the (at most two) parts of the line applied
     /// ([`CutWork::bound`]), and the rebuild: one assembly with every tetrahedron's tangent and
@@ -881,32 +891,19 @@ impl<'a, T: Real> Model<'a, T> {
         )
     }
 
-    /// Stage 4: the cut line starts or advances. Where the mesh is already cut, the model no
-    /// longer spans the opening and leaves no separation points there: the line then follows
-    /// the midpoints of the cut's lips, as the model sees them.
+    /// Stage 4: the cut line starts or advances. Where the mesh is already cut, the model
+    /// follows the opening and leaves no separation points there: the line's vertices then stay
+    /// anchored to the tracked features on both lips.
     #[cfg(feature = "cut")]
     fn grow_cut_line(&mut self) -> CutLineReport {
-        let mut n_lips = 0;
-        for &[a, b] in self.live.lips.pairs() {
-            let (pa, pb) = (self.live.x[a as usize], self.live.x[b as usize]);
-            let camera = &self.config.camera;
-            if let (Ok(ua), Ok(ub)) = (
-                camera.project(&Vector3::from(pa), a as usize),
-                camera.project(&Vector3::from(pb), b as usize),
-            ) && let Some(slot) = self.cut.lip_points.get_mut(n_lips)
-            {
-                *slot = [(ua.x + ub.x) * T::of(0.5), (ua.y + ub.y) * T::of(0.5)];
-                n_lips += 1;
-            }
-        }
         self.cut.line.update(
             self.frame,
             self.cut.detector.points(),
             self.cut.detector.point_since(),
-            &self.cut.lip_points[..n_lips],
             self.features.targets(),
             self.features.active(),
             &self.config.detection,
+            self.cut.detector.spacing(),
             self.cut.pixels,
         )
     }
@@ -936,7 +933,7 @@ impl<'a, T: Real> Model<'a, T> {
         if m < 2 || parts.iter().all(Option::is_none) {
             return Ok(CutReport::default());
         }
-        let spacing = self.cut.detector.radius() / T::of(2.5);
+        let spacing = self.cut.detector.spacing();
         let report = self.cut_pixels(parts, m, spacing)?;
         // Applied, or crossing nothing new: that part of the line is done with.
         self.cut.line.mark_applied();

@@ -173,7 +173,6 @@ impl ModelSize {
             + CutLine::<f64>::real_len(c.cut_vertices)
             + 2 * c.features // residuals
             + 2 * max(c.features, c.cut_vertices) // projections
-            + 2 * c.mesh.nodes // the lips' midpoints in the image
             + cut::real_len(c.mesh.nodes, c.cut_vertices)
     }
 
