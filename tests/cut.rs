@@ -10,7 +10,7 @@ use incise::run::ModelStorage;
 use incise::scene::{CapacitySection, Scene, read_points_csv};
 use incise_core::cut::SNAP_TOLERANCE;
 use incise_core::nalgebra::Vector3;
-use incise_core::{Error, Material, MeshInput, Model, ModelConfig, Observation, Resource};
+use incise_core::{Error, MeshInput, Model, ModelConfig, Observation, Resource};
 use incise_validation::cutcheck::{
     check_embeddings, check_factor, check_feature_sides, check_mesh, check_targets_stay,
     longest_edge, quality_floor,
@@ -25,16 +25,7 @@ fn load(name: &str) -> Scene {
 }
 
 fn config(scene: &Scene) -> ModelConfig<f64> {
-    let toml = scene.dir.join("scene.toml");
-    ModelConfig {
-        material: Material {
-            young: scene.file.model.young,
-            poisson: scene.file.model.poisson,
-        },
-        camera: scene.file.camera(&toml).unwrap(),
-        solver: scene.file.solver(&toml).unwrap(),
-        detection: scene.file.detection.config(),
-    }
+    scene.model_config().unwrap()
 }
 
 fn rest_targets(scene: &Scene) -> Vec<[f64; 3]> {

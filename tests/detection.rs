@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use incise::run::{ModelStorage, RunOptions, run_scene};
 use incise::scene::Scene;
 use incise_core::nalgebra::Vector3;
-use incise_core::{Material, MeshInput, ModelConfig, Observation};
+use incise_core::{MeshInput, Observation};
 
 fn fixtures() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures")
@@ -100,17 +100,8 @@ fn scenes_without_a_cut_are_never_cut() {
 #[test]
 fn the_separation_surface_is_the_line_extruded_along_the_camera_rays() {
     let scene = load("band-side-cut");
-    let toml = scene.dir.join("scene.toml");
-    let camera = scene.file.camera(&toml).unwrap();
-    let config = ModelConfig {
-        material: Material {
-            young: scene.file.model.young,
-            poisson: scene.file.model.poisson,
-        },
-        camera,
-        solver: scene.file.solver(&toml).unwrap(),
-        detection: scene.file.detection.config(),
-    };
+    let config = scene.model_config().unwrap();
+    let camera = config.camera;
     let input = MeshInput {
         rest: &scene.rest,
         tets: &scene.tets,
@@ -167,16 +158,7 @@ fn detection_work_stays_within_its_formula_on_every_frame() {
     // the largest single cost) and on one with many tracking failures.
     for name in ["band-side-cut", "band-middle-cut", "block-extreme"] {
         let scene = load(name);
-        let toml = scene.dir.join("scene.toml");
-        let config = ModelConfig {
-            material: Material {
-                young: scene.file.model.young,
-                poisson: scene.file.model.poisson,
-            },
-            camera: scene.file.camera(&toml).unwrap(),
-            solver: scene.file.solver(&toml).unwrap(),
-            detection: scene.file.detection.config(),
-        };
+        let config = scene.model_config().unwrap();
         let input = MeshInput {
             rest: &scene.rest,
             tets: &scene.tets,

@@ -9,8 +9,8 @@ use image::RgbImage;
 use incise_core::mesh::MeshCapacity;
 use incise_core::nalgebra::Vector3;
 use incise_core::{
-    Capacities, Error as CoreError, Material, MeshAnalysis, MeshInput, Model, ModelBuffers,
-    ModelConfig, ModelSize, Observation, Real, analyse_mesh, analyse_mesh_work_len,
+    Capacities, Error as CoreError, MeshAnalysis, MeshInput, Model, ModelBuffers, ModelConfig,
+    ModelSize, Observation, Real, analyse_mesh, analyse_mesh_work_len,
 };
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
@@ -484,19 +484,14 @@ pub fn run_with(
     progress: bool,
 ) -> Result<Trace, RunError> {
     let toml = scene.dir.join("scene.toml");
-    let camera = scene.file.camera(&toml)?;
-    let solver = scene.file.solver(&toml)?;
+    let base = scene.model_config()?;
+    let camera = base.camera;
     let config = ModelConfig {
-        material: Material {
-            young: scene.file.model.young,
-            poisson: scene.file.model.poisson,
-        },
-        camera,
-        solver,
         detection: incise_core::DetectionConfig {
-            enabled: cutting && scene.file.detection.enabled,
-            ..scene.file.detection.config()
+            enabled: cutting && base.detection.enabled,
+            ..base.detection
         },
+        ..base
     };
     config
         .detection

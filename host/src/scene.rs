@@ -18,7 +18,7 @@ use std::fmt;
 use std::path::{Path, PathBuf};
 
 use incise_core::nalgebra::{Matrix3, Vector3};
-use incise_core::{Camera, Intrinsics, Observation, SolverConfig, Strategy};
+use incise_core::{Camera, Intrinsics, Material, ModelConfig, Observation, SolverConfig, Strategy};
 use serde::{Deserialize, Serialize};
 
 use crate::msh;
@@ -673,6 +673,23 @@ fn read_text(path: &Path) -> Result<String, SceneError> {
 }
 
 impl Scene {
+    /// The core's configuration of this scene: material, camera, solver and detection.
+    ///
+    /// # Errors
+    /// A [`SceneError`] naming `scene.toml` for a bad camera or solver section.
+    pub fn model_config(&self) -> Result<ModelConfig<f64>, SceneError> {
+        let toml = self.dir.join("scene.toml");
+        Ok(ModelConfig {
+            material: Material {
+                young: self.file.model.young,
+                poisson: self.file.model.poisson,
+            },
+            camera: self.file.camera(&toml)?,
+            solver: self.file.solver(&toml)?,
+            detection: self.file.detection.config(),
+        })
+    }
+
     /// Loads the scene in `dir`: `scene.toml`, its model mesh and `tracks.csv`.
     ///
     /// # Errors
