@@ -81,12 +81,18 @@ pub enum Command {
         #[arg(long)]
         out: Option<PathBuf>,
     },
-    /// Generate scenes: simulate each scenario's real object and write the scene beside it.
+    /// Generate scenes: simulate each scenario's real object and write the scene beside it;
+    /// or, with --family, every variant of a scene family.
     Gen {
         /// Scenario files (scenario.toml).
-        #[arg(required = true)]
+        #[arg(required_unless_present = "family", conflicts_with = "family")]
         scenarios: Vec<PathBuf>,
-        /// Write the scene here instead of the scenario's directory (one scenario only).
+        /// A scene family file (see fixtures/README.md): write each of its variants as
+        /// OUT/<variant name>/ (its scenario.toml and the scene); needs --out.
+        #[arg(long, requires = "out", conflicts_with = "video")]
+        family: Option<PathBuf>,
+        /// Write the scene here instead of the scenario's directory (one scenario only); with
+        /// --family, the directory of the variants.
         #[arg(long)]
         out: Option<PathBuf>,
         /// Also render the textured video of the real object, `video.avi` in the scene
@@ -133,7 +139,13 @@ pub fn run(cli: Cli) -> i32 {
             calibration,
         } => track_command(&video, &scene, &out, calibration.as_deref()),
         Command::Gen {
+            family: Some(family),
+            out,
+            ..
+        } => gen_family_command(&family, out.as_deref()),
+        Command::Gen {
             scenarios,
+            family: None,
             out,
             video,
         } => gen_command(&scenarios, out, video),
@@ -247,6 +259,23 @@ fn gen_command(scenarios: &[PathBuf], out: Option<PathBuf>, video: bool) -> Resu
             g.fine_size.1,
             g.model_size.0,
             g.model_size.1,
+            g.cut_open_frame.map_or("-".to_string(), |f| f.to_string())
+        );
+    }
+    Ok(())
+}
+
+fn gen_family_command(family: &Path, out: Option<&Path>) -> Result<(), String> {
+    let out = out.ok_or("--family needs --out")?;
+    let generated =
+        crate::generate::family::generate_family(family, out, true).map_err(|e| e.to_string())?;
+    for g in &generated {
+        println!(
+            "{}: {} frames, {} features, real mesh {} nodes, cut opens at frame {}",
+            g.dir.display(),
+            g.frames,
+            g.features,
+            g.fine_size.0,
             g.cut_open_frame.map_or("-".to_string(), |f| f.to_string())
         );
     }

@@ -5,15 +5,20 @@
 //!   positive semidefinite Hessian), the real object's law, deliberately not the model's SVK.
 //! - [`sim`]: the quasi-static simulator of the real object, driven frame by frame through
 //!   prescribed (held or grasped) nodes.
-//! - [`object`]: the real object's mesh (a fine band, an organ's own fine mesh such as SOFA's
-//!   `liverFine.vtu`, or the organ model refined eight-fold) and the pre-cut slit, made by
+//! - [`object`]: the real object's mesh (a fine band or dome, an organ's own fine mesh such as
+//!   SOFA's `liverFine.vtu`, or the organ model refined eight-fold) and the slit, made by
 //!   duplicating nodes on a surface of mesh faces.
+//! - [`live`]: live cuts, whose slit grows while the object is filmed.
 //! - [`tracking`]: what a tracker would report: features on the visible surface, hidden when
 //!   occluded, with noise, drop-outs and jumps.
 //! - [`scenario`]: the `scenario.toml` a scene is generated from.
 //! - [`texture`]: the textured pictures of the real object (the video the OpenCV path tracks).
 //! - [`pipeline`]: `incise gen` itself, frame by frame, and the files it writes.
+//! - [`family`]: families of scene variants drawn around a base scenario (`incise gen
+//!   --family`).
 
+pub mod family;
+pub mod live;
 pub mod neohookean;
 pub mod object;
 pub mod pipeline;

@@ -67,6 +67,35 @@ impl TetMesh {
         mesh
     }
 
+    /// A dome: a thick spherical shell over a curved square, meshed as [`TetMesh::band`]
+    /// bent onto the sphere. `size = [arc x, arc y, thickness]`: the mid-surface (radius
+    /// `radius`) spans the arc lengths `arc x` and `arc y` along its two great circles through
+    /// the apex; the thickness is split evenly about it. The mid-surface's apex is at the
+    /// origin and the sphere's centre at `(0, 0, −radius)`, so the dome bulges toward +z and
+    /// its rim hangs below `z = 0`.
+    ///
+    /// The box node `(x, y, z)` goes to `(radius + w) n − (0, 0, radius)` with
+    /// `n = (tan α, tan β, 1) / |(tan α, tan β, 1)|`, `α = (x − arc x / 2) / radius`,
+    /// `β = (y − arc y / 2) / radius` and `w = z − thickness / 2`: the equiangular map of
+    /// one face of a cube onto the sphere, whose cells keep their shape far better than a
+    /// square squeezed into a disc. Node numbering and tetrahedra are the band's.
+    ///
+    /// Meant for `arc / radius` well below π (half-angles up to about 60°) and a thickness
+    /// below the radius; [`dome_parameters_error`] says what is out of range.
+    pub fn dome(size: [f64; 3], radius: f64, cells: [usize; 3]) -> TetMesh {
+        let mut mesh = TetMesh::band(size, cells);
+        for p in &mut mesh.nodes {
+            let a = ((p[0] - size[0] / 2.0) / radius).tan();
+            let b = ((p[1] - size[1] / 2.0) / radius).tan();
+            let w = p[2] - size[2] / 2.0;
+            let norm = (a * a + b * b + 1.0).sqrt();
+            let r = radius + w;
+            *p = [r * a / norm, r * b / norm, r / norm - radius];
+        }
+        mesh.orient_positive();
+        mesh
+    }
+
     /// Swaps two nodes of every negatively oriented tetrahedron.
     pub fn orient_positive(&mut self) {
         for t in &mut self.tets {
@@ -173,6 +202,52 @@ impl TetMesh {
         out.sort_unstable();
         out
     }
+}
+
+/// Why dome parameters make no sense, or `None` if they do: positive sizes, at least one cell
+/// along each axis, a thickness below the radius, and half-angles `arc / (2 radius)` of at
+/// most 60°.
+pub fn dome_parameters_error(size: [f64; 3], radius: f64, cells: [usize; 3]) -> Option<String> {
+    if !(size.iter().all(|&s| s > 0.0 && s.is_finite()) && radius.is_finite() && radius > 0.0) {
+        return Some(format!(
+            "a dome needs a positive size and radius (size {size:?}, radius {radius})"
+        ));
+    }
+    if cells.contains(&0) {
+        return Some(format!(
+            "a dome needs cells along every axis, not {cells:?}"
+        ));
+    }
+    if size[2] >= radius {
+        return Some(format!(
+            "the dome's thickness {} must be below its radius {radius}",
+            size[2]
+        ));
+    }
+    let limit = 60f64.to_radians();
+    if size[0] / (2.0 * radius) > limit || size[1] / (2.0 * radius) > limit {
+        return Some(format!(
+            "the dome's arcs {:?} span more than 120° of its sphere (radius {radius})",
+            &size[..2]
+        ));
+    }
+    None
+}
+
+/// Shape quality of a tetrahedron: `6√2 V / l³` with `l` the root mean square of its six edge
+/// lengths; 1 for the regular tetrahedron, 0 for a flat one, negative when inverted.
+pub fn tet_quality(p: [[f64; 3]; 4]) -> f64 {
+    let mut sum = 0.0;
+    for i in 0..4 {
+        for j in i + 1..4 {
+            sum += (0..3).map(|k| (p[i][k] - p[j][k]).powi(2)).sum::<f64>();
+        }
+    }
+    let l = (sum / 6.0).sqrt();
+    if l == 0.0 {
+        return 0.0;
+    }
+    std::f64::consts::SQRT_2 * signed_volume6(p[0], p[1], p[2], p[3]) / (l * l * l)
 }
 
 /// The result of cutting a slit: the mesh with duplicated nodes, and for each duplicate the
@@ -342,6 +417,97 @@ mod tests {
         }));
         // Same boundary area: no surface node moved.
         assert_eq!(&fine.nodes[..band.nodes.len()], &band.nodes[..]);
+    }
+
+    /// Every undirected boundary edge is shared by exactly two boundary triangles, which run
+    /// it in opposite directions, and `V − E + F = 2`: a closed, consistently oriented surface
+    /// of a ball.
+    fn assert_closed_ball(m: &TetMesh) {
+        let faces = m.boundary();
+        let mut edges: HashMap<(u32, u32), (usize, usize)> = HashMap::new();
+        for (f, _) in &faces {
+            for k in 0..3 {
+                let (a, b) = (f[k], f[(k + 1) % 3]);
+                let e = edges.entry((a.min(b), a.max(b))).or_default();
+                if a < b {
+                    e.0 += 1;
+                } else {
+                    e.1 += 1;
+                }
+            }
+        }
+        assert!(edges.values().all(|&c| c == (1, 1)), "open or misoriented");
+        let mut vertices: Vec<u32> = faces.iter().flat_map(|f| f.0).collect();
+        vertices.sort_unstable();
+        vertices.dedup();
+        let euler = vertices.len() as i64 - edges.len() as i64 + faces.len() as i64;
+        assert_eq!(euler, 2);
+    }
+
+    #[test]
+    fn dome_is_a_closed_positively_oriented_shell_of_the_right_volume() {
+        // The dome family's base: arcs 8 × 6 cm on a 6 cm sphere, 8 mm thick.
+        let (size, radius) = ([0.08, 0.06, 0.008], 0.06);
+        assert_eq!(dome_parameters_error(size, radius, [20, 15, 3]), None);
+        // Exact volume: the solid angle of the patch times (r_o³ − r_i³) / 3; the solid angle
+        // of the gnomonic rectangle |x| ≤ X, |y| ≤ Y on the plane z = 1 is
+        // 4 atan(X Y / √(1 + X² + Y²)).
+        let (x, y) = (
+            (size[0] / (2.0 * radius)).tan(),
+            (size[1] / (2.0 * radius)).tan(),
+        );
+        let omega = 4.0 * (x * y / (1.0 + x * x + y * y).sqrt()).atan();
+        let (ro, ri) = (radius + size[2] / 2.0, radius - size[2] / 2.0);
+        let exact = omega * (ro.powi(3) - ri.powi(3)) / 3.0;
+        let mut last_error = f64::INFINITY;
+        for cells in [[8, 6, 1], [20, 15, 3], [40, 30, 3]] {
+            let m = TetMesh::dome(size, radius, cells);
+            assert_eq!(
+                m.nodes.len(),
+                (cells[0] + 1) * (cells[1] + 1) * (cells[2] + 1)
+            );
+            assert_eq!(m.tets.len(), 6 * cells[0] * cells[1] * cells[2]);
+            let worst = m
+                .tets
+                .iter()
+                .map(|t| tet_quality(t.map(|v| m.nodes[v as usize])))
+                .fold(f64::INFINITY, f64::min);
+            // The band's own cells give 0.6 or so on cubes; bent and stretched a little.
+            assert!(worst > 0.3, "{cells:?}: worst quality {worst}");
+            assert_closed_ball(&m);
+            // Flat facets under a curved surface: a little less than the exact volume, and
+            // closer on finer meshes.
+            let error = (exact - volume(&m)) / exact;
+            assert!((0.0..0.02).contains(&error), "{cells:?}: {error}");
+            assert!(error < last_error);
+            last_error = error;
+            // Apex of the mid-surface at the origin (a node there when the cells along x and
+            // y are even), the outer surface half the thickness above it.
+            let top = m
+                .nodes
+                .iter()
+                .map(|p| p[2])
+                .fold(f64::NEG_INFINITY, f64::max);
+            assert!(
+                top <= size[2] / 2.0 + 1e-15 && top > size[2] / 2.0 - 1e-4,
+                "{top}"
+            );
+            if cells[0] % 2 == 0 && cells[1] % 2 == 0 {
+                assert!(
+                    m.nodes
+                        .iter()
+                        .any(|p| p[0].abs() < 1e-15 && p[1].abs() < 1e-15)
+                );
+            }
+        }
+        assert!(dome_parameters_error(size, 0.005, [4, 4, 1]).is_some());
+        assert!(dome_parameters_error([0.3, 0.06, 0.008], 0.06, [4, 4, 1]).is_some());
+        assert!(dome_parameters_error(size, radius, [4, 0, 1]).is_some());
+    }
+
+    #[test]
+    fn band_is_a_closed_ball() {
+        assert_closed_ball(&TetMesh::band([0.1, 0.03, 0.006], [8, 3, 2]));
     }
 
     #[test]

@@ -7,10 +7,11 @@ use incise_core::Camera;
 use incise_core::nalgebra::{Rotation3, Unit, Vector3};
 use indicatif::{ProgressBar, ProgressStyle};
 
+use crate::generate::live::{self, NEVER, OPEN};
 use crate::generate::object::{
-    Slit, TetMesh, cut_slit, cut_slit_where, interpolate, signed_volume6,
+    Slit, TetMesh, cut_slit, cut_slit_where, dome_parameters_error, interpolate, signed_volume6,
 };
-use crate::generate::scenario::{GraspSpec, Scenario};
+use crate::generate::scenario::{CameraSpec, GraspSpec, Scenario};
 use crate::generate::sim::Simulator;
 use crate::generate::tracking::{DepthBuffer, observe_frame, sample_features};
 use crate::metrics::dice;
@@ -61,7 +62,15 @@ pub struct Generated {
 
 /// The camera of a scenario.
 pub fn scenario_camera(s: &Scenario) -> Result<Camera<f64>, GenError> {
-    let c = &s.camera;
+    spec_camera(&s.camera).map_err(|e| GenError(format!("[camera]: {}", e.0)))
+}
+
+/// The pinhole camera of a `[camera]` section: principal point at the image centre, square
+/// pixels.
+///
+/// # Errors
+/// A [`GenError`] for a degenerate pose or bad intrinsics.
+pub fn spec_camera(c: &CameraSpec) -> Result<Camera<f64>, GenError> {
     let eye = Vector3::from(c.eye);
     let z = (Vector3::from(c.target) - eye).normalize();
     let x = z.cross(&Vector3::from(c.up)).normalize();
@@ -81,7 +90,7 @@ pub fn scenario_camera(s: &Scenario) -> Result<Camera<f64>, GenError> {
         -(r * eye),
         1e-4,
     )
-    .map_err(|e| GenError(format!("[camera]: {e}")))
+    .map_err(err)
 }
 
 fn in_box(p: [f64; 3], b: &[[f64; 3]; 2]) -> bool {
@@ -149,6 +158,9 @@ pub struct Simulation {
     pub fine: TetMesh,
     /// `(original, duplicate)` nodes along the slit's lips.
     pub lips: Vec<(u32, u32)>,
+    /// The frame from which each pair of `lips` is open ([`live::OPEN`] for a pre-cut slit;
+    /// a live cut's pairs are tied before it, see [`live`]).
+    pub release: Vec<u32>,
     /// Nodes of the slit's front, where its lips meet.
     pub slit_front: Vec<u32>,
     /// Boundary triangles of the real mesh (outward) with their tetrahedra.
@@ -231,6 +243,8 @@ pub struct Prepared {
     pub fine: TetMesh,
     /// `(original, duplicate)` nodes along the slit's lips.
     pub lips: Vec<(u32, u32)>,
+    /// The frame from which each pair of `lips` is open ([`live::OPEN`] for a pre-cut slit).
+    pub release: Vec<u32>,
     /// Nodes of the slit's front, where its lips meet.
     pub slit_front: Vec<u32>,
     /// Prescribed nodes of the real mesh, each with the grasp that moves it (`None`: held).
@@ -276,7 +290,16 @@ fn read_tet_mesh(path: &Path, scale: f64) -> Result<TetMesh, GenError> {
     Ok(mesh)
 }
 
-/// The slit of a scenario cut into `fine`, or `None` without a `[slit]`.
+/// The camera an image slit is given in: its own `[slit.camera]`, else the scene's.
+fn slit_camera(s: &Scenario, camera: &Camera<f64>) -> Result<Camera<f64>, GenError> {
+    match s.slit.as_ref().and_then(|sl| sl.camera.as_ref()) {
+        Some(c) => spec_camera(c).map_err(|e| GenError(format!("[slit.camera]: {}", e.0))),
+        None => Ok(*camera),
+    }
+}
+
+/// The slit of a scenario cut into `fine`, or `None` without a `[slit]`; `camera` is the
+/// camera an image slit is given in.
 fn make_slit(s: &Scenario, fine: &TetMesh, camera: &Camera<f64>) -> Result<Option<Slit>, GenError> {
     let Some(sl) = &s.slit else {
         return Ok(None);
@@ -323,6 +346,52 @@ fn make_slit(s: &Scenario, fine: &TetMesh, camera: &Camera<f64>) -> Result<Optio
     Ok(Some(cut))
 }
 
+/// The model mesh, the real mesh before any slit (finer) and, for a scenario made from a mesh
+/// file, that file, of scenario `s` whose mesh paths are relative to `base`.
+///
+/// # Errors
+/// A [`GenError`] for an unknown shape, bad dome parameters or a mesh that cannot be read.
+pub fn object_meshes(
+    s: &Scenario,
+    base: &Path,
+) -> Result<(TetMesh, TetMesh, Option<PathBuf>), GenError> {
+    let o = &s.object;
+    Ok(match o.shape.as_str() {
+        "band" => (
+            TetMesh::band(o.size, o.model_cells),
+            TetMesh::band(o.size, o.fine_cells),
+            None,
+        ),
+        "dome" => {
+            for cells in [o.model_cells, o.fine_cells] {
+                if let Some(e) = dome_parameters_error(o.size, o.radius, cells) {
+                    return Err(GenError(format!("[object] {e}")));
+                }
+            }
+            (
+                TetMesh::dome(o.size, o.radius, o.model_cells),
+                TetMesh::dome(o.size, o.radius, o.fine_cells),
+                None,
+            )
+        }
+        "mesh" => {
+            let path = base.join(&o.mesh);
+            let model = read_tet_mesh(&path, o.scale)?;
+            let fine = if o.real_mesh.is_empty() {
+                model.refine()
+            } else {
+                read_tet_mesh(&base.join(&o.real_mesh), o.real_scale.unwrap_or(o.scale))?
+            };
+            (model, fine, Some(path))
+        }
+        other => {
+            return Err(GenError(format!(
+                "[object] shape must be \"band\", \"dome\" or \"mesh\", not {other:?}"
+            )));
+        }
+    })
+}
+
 /// Builds the model and the real object (with its slit) of the scenario at `scenario_path`,
 /// at rest.
 ///
@@ -330,37 +399,38 @@ fn make_slit(s: &Scenario, fine: &TetMesh, camera: &Camera<f64>) -> Result<Optio
 /// A [`GenError`] for a bad scenario or a mesh that cannot be read.
 pub fn prepare(scenario_path: &Path) -> Result<Prepared, GenError> {
     let s = Scenario::load(scenario_path).map_err(err)?;
-    let base = scenario_path.parent().unwrap_or(Path::new("."));
+    prepare_scenario(s, scenario_path.parent().unwrap_or(Path::new(".")))
+}
+
+/// [`prepare`] for a scenario in memory whose mesh paths are relative to `base`.
+///
+/// # Errors
+/// A [`GenError`] for a bad scenario or a mesh that cannot be read.
+pub fn prepare_scenario(s: Scenario, base: &Path) -> Result<Prepared, GenError> {
     // The model mesh and the finer real mesh.
-    let (model, fine, model_mesh_ref) = match s.object.shape.as_str() {
-        "band" => {
-            let model = TetMesh::band(s.object.size, s.object.model_cells);
-            let fine = TetMesh::band(s.object.size, s.object.fine_cells);
-            (model, fine, None)
-        }
-        "mesh" => {
-            let path = base.join(&s.object.mesh);
-            let model = read_tet_mesh(&path, s.object.scale)?;
-            let fine = if s.object.real_mesh.is_empty() {
-                model.refine()
-            } else {
-                read_tet_mesh(
-                    &base.join(&s.object.real_mesh),
-                    s.object.real_scale.unwrap_or(s.object.scale),
-                )?
-            };
-            (model, fine, Some(path))
-        }
-        other => {
-            return Err(GenError(format!(
-                "[object] shape must be \"band\" or \"mesh\", not {other:?}"
-            )));
-        }
-    };
+    let (model, fine, model_mesh_ref) = object_meshes(&s, base)?;
     let camera = scenario_camera(&s)?;
-    let (real, pairs, slit_front) = match make_slit(&s, &fine, &camera)? {
-        Some(cut) => (cut.mesh, cut.pairs, cut.front),
-        None => (fine.clone(), vec![], vec![]),
+    let cut_camera = slit_camera(&s, &camera)?;
+    let (real, pairs, slit_front, release) = match make_slit(&s, &fine, &cut_camera)? {
+        Some(cut) => {
+            let release = match s.slit.as_ref().and_then(|sl| sl.grow) {
+                None => vec![OPEN; cut.pairs.len()],
+                Some([start, end]) => {
+                    if start >= end || end >= s.frames {
+                        return Err(GenError(format!(
+                            "[slit] grow = [{start}, {end}]: need start < end < frames ({})",
+                            s.frames
+                        )));
+                    }
+                    let sl = s.slit.as_ref().expect("a slit was cut");
+                    let growth = live::growth(sl, &fine.nodes, &cut_camera)
+                        .map_err(|e| GenError(format!("[slit] grow: {e}")))?;
+                    live::release_frames(&cut, &cut.mesh.nodes, &growth, [start, end])
+                }
+            };
+            (cut.mesh, cut.pairs, cut.front, release)
+        }
+        None => (fine.clone(), vec![], vec![], vec![]),
     };
 
     // Held and grasped nodes of the real mesh; the model holds its nodes in the held boxes.
@@ -405,6 +475,7 @@ pub fn prepare(scenario_path: &Path) -> Result<Prepared, GenError> {
         real,
         fine,
         lips: pairs,
+        release,
         slit_front,
         prescribed,
     })
@@ -416,6 +487,28 @@ pub fn prepare(scenario_path: &Path) -> Result<Prepared, GenError> {
 /// A [`GenError`] for a bad scenario, a mesh that cannot be read, or a simulation that does
 /// not converge.
 pub fn simulate(scenario_path: &Path, progress: bool) -> Result<Simulation, GenError> {
+    simulate_prepared(prepare(scenario_path)?, progress)
+}
+
+/// [`simulate`] for a scenario in memory whose mesh paths are relative to `base`.
+///
+/// # Errors
+/// As [`simulate`].
+pub fn simulate_scenario(
+    s: &Scenario,
+    base: &Path,
+    progress: bool,
+) -> Result<Simulation, GenError> {
+    simulate_prepared(prepare_scenario(s.clone(), base)?, progress)
+}
+
+/// Simulates every frame of a prepared scenario. A live cut's pairs are tied until their
+/// release frame (see [`live`]): the simulator is rebuilt with the connectivity of the frame
+/// whenever pairs are released, and carries on from the previous frame's positions.
+///
+/// # Errors
+/// A [`GenError`] if the simulation does not converge.
+pub fn simulate_prepared(prepared: Prepared, progress: bool) -> Result<Simulation, GenError> {
     let Prepared {
         scenario: s,
         camera,
@@ -425,18 +518,23 @@ pub fn simulate(scenario_path: &Path, progress: bool) -> Result<Simulation, GenE
         real,
         fine,
         lips,
+        release,
         slit_front,
         prescribed,
-    } = prepare(scenario_path)?;
+    } = prepared;
     let prescribed_nodes: Vec<u32> = prescribed.iter().map(|p| p.0).collect();
-    let mut simulator = Simulator::new(
-        &real.nodes,
-        &real.tets,
-        &prescribed_nodes,
-        s.object.young,
-        s.object.poisson,
-    )
-    .map_err(|e| GenError(format!("simulator: {e}")))?;
+    let build = |frame: u32| {
+        Simulator::new(
+            &real.nodes,
+            &live::tied_tets(&real.tets, &lips, &release, frame),
+            &prescribed_nodes,
+            s.object.young,
+            s.object.poisson,
+        )
+        .map_err(|e| GenError(format!("simulator: {e}")))
+    };
+    let mut simulator = build(0)?;
+    let mut open = live::released(&release, 0);
     let boundary = real.boundary();
     // Depth tolerance: a fraction of the object's smallest extent.
     let extent = (0..3)
@@ -456,6 +554,22 @@ pub fn simulate(scenario_path: &Path, progress: bool) -> Result<Simulation, GenE
     bar.set_length(u64::from(s.frames.saturating_sub(1)));
     let mut positions = vec![real.nodes.clone()];
     for frame in 1..s.frames {
+        let now_open = live::released(&release, frame);
+        if now_open != open {
+            // Pairs released: the new connectivity, from the last frame's state (where each
+            // released duplicate still sits on its original).
+            open = now_open;
+            let last = &positions[positions.len() - 1];
+            simulator = build(frame)?;
+            let u: Vec<[f64; 3]> = last
+                .iter()
+                .zip(&real.nodes)
+                .map(|(x, r)| [0, 1, 2].map(|k| x[k] - r[k]))
+                .collect();
+            simulator
+                .set_displacements(&u)
+                .map_err(|e| GenError(format!("frame {frame}: releasing the cut: {e}")))?;
+        }
         let goal: Vec<[f64; 3]> = prescribed
             .iter()
             .map(|&(v, g)| {
@@ -469,7 +583,14 @@ pub fn simulate(scenario_path: &Path, progress: bool) -> Result<Simulation, GenE
         simulator
             .solve(&goal, 60)
             .map_err(|e| GenError(format!("frame {frame}: simulation failed: {e}")))?;
-        positions.push(simulator.positions().to_vec());
+        let mut x = simulator.positions().to_vec();
+        // A tied duplicate is in no tetrahedron: it goes where its original goes.
+        for (&(v, d), &r) in lips.iter().zip(&release) {
+            if r > frame {
+                x[d as usize] = x[v as usize];
+            }
+        }
+        positions.push(x);
         bar.inc(1);
     }
     bar.finish_and_clear();
@@ -482,6 +603,7 @@ pub fn simulate(scenario_path: &Path, progress: bool) -> Result<Simulation, GenE
         real,
         fine,
         lips,
+        release,
         slit_front,
         boundary,
         positions,
@@ -514,8 +636,51 @@ pub fn generate(scenario_path: &Path, out: &Path, progress: bool) -> Result<Gene
     write_scene(&sim, scenario_path, out, progress)
 }
 
+/// Generates the scene of a scenario in memory into `out`: writes `out/scenario.toml` (the
+/// scenario, its mesh paths made relative to `out`) and then the scene, exactly as
+/// `incise gen out/scenario.toml` would. `base` is the directory the scenario's mesh paths
+/// are relative to (the directory of the file it was read from). Creates `out` if needed.
+///
+/// # Errors
+/// As [`generate`], and a [`GenError`] if the scenario cannot be written.
+pub fn generate_scenario(
+    s: &Scenario,
+    base: &Path,
+    out: &Path,
+    progress: bool,
+) -> Result<Generated, GenError> {
+    let sim = simulate_scenario(s, base, progress)?;
+    std::fs::create_dir_all(out).map_err(|e| GenError(format!("{}: {e}", out.display())))?;
+    let mut written = s.clone();
+    rebase_mesh_paths(&mut written, base, out);
+    let file = out.join("scenario.toml");
+    let text = format!(
+        "# The scenario of this scene, written by incise: `incise gen` on this file \
+         regenerates the scene beside it.\n{}",
+        written.to_toml().map_err(GenError)?
+    );
+    std::fs::write(&file, text).map_err(|e| GenError(format!("{}: {e}", file.display())))?;
+    write_scene(&sim, &file, out, progress)
+}
+
+/// Makes the mesh paths of `s` (`[object] mesh`, `real_mesh`), relative to `from`, relative
+/// to `to` instead (both directories must exist; a path that cannot be resolved is joined to
+/// `from` as it is).
+pub fn rebase_mesh_paths(s: &mut Scenario, from: &Path, to: &Path) {
+    for p in [&mut s.object.mesh, &mut s.object.real_mesh] {
+        if !p.is_empty() && Path::new(p.as_str()).is_relative() {
+            *p = relative_path(&from.join(&*p), to)
+                .to_string_lossy()
+                .into_owned();
+        }
+    }
+}
+
 /// Writes the scene of a simulation into `out`: `scene.toml`, the model mesh, `tracks.csv`
-/// and the ground truth.
+/// and the ground truth. `gt/cut.csv` holds, each frame, the part of the slit that is open
+/// (all of it for a pre-cut slit, the released pairs of a live cut) and its front, where the
+/// lips still meet (for a live cut, the next pairs to be released); nothing while a live cut
+/// has not started.
 ///
 /// # Errors
 /// A [`GenError`] if a file cannot be written.
@@ -567,6 +732,16 @@ pub fn write_scene(
         })
         .collect();
     order_along_image_line(&mut lips, &real.nodes, camera);
+    // The frame each lip opens; the front never does.
+    let opens: std::collections::HashMap<(u32, u32), u32> = pairs
+        .iter()
+        .copied()
+        .zip(sim.release.iter().copied())
+        .collect();
+    let lip_release: Vec<u32> = lips
+        .iter()
+        .map(|l| opens.get(l).copied().unwrap_or(NEVER))
+        .collect();
 
     let bar = progress_bar(progress, &s.name, "writing")?;
     bar.set_length(u64::from(s.frames));
@@ -608,7 +783,18 @@ pub fn write_scene(
         if cut_open_frame.is_none() && opening >= 1.0 {
             cut_open_frame = Some(frame);
         }
-        for &(a, b) in &lips {
+        // The open part and its front: the lips that have not opened yet and open next.
+        let started = sim.release.iter().any(|&r| r <= frame);
+        let front = lip_release
+            .iter()
+            .copied()
+            .filter(|&r| r > frame)
+            .min()
+            .unwrap_or(NEVER);
+        for (&(a, b), &r) in lips.iter().zip(&lip_release) {
+            if !started || (r > frame && r != front) {
+                continue;
+            }
             let m = [0, 1, 2].map(|k| (x[a as usize][k] + x[b as usize][k]) / 2.0);
             if let Ok(uv) = camera.project(&Vector3::from(m), 0) {
                 cut_rows.push_str(&format!("{frame},{:.3},{:.3}\n", uv.x, uv.y));
@@ -859,6 +1045,121 @@ damping = 0.01
         let outside = band_scenario(dir.path(), "image = [[10.0, 10.0], [20.0, 10.0]]");
         let e = prepare(&outside).unwrap_err();
         assert!(e.0.contains("nothing is cut"), "{e}");
+    }
+
+    /// [`band_scenario`] with a side slit over 75% of the width at x = 2 cm, 8 frames, the far
+    /// end pulled 1 cm over frames 0 to 7, and the extra `[slit]` lines `extra`.
+    fn side_slit_scenario(dir: &Path, extra: &str) -> PathBuf {
+        let path = band_scenario(
+            dir,
+            &format!(
+                "point = [0.02, 0.0, 0.0]\nnormal = [1.0, 0.0, 0.0]\n\
+                 region = [[0.019, -0.001, -0.001], [0.021, 0.015, 0.007]]\n{extra}"
+            ),
+        );
+        let text = std::fs::read_to_string(&path)
+            .unwrap()
+            .replace("frames = 2", "frames = 8")
+            .replace("start = 0\nend = 1", "start = 0\nend = 7");
+        std::fs::write(&path, text).unwrap();
+        path
+    }
+
+    /// Rows of `gt/cut.csv` per frame.
+    fn cut_rows(dir: &Path, frames: usize) -> Vec<usize> {
+        let text = std::fs::read_to_string(dir.join("gt").join("cut.csv")).unwrap();
+        let mut rows = vec![0; frames];
+        for line in text.lines().skip(1) {
+            rows[line.split(',').next().unwrap().parse::<usize>().unwrap()] += 1;
+        }
+        rows
+    }
+
+    #[test]
+    fn a_live_cut_opens_as_it_grows_and_ends_where_the_pre_cut_does() {
+        let dir = tempfile::tempdir().unwrap();
+        let live_dir = dir.path().join("live");
+        let cut_dir = dir.path().join("cut");
+        std::fs::create_dir_all(&live_dir).unwrap();
+        std::fs::create_dir_all(&cut_dir).unwrap();
+        let live_path = side_slit_scenario(&live_dir, "grow = [2, 6]");
+        let cut_path = side_slit_scenario(&cut_dir, "");
+
+        // Release frames: the slit runs from the band's edge (y = 0) to its front at
+        // y = 15 mm (rows every 2.5 mm); the front crosses it over frames 2 to 6, and a pair
+        // opens at the first frame the front has reached it (never before frame 3).
+        let p = prepare(&live_path).unwrap();
+        assert_eq!(p.release.len(), p.lips.len());
+        for (&(v, _), &r) in p.lips.iter().zip(&p.release) {
+            let y = p.real.nodes[v as usize][1];
+            let want = 2 + ((4.0 * y / 0.015 - 1e-9).ceil() as u32).max(1);
+            assert_eq!(r, want, "pair at y = {y}");
+        }
+        assert_eq!(p.release.iter().min(), Some(&3));
+        assert_eq!(p.release.iter().max(), Some(&6));
+
+        let live = simulate(&live_path, false).unwrap();
+        let cut = simulate(&cut_path, false).unwrap();
+        assert_eq!(live.lips, cut.lips);
+        let opening = |sim: &Simulation, f: usize| {
+            sim.lips
+                .iter()
+                .map(|&(v, d)| {
+                    let (a, b) = (sim.positions[f][v as usize], sim.positions[f][d as usize]);
+                    (0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f64>().sqrt()
+                })
+                .fold(0.0f64, f64::max)
+        };
+        // Tied up to the start (the pre-cut slit is already open), open afterwards.
+        for f in 0..=2 {
+            assert_eq!(opening(&live, f), 0.0, "frame {f}");
+        }
+        assert!(opening(&cut, 2) > 1e-4);
+        for f in 3..8 {
+            assert!(opening(&live, f) > 1e-4, "frame {f}");
+        }
+        // Quasi-static equilibrium does not remember the path: once the whole slit is open
+        // and the grasp has stopped, the live cut is where the pre-cut one is.
+        let worst = live.positions[7]
+            .iter()
+            .zip(&cut.positions[7])
+            .flat_map(|(a, b)| (0..3).map(move |k| (a[k] - b[k]).abs()))
+            .fold(0.0f64, f64::max);
+        assert!(worst < 1e-8, "{worst:e} m");
+
+        // The true line: nothing before the cut starts, then longer and longer, the whole
+        // (pre-cut) line at the end.
+        let out_live = dir.path().join("scene-live");
+        let out_cut = dir.path().join("scene-cut");
+        let g = write_scene(&live, &live_path, &out_live, false).unwrap();
+        write_scene(&cut, &cut_path, &out_cut, false).unwrap();
+        let (rows_live, rows_cut) = (cut_rows(&out_live, 8), cut_rows(&out_cut, 8));
+        assert_eq!(&rows_live[..3], &[0, 0, 0]);
+        assert!(rows_live[3] >= 2, "{rows_live:?}");
+        assert!(rows_live.windows(2).all(|w| w[0] <= w[1]), "{rows_live:?}");
+        assert!(rows_live[3] < rows_live[6], "{rows_live:?}");
+        assert_eq!(rows_live[6], rows_cut[6]);
+        assert_eq!(rows_live[7], rows_cut[7]);
+        assert!(
+            g.cut_open_frame.is_some_and(|f| f >= 3),
+            "{:?}",
+            g.cut_open_frame
+        );
+    }
+
+    #[test]
+    fn a_live_cut_needs_a_start_at_the_boundary_and_a_grow_range_in_the_frames() {
+        let dir = tempfile::tempdir().unwrap();
+        let late = side_slit_scenario(dir.path(), "grow = [2, 8]");
+        let e = prepare(&late).unwrap_err();
+        assert!(e.0.contains("start < end < frames"), "{e}");
+        let middle = band_scenario(
+            dir.path(),
+            "point = [0.02, 0.0, 0.0]\nnormal = [1.0, 0.0, 0.0]\n\
+             region = [[0.019, 0.005, -0.001], [0.021, 0.015, 0.007]]\ngrow = [0, 1]",
+        );
+        let e = prepare(&middle).unwrap_err();
+        assert!(e.0.contains("cannot tell where the slit starts"), "{e}");
     }
 
     /// The liver scene: the model is SOFA's coarse liver, the real object SOFA's fine liver

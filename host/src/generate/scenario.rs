@@ -35,8 +35,8 @@ pub struct Scenario {
     pub model: ModelSpec,
     /// The model's solver.
     pub solver: SolverSection,
-    /// Cut detection.
-    #[serde(default)]
+    /// Cut detection (written only where it differs from the defaults).
+    #[serde(default, skip_serializing_if = "DetectionSection::is_default")]
     pub detection: DetectionSection,
     /// Capacities.
     #[serde(default)]
@@ -47,20 +47,28 @@ pub struct Scenario {
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct ObjectSection {
-    /// `"band"` (a box) or `"mesh"` (a Gmsh mesh, refined).
+    /// `"band"` (a box), `"dome"` (a thick spherical shell over a curved square, see
+    /// [`super::object::TetMesh::dome`]) or `"mesh"` (a mesh file).
     pub shape: String,
     /// Band: size `[length x, width y, thickness z]`, metres; its corner at the origin.
-    #[serde(default)]
+    /// Dome: `[arc length along x, arc length along y, thickness]` of its mid-surface through
+    /// the apex, metres.
+    #[serde(default, skip_serializing_if = "is_zero3")]
     pub size: [f64; 3],
-    /// Band: cells of the fine (real) mesh along each axis.
-    #[serde(default)]
+    /// Dome: radius of the sphere of its mid-surface, metres; the apex of the mid-surface is
+    /// at the origin, the sphere's centre at `(0, 0, −radius)`, so the dome bulges toward +z.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub radius: f64,
+    /// Band, dome: cells of the fine (real) mesh along each axis (x, y, through the
+    /// thickness).
+    #[serde(default, skip_serializing_if = "no_cells")]
     pub fine_cells: [usize; 3],
-    /// Band: cells of the coarse model mesh along each axis.
-    #[serde(default)]
+    /// Band, dome: cells of the coarse model mesh along each axis.
+    #[serde(default, skip_serializing_if = "no_cells")]
     pub model_cells: [usize; 3],
     /// Mesh: the Gmsh file, relative to the scenario file; it is the model, and (without
     /// `real_mesh`) its uniform refinement (each tetrahedron into eight) is the real object.
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "String::is_empty")]
     pub mesh: String,
     /// Mesh: metres per mesh unit.
     #[serde(default = "one")]
@@ -68,7 +76,7 @@ pub struct ObjectSection {
     /// Mesh: the real object's own mesh (Gmsh `.msh` or VTK XML `.vtu`), relative to the
     /// scenario file, instead of the model refined: an independent, finer mesh of the same
     /// organ in the same frame (SOFA's `liverFine.vtu` for the liver). Empty: the refinement.
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "String::is_empty")]
     pub real_mesh: String,
     /// Metres per unit of `real_mesh` (default: `scale`).
     #[serde(default)]
@@ -86,17 +94,33 @@ fn one() -> f64 {
     1.0
 }
 
+fn is_zero(x: &f64) -> bool {
+    *x == 0.0
+}
+
+fn is_zero3(x: &[f64; 3]) -> bool {
+    x.iter().all(|&c| c == 0.0)
+}
+
+fn no_cells(x: &[usize; 3]) -> bool {
+    x.iter().all(|&c| c == 0)
+}
+
 fn default_targets() -> usize {
     20
 }
 
-/// `[slit]`: a pre-cut through the object, given one of two ways:
+/// `[slit]`: a cut through the object, given one of two ways:
 ///
 /// - `point`, `normal` and `region`: the part of a plane inside an axis-aligned box;
 /// - `image`: the surface swept by the camera rays through a segment of the image at rest,
 ///   through the whole object (optionally only inside `region`). It is the surface that the
 ///   model's cut (the image line extruded along the camera rays) should find: a cut made
 ///   straight down into the object as the camera sees it.
+///
+/// Without `grow` the slit is there from frame 0 (a pre-cut). With `grow = [start, end]` it
+/// is a live cut: it grows from the object's boundary while the object is filmed, like
+/// scissors advancing, and reaches its full length at `end` (see `grow`).
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct SlitSection {
@@ -113,6 +137,20 @@ pub struct SlitSection {
     /// along the camera rays.
     #[serde(default)]
     pub image: Option<[[f64; 2]; 2]>,
+    /// The camera `image` is given in (default: the scene's `[camera]`). Scene families set it
+    /// to the base scenario's camera when they turn the camera, so that the cut stays at the
+    /// same place on the object.
+    #[serde(default)]
+    pub camera: Option<CameraSpec>,
+    /// A live cut: `[start, end]` frames. The slit is cut over that range, its front moving
+    /// at constant speed from where the slit meets the object's boundary (an image slit: from
+    /// its first end `image[0]`; a plane slit: from the side of `region` that reaches past the
+    /// object, which must be exactly one side along one axis in the plane) to its full length
+    /// at `end`. Nothing is open up to `start`; the lips of a node pair come apart from the
+    /// frame the front has passed it (the first pairs at `start + 1`, the last at `end`).
+    /// `0 ≤ start < end < frames`. Absent: the slit is cut before frame 0.
+    #[serde(default)]
+    pub grow: Option<[u32; 2]>,
 }
 
 /// `[motion]`: boxes of nodes held still and boxes grasped and moved.
@@ -201,11 +239,27 @@ impl Scenario {
     pub fn load(path: &Path) -> Result<Scenario, SceneError> {
         let text = std::fs::read_to_string(path)
             .map_err(|e| SceneError::new(path, 0, format!("cannot read: {e}")))?;
-        toml::from_str(&text).map_err(|e| {
+        Scenario::parse(&text, path)
+    }
+
+    /// Parses the text of a scenario file; `path` only names it in errors.
+    ///
+    /// # Errors
+    /// A [`SceneError`] naming `path` and the line.
+    pub fn parse(text: &str, path: &Path) -> Result<Scenario, SceneError> {
+        toml::from_str(text).map_err(|e| {
             let line = e.span().map_or(0, |s| {
                 text[..s.start.min(text.len())].matches('\n').count() + 1
             });
             SceneError::new(path, line, e.message().to_string())
         })
+    }
+
+    /// The scenario as the text of a `scenario.toml` that [`Scenario::load`] reads back equal.
+    ///
+    /// # Errors
+    /// A message if TOML cannot represent it (a non-finite number).
+    pub fn to_toml(&self) -> Result<String, String> {
+        toml::to_string(self).map_err(|e| e.to_string())
     }
 }

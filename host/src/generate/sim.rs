@@ -158,6 +158,16 @@ pub enum SimError {
     /// element functions guard against it). The simulator is left in its state before the
     /// call.
     NotFinite,
+    /// [`Simulator::set_displacements`] was given `got` displacements for `expected` nodes.
+    StateLength {
+        /// Number of nodes.
+        expected: usize,
+        /// Length of the given state.
+        got: usize,
+    },
+    /// [`Simulator::set_displacements`] was given a state that is not finite or inverts an
+    /// element.
+    InfeasibleState,
 }
 
 impl From<CoreError> for SimError {
@@ -193,6 +203,12 @@ impl fmt::Display for SimError {
                 100.0 * reached
             ),
             SimError::NotFinite => f.write_str("non-finite value in the elastic gradient"),
+            SimError::StateLength { expected, got } => {
+                write!(f, "{got} displacements given for {expected} nodes")
+            }
+            SimError::InfeasibleState => {
+                f.write_str("the given state is not finite or inverts an element")
+            }
         }
     }
 }
@@ -417,6 +433,29 @@ impl Simulator {
     /// Current node displacements from rest (m).
     pub fn displacements(&self) -> &[[f64; 3]] {
         &self.u
+    }
+
+    /// Sets the state: the displacement from rest (m) of every node, in the order of `rest`.
+    /// The next [`Simulator::solve`] starts from it, its prescribed nodes moving from there to
+    /// their targets. Used to carry a simulation over to a simulator with other tetrahedra on
+    /// the same nodes (a live cut's release).
+    ///
+    /// # Errors
+    /// [`SimError::StateLength`] for a state of the wrong length, [`SimError::InfeasibleState`]
+    /// for one that is not finite or inverts an element; the state is then left unchanged.
+    pub fn set_displacements(&mut self, u: &[[f64; 3]]) -> Result<(), SimError> {
+        if u.len() != self.rest.len() {
+            return Err(SimError::StateLength {
+                expected: self.rest.len(),
+                got: u.len(),
+            });
+        }
+        if !u.iter().flatten().all(|c| c.is_finite()) || !self.energy_of(u).value.is_finite() {
+            return Err(SimError::InfeasibleState);
+        }
+        self.u.copy_from_slice(u);
+        self.sync_positions();
+        Ok(())
     }
 
     /// The prescribed nodes, in the order `targets` follows.
