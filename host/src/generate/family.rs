@@ -355,7 +355,8 @@ fn lerp(range: [f64; 2], t: f64) -> f64 {
     range[0] + (range[1] - range[0]) * t
 }
 
-/// What the family needs to know of the base once: its object, its slit, its camera.
+/// What the family needs to know of the base's object once: its model, the real object's
+/// bounding box, and how much of it the base camera sees.
 struct BaseGeometry {
     /// The model's rest nodes.
     model_nodes: Vec<[f64; 3]>,
@@ -392,8 +393,8 @@ pub fn variants(family: &Family, family_path: &Path) -> Result<Vec<Scenario>, Ge
             .ok_or_else(|| at("pull_frames: the base has no [[motion.grasp]]".into()))?;
         if first + longest >= base.frames {
             return Err(at(format!(
-                "pull_frames: a pull of {longest} frames from frame {first} does not end \
-                 before the last frame ({})",
+                "pull_frames: a pull of {longest} frames from frame {first} ends after the \
+                 last frame ({})",
                 base.frames - 1
             )));
         }
