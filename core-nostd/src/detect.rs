@@ -221,6 +221,8 @@ mod detector {
     const STREAK: u32 = 0xff;
     const SPLIT: u32 = 1 << 8;
     const DROPPED: u32 = 1 << 9;
+    /// Set by the outlier step of this frame, read by the persistence step.
+    const OUTLIER: u32 = 1 << 10;
 
     const HAS_PREVIOUS: u32 = 1;
     const FILTERED: u32 = 2;
@@ -251,6 +253,8 @@ mod detector {
         /// Per feature, this frame: the smooth part of the residual field around it, as a
         /// difference per pixel of pair length (the lower tertile of `μ / ℓ` over its pairs).
         slope: &'a mut [T],
+        /// Per pair, this frame: its length `ℓ_ij` in the image (where measured).
+        length: &'a mut [T],
         /// Sort space for the robust statistics.
         scratch: &'a mut [T],
         points: &'a mut [[T; 2]],
@@ -273,7 +277,7 @@ mod detector {
     impl<'a, T: Real> Detector<'a, T> {
         /// Scalars of storage for `features` features and `pairs` pairs.
         pub const fn real_len(features: usize, pairs: usize) -> usize {
-            5 * features + 4 * pairs + 2 * if pairs > features { pairs } else { features }
+            5 * features + 4 * pairs + if pairs > features { pairs } else { features }
         }
 
         /// Indices of storage.
@@ -304,7 +308,8 @@ mod detector {
                 current: reals.take(2 * features)?.as_chunks_mut::<2>().0,
                 difference: reals.take(pairs)?,
                 slope: reals.take(features)?,
-                scratch: reals.take(2 * pairs.max(features))?,
+                length: reals.take(pairs)?,
+                scratch: reals.take(pairs.max(features))?,
                 points: reals.take(2 * pairs)?.as_chunks_mut::<2>().0,
                 point_since: indices.take(pairs)?,
                 split_since: indices.take(pairs)?,
@@ -328,6 +333,7 @@ mod detector {
             h.words(self.incident_start.iter());
             h.words(self.incident.iter());
             h.reals(self.difference.iter());
+            h.reals(self.length.iter());
             h.reals(self.slope.iter());
             h.reals(self.points[..self.n_points].iter().flatten());
             h.words(&self.point_since[..self.n_points]);
@@ -634,6 +640,7 @@ mod detector {
                     && (j as usize) < n
                 {
                     let mu = norm(self.current[i as usize], self.current[j as usize]);
+                    self.length[k] = norm(targets[i as usize], targets[j as usize]);
                     self.scratch[active] = mu;
                     active += 1;
                     mu
@@ -652,9 +659,7 @@ mod detector {
                 for &k in &self.incident[lo..hi] {
                     let mu = self.difference[k as usize];
                     if mu >= T::zero() {
-                        let [i, j] = self.pairs[k as usize];
-                        let len = norm(targets[i as usize], targets[j as usize]);
-                        self.scratch[m] = mu / len.max(T::EPS);
+                        self.scratch[m] = mu / self.length[k as usize].max(T::EPS);
                         m += 1;
                     }
                 }
@@ -695,9 +700,10 @@ mod detector {
                 if mu < T::zero() {
                     continue;
                 }
+                self.pair_state[k] &= !OUTLIER;
                 let [i, j] = self.pairs[k];
                 let (a, b) = (targets[i as usize], targets[j as usize]);
-                let len = norm(a, b);
+                let len = self.length[k];
                 let smooth = self.slope[i as usize].min(self.slope[j as usize]) * len;
                 let mut out = mu > median.max(smooth) + margin;
                 if out && config.opening_only {
@@ -708,9 +714,8 @@ mod detector {
                     let opening = ((dj[0] - di[0]) * ux + (dj[1] - di[1]) * uy) / len.max(T::EPS);
                     out = opening >= T::of(0.5) * mu;
                 }
-                if !out {
-                    // Marks "measured, not an outlier" below the unmeasured mark.
-                    self.difference[k] = -mu - T::of(2.0);
+                if out {
+                    self.pair_state[k] |= OUTLIER;
                 }
                 for f in [i, j] {
                     let c = &mut self.pair_counts[f as usize];
@@ -742,12 +747,11 @@ mod detector {
             let mut split = 0;
             self.n_points = 0;
             for k in 0..self.n_pairs {
-                let mu = self.difference[k];
                 // Unmeasured pairs keep their streak (a dropped frame does not reset it).
-                if mu == T::of(UNMEASURED) {
+                if !(self.difference[k] >= T::zero()) {
                     continue;
                 }
-                let out = mu >= T::zero();
+                let out = self.pair_state[k] & OUTLIER != 0;
                 let [i, j] = self.pairs[k];
                 let state = self.pair_state[k];
                 // An outlier pair only counts between two features that agree with most of
