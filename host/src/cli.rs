@@ -81,6 +81,31 @@ pub enum Command {
         #[arg(long)]
         out: Option<PathBuf>,
     },
+    /// Run scene families end to end (issue 11's acceptance): generate each variant (or
+    /// reuse it from --work), run it with the detection defaults, and print per family the
+    /// false cuts, detection latency, the line's Hausdorff distance to the cut, and Dice and
+    /// target error without and with cutting.
+    Eval {
+        /// Family files (see fixtures/README.md), e.g. fixtures/families/*.toml.
+        #[arg(required = true)]
+        families: Vec<PathBuf>,
+        /// Where the variants' scenes are written and kept; a variant whose scenario is
+        /// unchanged is not simulated again.
+        #[arg(long, default_value = "incise-eval")]
+        work: PathBuf,
+        /// Run only the first N variants of each kind (intact, pre-cut, live).
+        #[arg(long)]
+        per_kind: Option<usize>,
+        /// Simulate every variant again even if its scene is in --work.
+        #[arg(long)]
+        fresh: bool,
+        /// Also print one line per variant.
+        #[arg(long)]
+        variants: bool,
+        /// Print JSON (every family with every variant) instead of tables.
+        #[arg(long)]
+        json: bool,
+    },
     /// Generate scenes: simulate each scenario's real object and write the scene beside it;
     /// or, with --family, every variant of a scene family.
     Gen {
@@ -138,6 +163,24 @@ pub fn run(cli: Cli) -> i32 {
             out,
             calibration,
         } => track_command(&video, &scene, &out, calibration.as_deref()),
+        Command::Eval {
+            families,
+            work,
+            per_kind,
+            fresh,
+            variants,
+            json,
+        } => eval_command(
+            &families,
+            &crate::eval::EvalOptions {
+                work,
+                selection: crate::eval::Selection { per_kind },
+                fresh,
+                progress: true,
+            },
+            variants,
+            json,
+        ),
         Command::Gen {
             family: Some(family),
             out,
@@ -261,6 +304,33 @@ fn gen_command(scenarios: &[PathBuf], out: Option<PathBuf>, video: bool) -> Resu
             g.model_size.1,
             g.cut_open_frame.map_or("-".to_string(), |f| f.to_string())
         );
+    }
+    Ok(())
+}
+
+fn eval_command(
+    families: &[PathBuf],
+    options: &crate::eval::EvalOptions,
+    per_variant: bool,
+    json: bool,
+) -> Result<(), String> {
+    let mut done = vec![];
+    for f in families {
+        done.push(crate::eval::eval_family(f, options)?);
+    }
+    if json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&done).map_err(|e| e.to_string())?
+        );
+        return Ok(());
+    }
+    print!("{}", crate::eval::markdown_table(&done));
+    if per_variant {
+        for f in &done {
+            println!("\n{}:\n", f.family);
+            print!("{}", crate::eval::variant_table(f));
+        }
     }
     Ok(())
 }

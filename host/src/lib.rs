@@ -14,6 +14,7 @@
 //! - [`run`]: `incise run`, the frame loop over a scene and its metrics.
 //! - [`rng`]: a small seeded random generator, so that everything generated is reproducible.
 //! - [`report`]: human summaries, overview pictures, plots.
+//! - [`eval`]: `incise eval`, scene families run end to end and summed up.
 //! - [`cli`]: the `incise` command line.
 //! - `video`, `track` (the `opencv` feature): video input and output, KLT tracking, camera
 //!   calibration.
@@ -23,6 +24,7 @@
 #![allow(clippy::needless_range_loop, clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod cli;
+pub mod eval;
 pub mod generate;
 pub mod metrics;
 pub mod msh;

@@ -1,0 +1,395 @@
+//! Scene families run end to end (`incise eval`): every variant of a family is generated
+//! (`generate::family`), run with the detection defaults (`run`), and the family is summed
+//! up the way issue 11's acceptance reads: false cuts on the intact variants, detection
+//! latency after the cut opens, the line's Hausdorff distance to the true cut as a share of
+//! the image diagonal, and Dice and target error without and with cutting.
+//!
+//! The scenes are written to a work directory and kept there; a later run reuses a variant
+//! whose `scenario.toml` is the one the family draws now (so changing the detector does not
+//! mean simulating again), and regenerates it otherwise or with `fresh`.
+
+use std::path::{Path, PathBuf};
+
+use indicatif::{ProgressBar, ProgressStyle};
+use serde::Serialize;
+
+use crate::generate::family::{Family, Kind, variants};
+use crate::generate::pipeline::{generate_scenario, rebase_mesh_paths};
+use crate::generate::scenario::Scenario;
+use crate::run::{RunOptions, Summary, run_scene};
+use crate::scene::Scene;
+
+/// The acceptance of issue 11, per family: what [`FamilySummary::passes`] checks.
+#[derive(Clone, Copy, Debug, Serialize, PartialEq)]
+pub struct Acceptance {
+    /// False cuts allowed over the intact variants.
+    pub false_cuts: usize,
+    /// Cuts never detected allowed over the cut variants.
+    pub missed: usize,
+    /// Median latency (frames after the cut opens), at most.
+    pub latency_median: f64,
+    /// Largest latency, at most.
+    pub latency_max: i64,
+    /// Median Hausdorff distance of the line to the cut, percent of the image diagonal.
+    pub hausdorff_median_percent: f64,
+    /// Largest Hausdorff distance, percent of the diagonal.
+    pub hausdorff_max_percent: f64,
+}
+
+/// Issue 11's numbers: no false cut, none missed, latency ≤ 3 frames median and ≤ 5 max,
+/// Hausdorff ≤ 3 % of the diagonal median and ≤ 5 % max.
+pub const ACCEPTANCE: Acceptance = Acceptance {
+    false_cuts: 0,
+    missed: 0,
+    latency_median: 3.0,
+    latency_max: 5,
+    hausdorff_median_percent: 3.0,
+    hausdorff_max_percent: 5.0,
+};
+
+/// One variant's results.
+#[derive(Clone, Debug, Serialize)]
+pub struct VariantResult {
+    /// Variant (scene) name.
+    pub name: String,
+    /// `intact`, `pre-cut` or `live`.
+    pub kind: &'static str,
+    /// Frame the cut opens (ground truth), none when intact.
+    pub open_frame: Option<u32>,
+    /// Frame the cut was detected, if it was.
+    pub detected_frame: Option<u32>,
+    /// `detected − open` in frames (negative: detected before it opened).
+    pub latency: Option<i64>,
+    /// A cut detected on an intact variant.
+    pub false_cut: bool,
+    /// A cut variant whose cut was never detected.
+    pub missed: bool,
+    /// Hausdorff distance of the last frame's line to the true cut, percent of the diagonal.
+    pub hausdorff_percent: Option<f64>,
+    /// The whole summary of the run.
+    pub summary: Summary,
+}
+
+/// Median and largest of some numbers (`None` for none).
+#[derive(Clone, Copy, Debug, Serialize, PartialEq)]
+pub struct Spread {
+    /// Median (the mean of the middle two for an even count).
+    pub median: f64,
+    /// Largest.
+    pub max: f64,
+}
+
+impl Spread {
+    /// The spread of `values`, none for an empty list; NaNs are left out.
+    pub fn of(values: impl IntoIterator<Item = f64>) -> Option<Spread> {
+        let mut v: Vec<f64> = values.into_iter().filter(|x| !x.is_nan()).collect();
+        if v.is_empty() {
+            return None;
+        }
+        v.sort_by(f64::total_cmp);
+        let n = v.len();
+        let median = if n % 2 == 1 {
+            v[n / 2]
+        } else {
+            0.5 * (v[n / 2 - 1] + v[n / 2])
+        };
+        Some(Spread {
+            median,
+            max: v[n - 1],
+        })
+    }
+}
+
+/// A family summed up.
+#[derive(Clone, Debug, Serialize)]
+pub struct FamilySummary {
+    /// Family name.
+    pub family: String,
+    /// Intact variants run.
+    pub intact: usize,
+    /// Cut variants run (pre-cut and live).
+    pub cut: usize,
+    /// Of them live.
+    pub live: usize,
+    /// Cuts detected on intact variants.
+    pub false_cuts: usize,
+    /// Cut variants never detected.
+    pub missed: usize,
+    /// Cut variants detected before their cut opened.
+    pub early: usize,
+    /// Latency over the detected cut variants, frames.
+    pub latency: Option<Spread>,
+    /// Hausdorff distance over the detected cut variants, percent of the diagonal.
+    pub hausdorff_percent: Option<Spread>,
+    /// Dice at the last frame over the cut variants, without cutting the mesh.
+    pub dice_uncut: Option<Spread>,
+    /// The same with cutting.
+    pub dice: Option<Spread>,
+    /// Target error (mm) at the last frame over the cut variants, without cutting.
+    pub tre_uncut_mm: Option<Spread>,
+    /// The same with cutting.
+    pub tre_mm: Option<Spread>,
+    /// Target error of the rest model (not registered), the reference.
+    pub tre_rest_mm: Option<Spread>,
+    /// Whether [`ACCEPTANCE`] holds.
+    pub passes: bool,
+    /// Every variant.
+    pub variants: Vec<VariantResult>,
+}
+
+/// Which variants of a family to run.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Selection {
+    /// At most this many of each kind (intact, pre-cut, live), the first ones drawn; all when
+    /// `None`.
+    pub per_kind: Option<usize>,
+}
+
+/// Options of an evaluation.
+#[derive(Clone, Debug)]
+pub struct EvalOptions {
+    /// Where the variants' scenes are written (and reused from).
+    pub work: PathBuf,
+    /// Which variants.
+    pub selection: Selection,
+    /// Regenerate every variant even if its scene is there.
+    pub fresh: bool,
+    /// Show a progress bar.
+    pub progress: bool,
+}
+
+fn kind_name(k: Kind) -> &'static str {
+    match k {
+        Kind::Intact => "intact",
+        Kind::PreCut => "pre-cut",
+        Kind::Live => "live",
+    }
+}
+
+/// Whether `dir` holds the scene of scenario `s` (drawn relative to `base`) already.
+fn is_generated(s: &Scenario, base: &Path, dir: &Path) -> bool {
+    if !dir.join("scene.toml").is_file() {
+        return false;
+    }
+    let mut expected = s.clone();
+    rebase_mesh_paths(&mut expected, base, dir);
+    Scenario::load(&dir.join("scenario.toml")).is_ok_and(|written| written == expected)
+}
+
+/// Generates (or reuses) and runs the selected variants of the family at `family_path`, and
+/// sums them up.
+///
+/// # Errors
+/// A message naming the family, or the variant whose generation or run failed.
+pub fn eval_family(family_path: &Path, options: &EvalOptions) -> Result<FamilySummary, String> {
+    let family = Family::load(family_path).map_err(|e| e.to_string())?;
+    let scenarios = variants(&family, family_path).map_err(|e| e.to_string())?;
+    let base = family.base_dir(family_path);
+    let kinds = family.kinds();
+    let mut taken = [0usize; 3];
+    let chosen: Vec<(&Scenario, Kind)> = scenarios
+        .iter()
+        .zip(kinds.iter().copied())
+        .filter(|(_, k)| {
+            let slot = &mut taken[*k as usize];
+            *slot += 1;
+            options.selection.per_kind.is_none_or(|n| *slot <= n)
+        })
+        .collect();
+    let work = options.work.join(&family.name);
+    std::fs::create_dir_all(&work).map_err(|e| format!("{}: {e}", work.display()))?;
+    let bar = if options.progress {
+        let b = ProgressBar::new(chosen.len() as u64);
+        b.set_style(
+            ProgressStyle::with_template("{prefix:>10} [{bar:30}] {pos}/{len} variants {msg}")
+                .map_err(|e| e.to_string())?
+                .progress_chars("=> "),
+        );
+        b.set_prefix(family.name.clone());
+        b
+    } else {
+        ProgressBar::hidden()
+    };
+    let mut results = Vec::with_capacity(chosen.len());
+    for (s, kind) in chosen {
+        let dir = work.join(&s.name);
+        if options.fresh || !is_generated(s, &base, &dir) {
+            bar.set_message(format!("{} (generating)", s.name));
+            generate_scenario(s, &base, &dir, false).map_err(|e| format!("{}: {e}", s.name))?;
+        }
+        bar.set_message(format!("{} (running)", s.name));
+        let scene = Scene::load(&dir).map_err(|e| format!("{}: {e}", s.name))?;
+        let (summary, _) =
+            run_scene(&scene, &RunOptions::default()).map_err(|e| format!("{}: {e}", s.name))?;
+        results.push(variant_result(&s.name, kind, summary));
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    Ok(summarise(&family.name, results))
+}
+
+fn variant_result(name: &str, kind: Kind, summary: Summary) -> VariantResult {
+    let intact = kind == Kind::Intact;
+    let detected = summary.cut_detected_frame;
+    let open = summary.cut_open_frame;
+    VariantResult {
+        name: name.to_string(),
+        kind: kind_name(kind),
+        open_frame: open,
+        detected_frame: detected,
+        latency: match (detected, open) {
+            (Some(d), Some(o)) if !intact => Some(i64::from(d) - i64::from(o)),
+            _ => None,
+        },
+        false_cut: intact && detected.is_some(),
+        missed: !intact && detected.is_none(),
+        hausdorff_percent: if intact {
+            None
+        } else {
+            summary.cut_hausdorff_percent
+        },
+        summary,
+    }
+}
+
+/// Sums up a family's variant results and checks [`ACCEPTANCE`].
+pub fn summarise(family: &str, variants: Vec<VariantResult>) -> FamilySummary {
+    let cut: Vec<&VariantResult> = variants.iter().filter(|v| v.kind != "intact").collect();
+    let detected: Vec<&&VariantResult> = cut.iter().filter(|v| !v.missed).collect();
+    let over = |f: &dyn Fn(&VariantResult) -> f64| Spread::of(cut.iter().map(|v| f(v)));
+    let latency = Spread::of(detected.iter().filter_map(|v| v.latency.map(|l| l as f64)));
+    let hausdorff = Spread::of(
+        detected
+            .iter()
+            .map(|v| v.hausdorff_percent.unwrap_or(f64::INFINITY)),
+    );
+    let false_cuts = variants.iter().filter(|v| v.false_cut).count();
+    let missed = cut.iter().filter(|v| v.missed).count();
+    let a = ACCEPTANCE;
+    let passes = false_cuts <= a.false_cuts
+        && missed <= a.missed
+        && latency.is_none_or(|l| l.median <= a.latency_median && l.max <= a.latency_max as f64)
+        && hausdorff.is_none_or(|h| {
+            h.median <= a.hausdorff_median_percent && h.max <= a.hausdorff_max_percent
+        });
+    FamilySummary {
+        family: family.to_string(),
+        intact: variants.len() - cut.len(),
+        cut: cut.len(),
+        live: cut.iter().filter(|v| v.kind == "live").count(),
+        false_cuts,
+        missed,
+        early: detected
+            .iter()
+            .filter(|v| v.latency.is_some_and(|l| l < 0))
+            .count(),
+        latency,
+        hausdorff_percent: hausdorff,
+        dice_uncut: over(&|v| v.summary.dice_final_uncut),
+        dice: over(&|v| v.summary.dice_final),
+        tre_uncut_mm: over(&|v| v.summary.tre_mm_final_uncut),
+        tre_mm: over(&|v| v.summary.tre_mm_final),
+        tre_rest_mm: over(&|v| v.summary.tre_mm_final_rest),
+        passes,
+        variants,
+    }
+}
+
+fn spread(s: Option<Spread>, digits: usize) -> String {
+    s.map_or("–".to_string(), |s| {
+        format!("{:.digits$} / {:.digits$}", s.median, s.max)
+    })
+}
+
+fn median(s: Option<Spread>, digits: usize) -> String {
+    s.map_or("–".to_string(), |s| format!("{:.digits$}", s.median))
+}
+
+/// The family table of the README: one row per family.
+pub fn markdown_table(families: &[FamilySummary]) -> String {
+    let mut t = String::from(
+        "| family | intact | cut (live) | false cuts | missed | early | latency median / max (frames) \
+         | Hausdorff median / max (% diag.) | Dice uncut → cut (median) | target error uncut → cut, rest (mm, median) | acceptance |\n\
+         |---|---|---|---|---|---|---|---|---|---|---|\n",
+    );
+    for f in families {
+        t.push_str(&format!(
+            "| {} | {} | {} ({}) | {} | {} | {} | {} | {} | {} → {} | {} → {}, {} | {} |\n",
+            f.family,
+            f.intact,
+            f.cut,
+            f.live,
+            f.false_cuts,
+            f.missed,
+            f.early,
+            spread(f.latency, 1),
+            spread(f.hausdorff_percent, 1),
+            median(f.dice_uncut, 3),
+            median(f.dice, 3),
+            median(f.tre_uncut_mm, 2),
+            median(f.tre_mm, 2),
+            median(f.tre_rest_mm, 2),
+            if f.passes { "met" } else { "not met" }
+        ));
+    }
+    t
+}
+
+/// One line per variant, for finding the ones that fail.
+pub fn variant_table(f: &FamilySummary) -> String {
+    let mut t = String::from(
+        "| variant | kind | opens | detected | Hausdorff (% diag.) | Dice uncut → cut | target error uncut → cut (mm) |\n\
+         |---|---|---|---|---|---|---|\n",
+    );
+    let frame = |v: Option<u32>| v.map_or("–".to_string(), |f| f.to_string());
+    for v in &f.variants {
+        let flag = if v.false_cut {
+            " (false cut)"
+        } else if v.missed {
+            " (missed)"
+        } else {
+            ""
+        };
+        t.push_str(&format!(
+            "| {} | {} | {} | {}{} | {} | {:.3} → {:.3} | {:.2} → {:.2} |\n",
+            v.name,
+            v.kind,
+            frame(v.open_frame),
+            frame(v.detected_frame),
+            flag,
+            v.hausdorff_percent
+                .map_or("–".to_string(), |h| format!("{h:.1}")),
+            v.summary.dice_final_uncut,
+            v.summary.dice_final,
+            v.summary.tre_mm_final_uncut,
+            v.summary.tre_mm_final,
+        ));
+    }
+    t
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn spread_takes_the_middle_of_an_even_count_and_skips_nans() {
+        assert_eq!(Spread::of([]), None);
+        let s = Spread::of([4.0, f64::NAN, 1.0, 3.0, 2.0]).unwrap();
+        assert_eq!(
+            s,
+            Spread {
+                median: 2.5,
+                max: 4.0
+            }
+        );
+        let s = Spread::of([5.0, 1.0, 3.0]).unwrap();
+        assert_eq!(
+            s,
+            Spread {
+                median: 3.0,
+                max: 5.0
+            }
+        );
+    }
+}
