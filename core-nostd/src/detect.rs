@@ -4,16 +4,17 @@
 //! varies smoothly over the image. Where the real object is cut and the model is not, features
 //! on the two lips pull the model in different directions and neighbouring residuals stop
 //! agreeing. The detector measures `μ_ij = ‖d_i − d_j‖` over the neighbour pairs fixed at frame
-//! 0, flags the pairs with `μ_ij > ε·μ̄`, and, once a pair has been flagged for a few frames in a
-//! row, records it as split: the midpoints of split pairs are the separation points the cut
+//! 0 (features close in the image and on the model alike), flags the pairs whose `μ_ij` exceeds
+//! what the frame's own statistics explain (the paper's `ε·μ̄`, made robust: see
+//! [`DetectionConfig::outlier_sigmas`]), and, once a pair has been flagged for a few frames in
+//! a row, records it as split: the midpoints of split pairs are the separation points the cut
 //! line is fitted to ([`crate::cutline`]).
 //!
 //! A temporal filter keeps tracker failures out: a feature whose residual jumps from one frame
-//! to the next far more than the others' (`E_i > ε_t·Ē`) is taken out of detection for good,
-//! with all its pairs.
+//! to the next far more than the others' (the paper's `E_i > ε_t·Ē`, made robust the same way)
+//! is taken out of detection for good, with all its pairs.
 //!
-//! Cost per frame: one pass over the features and one over the pairs, both bounded by their
-//! capacities.
+//! Cost per frame: bounded by [`DetectionWork::bound`] in the capacities.
 
 use crate::error::Error;
 use crate::real::Real;
@@ -35,6 +36,13 @@ pub struct DetectionConfig<T> {
     /// Neighbour radius in feature spacings when `radius_px` is 0: 2.5 gives each feature about
     /// twenty neighbours (π·2.5²), enough for its robust statistics.
     pub radius_spacings: T,
+    /// Two features close in the image are not paired when, on the model at frame 0, they lie
+    /// farther apart than this multiple of their image distance taken back to their depth
+    /// (`‖X_i − X_j‖ > ratio · ℓ_ij · z / f`): the pair then spans a fold, or a slope seen at
+    /// a grazing angle, where the residuals of a coarse model jump without any cut (what made
+    /// most of the false cuts on the liver family). 3 keeps every pair on a surface tilted up
+    /// to 70° from the image plane (1 / cos 70.5° = 3); 0 pairs by image distance alone.
+    pub max_surface_ratio: T,
     /// A pair is an outlier when its residual difference `μ_ij` exceeds what the frame explains
     /// by this many robust standard deviations (see [`crate::detect`]).
     pub outlier_sigmas: T,
@@ -83,6 +91,7 @@ impl<T: Real> DetectionConfig<T> {
             enabled: true,
             radius_px: T::zero(),
             radius_spacings: T::of(2.5),
+            max_surface_ratio: T::of(3.0),
             outlier_sigmas: T::of(OUTLIER_SIGMAS),
             temporal_sigmas: T::of(TEMPORAL_SIGMAS),
             min_difference_px: T::of(0.5),
@@ -109,6 +118,8 @@ impl<T: Real> DetectionConfig<T> {
         let ok = self.radius_px.finite()
             && self.radius_px >= T::zero()
             && pos(self.radius_spacings)
+            && self.max_surface_ratio.finite()
+            && (self.max_surface_ratio == T::zero() || self.max_surface_ratio >= T::one())
             && pos(self.outlier_sigmas)
             && pos(self.temporal_sigmas)
             && self.min_difference_px.finite()
@@ -399,6 +410,19 @@ mod detector {
             d: &[[T; 2]],
             config: &DetectionConfig<T>,
         ) -> Result<(), Error> {
+            self.init_on_surface(uv, d, config, |_, _, _| false)
+        }
+
+        /// As [`Detector::init`], leaving out the pairs for which `apart(i, j, ℓ)` says that
+        /// features `i` and `j`, `ℓ` pixels apart in the image, are far apart on the object
+        /// (see [`DetectionConfig::max_surface_ratio`]).
+        pub fn init_on_surface(
+            &mut self,
+            uv: &[[T; 2]],
+            d: &[[T; 2]],
+            config: &DetectionConfig<T>,
+            apart: impl Fn(usize, usize, T) -> bool,
+        ) -> Result<(), Error> {
             self.n_pairs = 0;
             self.n_points = 0;
             self.pairs_lost = 0;
@@ -473,7 +497,9 @@ mod detector {
                             }
                             let q = &uv[j as usize];
                             let (dx, dy) = (q[0] - p[0], q[1] - p[1]);
-                            if dx * dx + dy * dy < r2 {
+                            if dx * dx + dy * dy < r2
+                                && !apart(i, j as usize, (dx * dx + dy * dy).sqrt())
+                            {
                                 if self.n_pairs == self.pairs.len() {
                                     let needed = self.n_pairs + 1;
                                     self.n_pairs = 0;
@@ -833,6 +859,45 @@ mod detector {
             // 2·19·20 axis pairs and 2·19·19 diagonal ones.
             assert_eq!(det.pairs().len(), 2 * 19 * 20 + 2 * 19 * 19);
             assert!(det.pairs().iter().all(|&[i, j]| i < j));
+        }
+
+        #[test]
+        fn features_apart_on_the_object_are_not_paired() {
+            let mut s = store();
+            let mut det = detector(&mut s, 400, 2000);
+            let uv = grid(20, 10.0);
+            // A fold along the middle: the two halves of the grid touch in the image only.
+            let half = |k: usize| uv[k][0] < 95.0;
+            det.init_on_surface(&uv, &[[0.0; 2]; 400], &config(), |i, j, l| {
+                assert!(l > 0.0 && l < 15.0);
+                half(i) != half(j)
+            })
+            .unwrap();
+            // Each half (10 columns × 20 rows) pairs as a grid of its own.
+            let per_half = (9 * 20 + 10 * 19) + 2 * 9 * 19;
+            assert_eq!(det.pairs().len(), 2 * per_half);
+            assert!(
+                det.pairs()
+                    .iter()
+                    .all(|&[i, j]| half(i as usize) == half(j as usize))
+            );
+        }
+
+        #[test]
+        fn a_surface_ratio_below_one_is_refused() {
+            for (ratio, ok) in [
+                (0.0, true),
+                (1.0, true),
+                (3.0, true),
+                (0.5, false),
+                (f64::NAN, false),
+            ] {
+                let c = DetectionConfig {
+                    max_surface_ratio: ratio,
+                    ..config()
+                };
+                assert_eq!(c.validate().is_ok(), ok, "ratio {ratio}");
+            }
         }
 
         #[test]

@@ -185,6 +185,10 @@ pub struct DetectionSection {
     pub radius: f64,
     /// Neighbour radius in feature spacings when `radius` is 0.
     pub radius_spacings: f64,
+    /// Features closer in the image are not paired when they are farther apart than this on
+    /// the model (relative to their image distance at their depth): pairs across a fold or a
+    /// grazing slope (0: pair by image distance alone).
+    pub max_surface_ratio: f64,
     /// Outlier margin in robust standard deviations of the frame's residual differences.
     pub outlier_sigmas: f64,
     /// Temporal-filter margin in robust standard deviations of the residual changes.
@@ -223,6 +227,7 @@ impl Default for DetectionSection {
             enabled: p.enabled,
             radius: p.radius_px,
             radius_spacings: p.radius_spacings,
+            max_surface_ratio: p.max_surface_ratio,
             outlier_sigmas: p.outlier_sigmas,
             temporal_sigmas: p.temporal_sigmas,
             min_difference: p.min_difference_px,
@@ -253,6 +258,7 @@ impl DetectionSection {
             enabled: self.enabled,
             radius_px: self.radius,
             radius_spacings: self.radius_spacings,
+            max_surface_ratio: self.max_surface_ratio,
             outlier_sigmas: self.outlier_sigmas,
             temporal_sigmas: self.temporal_sigmas,
             min_difference_px: self.min_difference,

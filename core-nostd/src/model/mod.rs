@@ -418,10 +418,26 @@ impl<'a, T: Real> Model<'a, T> {
                 self.cut.pixels[slot] = uv;
                 self.cut.residuals[slot] = [t[0] - uv[0], t[1] - uv[1]];
             }
-            let init = self.cut.detector.init(
+            let (live, camera) = (&self.live, &self.config.camera);
+            let focal = camera.intrinsics().fx;
+            let at = |slot: usize| {
+                live.features
+                    .position(slot, &live.mesh, &live.x[..live.mesh.n_nodes()])
+                    .map(|p| camera.to_camera(&Vector3::from(p)))
+            };
+            // Pairs across a fold or a grazing slope are left out (the ratio's doc says why).
+            let ratio = self.config.detection.max_surface_ratio;
+            let init = self.cut.detector.init_on_surface(
                 &self.cut.pixels[..n],
                 &self.cut.residuals[..n],
                 &self.config.detection,
+                |i, j, l| match (at(i), at(j)) {
+                    (Some(a), Some(b)) if ratio > T::zero() => {
+                        let z = T::of(0.5) * (a.z + b.z);
+                        (a - b).norm() > ratio * l * z / focal
+                    }
+                    _ => false,
+                },
             );
             if let Err(e) = init {
                 // The features are placed but cannot be watched for a cut: refuse them all.
