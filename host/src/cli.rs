@@ -1,5 +1,7 @@
 //! The `incise` command line.
 
+use std::fmt;
+use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use clap::{Parser, Subcommand};
@@ -139,7 +141,60 @@ fn fixtures_dir() -> PathBuf {
         .join("fixtures")
 }
 
-/// Runs the parsed command line; returns the process exit code.
+/// Exit status when standard output is a closed pipe (`incise demo | head -1`): what a shell
+/// reports for a program ended by `SIGPIPE`, 128 + 13, as for `yes | head -1`.
+pub const BROKEN_PIPE_STATUS: i32 = 141;
+
+/// Why a command stopped.
+#[derive(Debug)]
+enum Failure {
+    /// An error to print.
+    Message(String),
+    /// Standard output was closed (the reader of a pipe has gone): stop quietly.
+    BrokenPipe,
+}
+
+impl From<String> for Failure {
+    fn from(m: String) -> Self {
+        Failure::Message(m)
+    }
+}
+
+impl From<&str> for Failure {
+    fn from(m: &str) -> Self {
+        Failure::Message(m.to_string())
+    }
+}
+
+/// Writes to standard output. Unlike `print!`, which panics when the reader of a pipe has
+/// gone, a closed pipe becomes [`Failure::BrokenPipe`].
+fn write_stdout(args: fmt::Arguments<'_>) -> Result<(), Failure> {
+    let mut stdout = std::io::stdout().lock();
+    stdout
+        .write_fmt(args)
+        .and_then(|()| stdout.flush())
+        .map_err(|e| match e.kind() {
+            std::io::ErrorKind::BrokenPipe => Failure::BrokenPipe,
+            _ => Failure::Message(format!("standard output: {e}")),
+        })
+}
+
+/// `print!` through [`write_stdout`]: evaluates to `Result<(), Failure>`.
+macro_rules! out {
+    ($($arg:tt)*) => {
+        write_stdout(format_args!($($arg)*))
+    };
+}
+
+/// `println!` through [`write_stdout`]: evaluates to `Result<(), Failure>`.
+macro_rules! outln {
+    ($($arg:tt)*) => {
+        write_stdout(format_args!("{}\n", format_args!($($arg)*)))
+    };
+}
+
+/// Runs the parsed command line; returns the process exit code: 0, 1 after an error (printed
+/// on standard error), or [`BROKEN_PIPE_STATUS`] if standard output was closed early.
 pub fn run(cli: Cli) -> i32 {
     let result = match cli.command {
         Command::Demo { out } => demo(&out),
@@ -180,7 +235,8 @@ pub fn run(cli: Cli) -> i32 {
             },
             variants,
             json,
-        ),
+        )
+        .map_err(Failure::from),
         Command::Gen {
             family: Some(family),
             out,
@@ -197,14 +253,16 @@ pub fn run(cli: Cli) -> i32 {
     };
     match result {
         Ok(()) => 0,
-        Err(message) => {
-            eprintln!("incise: {message}");
+        Err(Failure::BrokenPipe) => BROKEN_PIPE_STATUS,
+        Err(Failure::Message(message)) => {
+            // Not `eprintln!`, which panics if standard error is closed too.
+            let _ = writeln!(std::io::stderr(), "incise: {message}");
             1
         }
     }
 }
 
-fn run_command(dir: &Path, json: bool, out: Option<PathBuf>) -> Result<(), String> {
+fn run_command(dir: &Path, json: bool, out: Option<PathBuf>) -> Result<(), Failure> {
     let scene = Scene::load(dir).map_err(|e| e.to_string())?;
     let options = RunOptions {
         out: out.clone(),
@@ -219,33 +277,33 @@ fn print_summary(
     summary: &crate::run::Summary,
     json: bool,
     out: Option<&Path>,
-) -> Result<(), String> {
+) -> Result<(), Failure> {
     if json {
-        println!(
+        outln!(
             "{}",
             serde_json::to_string_pretty(summary).map_err(|e| e.to_string())?
-        );
+        )?;
     } else {
-        print!("{}", crate::report::human_summary(summary));
+        out!("{}", crate::report::human_summary(summary))?;
         if let Some(out) = out {
-            println!("pictures and meshes: {}", out.display());
+            outln!("pictures and meshes: {}", out.display())?;
         }
     }
     Ok(())
 }
 
-fn table_command(dirs: &[PathBuf]) -> Result<(), String> {
+fn table_command(dirs: &[PathBuf]) -> Result<(), Failure> {
     let mut rows = vec![];
     for dir in dirs {
         let scene = Scene::load(dir).map_err(|e| e.to_string())?;
         let (summary, _) = run_scene(&scene, &RunOptions::default()).map_err(|e| e.to_string())?;
         rows.push(summary);
     }
-    print!("{}", crate::report::markdown_table(&rows));
+    out!("{}", crate::report::markdown_table(&rows))?;
     Ok(())
 }
 
-fn sweep_command(dir: &Path, out: Option<&Path>) -> Result<(), String> {
+fn sweep_command(dir: &Path, out: Option<&Path>) -> Result<(), Failure> {
     let base = Scene::load(dir).map_err(|e| e.to_string())?;
     let settings = crate::report::sweep_settings();
     let bar = indicatif::ProgressBar::new(settings.len() as u64);
@@ -258,17 +316,17 @@ fn sweep_command(dir: &Path, out: Option<&Path>) -> Result<(), String> {
         bar.inc(1);
     }
     bar.finish_and_clear();
-    print!("{}", crate::report::sweep_table(&rows));
+    out!("{}", crate::report::sweep_table(&rows))?;
     if let Some(out) = out {
         std::fs::create_dir_all(out).map_err(|e| e.to_string())?;
         let plot = out.join("error_vs_time.svg");
         crate::report::plot_sweep(&base.file.name, &rows, &plot)?;
-        println!("plot: {}", plot.display());
+        outln!("plot: {}", plot.display())?;
     }
     Ok(())
 }
 
-fn gen_command(scenarios: &[PathBuf], out: Option<PathBuf>, video: bool) -> Result<(), String> {
+fn gen_command(scenarios: &[PathBuf], out: Option<PathBuf>, video: bool) -> Result<(), Failure> {
     if out.is_some() && scenarios.len() > 1 {
         return Err("--out takes one scenario at a time".into());
     }
@@ -283,17 +341,17 @@ fn gen_command(scenarios: &[PathBuf], out: Option<PathBuf>, video: bool) -> Resu
                 .parent()
                 .map_or_else(|| PathBuf::from("."), Path::to_path_buf),
         };
-        let sim = crate::generate::pipeline::simulate(path, true)
-            .map_err(|e| format!("{}: {e}", path.display()))?;
+        // Their errors name the file at fault.
+        let sim = crate::generate::pipeline::simulate(path, true).map_err(|e| e.to_string())?;
         let g = crate::generate::pipeline::write_scene(&sim, path, &dir, true)
-            .map_err(|e| format!("{}: {e}", path.display()))?;
+            .map_err(|e| e.to_string())?;
         #[cfg(feature = "opencv")]
         if video {
             let file = dir.join("video.avi");
             write_video(&sim, &file)?;
-            println!("{}: textured video", file.display());
+            outln!("{}: textured video", file.display())?;
         }
-        println!(
+        outln!(
             "{}: {} frames, {} features, real mesh {} nodes / {} tets, model {} nodes / {} tets, cut opens at frame {}",
             g.dir.display(),
             g.frames,
@@ -303,7 +361,7 @@ fn gen_command(scenarios: &[PathBuf], out: Option<PathBuf>, video: bool) -> Resu
             g.model_size.0,
             g.model_size.1,
             g.cut_open_frame.map_or("-".to_string(), |f| f.to_string())
-        );
+        )?;
     }
     Ok(())
 }
@@ -335,19 +393,19 @@ fn eval_command(
     Ok(())
 }
 
-fn gen_family_command(family: &Path, out: Option<&Path>) -> Result<(), String> {
+fn gen_family_command(family: &Path, out: Option<&Path>) -> Result<(), Failure> {
     let out = out.ok_or("--family needs --out")?;
     let generated =
         crate::generate::family::generate_family(family, out, true).map_err(|e| e.to_string())?;
     for g in &generated {
-        println!(
+        outln!(
             "{}: {} frames, {} features, real mesh {} nodes, cut opens at frame {}",
             g.dir.display(),
             g.frames,
             g.features,
             g.fine_size.0,
             g.cut_open_frame.map_or("-".to_string(), |f| f.to_string())
-        );
+        )?;
     }
     Ok(())
 }
@@ -365,30 +423,31 @@ fn write_video(sim: &crate::generate::pipeline::Simulation, file: &Path) -> Resu
     sink.finish().map_err(|e| e.to_string())
 }
 
-fn demo(out: &Path) -> Result<(), String> {
+fn demo(out: &Path) -> Result<(), Failure> {
     let dir = fixtures_dir().join("band-side-cut");
     let scene = Scene::load(&dir).map_err(|e| e.to_string())?;
-    println!(
+    outln!(
         "incise demo: {} ({})",
-        scene.file.name, scene.file.description
-    );
+        scene.file.name,
+        scene.file.description
+    )?;
     let frames_dir = out.join("frames");
     let options = RunOptions {
         out: Some(frames_dir.clone()),
         progress: true,
     };
     let (summary, trace) = run_scene(&scene, &options).map_err(|e| e.to_string())?;
-    print!("{}", crate::report::human_summary(&summary));
+    out!("{}", crate::report::human_summary(&summary))?;
     let sheet = out.join("overview.png");
     crate::report::contact_sheet(&frames_dir, &trace, &sheet).map_err(|e| e.to_string())?;
     let plot = out.join("dice.svg");
     crate::report::plot_dice(&trace, &summary, &plot).map_err(|e| e.to_string())?;
-    println!(
+    outln!(
         "pictures: {} (frames), {} (overview), {} (Dice per frame)",
         frames_dir.display(),
         sheet.display(),
         plot.display()
-    );
+    )?;
     Ok(())
 }
 
@@ -404,13 +463,13 @@ fn run_video_command(
     _: Option<&Path>,
     _: bool,
     _: Option<PathBuf>,
-) -> Result<(), String> {
-    Err(format!("--video {}: {NO_OPENCV}", video.display()))
+) -> Result<(), Failure> {
+    Err(format!("--video {}: {NO_OPENCV}", video.display()).into())
 }
 
 #[cfg(not(feature = "opencv"))]
-fn track_command(video: &Path, _: &Path, _: &Path, _: Option<&Path>) -> Result<(), String> {
-    Err(format!("track {}: {NO_OPENCV}", video.display()))
+fn track_command(video: &Path, _: &Path, _: &Path, _: Option<&Path>) -> Result<(), Failure> {
+    Err(format!("track {}: {NO_OPENCV}", video.display()).into())
 }
 
 /// The scene for a video (tracks.csv optional) with the calibration's intrinsics, if any.
@@ -451,7 +510,7 @@ fn run_video_command(
     calibration: Option<&Path>,
     json: bool,
     out: Option<PathBuf>,
-) -> Result<(), String> {
+) -> Result<(), Failure> {
     use crate::run::{FrameSink, run_scene_with};
     use crate::track::VideoFrames;
     use crate::video::VideoSink;
@@ -487,7 +546,7 @@ fn run_video_command(
     }
     print_summary(&summary, json, out.as_deref())?;
     if let (Some(out), false) = (&out, json) {
-        println!("overlay video: {}", out.join("overlay.avi").display());
+        outln!("overlay video: {}", out.join("overlay.avi").display())?;
     }
     Ok(())
 }
@@ -498,7 +557,7 @@ fn track_command(
     dir: &Path,
     out: &Path,
     calibration: Option<&Path>,
-) -> Result<(), String> {
+) -> Result<(), Failure> {
     use crate::run::FrameSource;
     use crate::track::{VideoFrames, rest_silhouette};
     use indicatif::{ProgressBar, ProgressStyle};
@@ -520,11 +579,11 @@ fn track_command(
     std::fs::write(out, crate::scene::write_tracks(&tracks))
         .map_err(|e| format!("{}: {e}", out.display()))?;
     let (found, alive) = frames.tracker().map_or((0, 0), |t| (t.len(), t.alive()));
-    println!(
+    outln!(
         "{}: {} frames, {found} features at frame 0, {alive} tracked to the last frame",
         out.display(),
         tracks.len()
-    );
+    )?;
     Ok(())
 }
 

@@ -61,3 +61,25 @@ fn a_missing_scene_is_a_clear_error() {
         "{stderr}"
     );
 }
+
+#[test]
+fn a_closed_output_pipe_ends_quietly() {
+    // The reader goes away before anything is printed, as `incise run … | head -c 0` would.
+    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/../fixtures/band-no-cut");
+    let mut child = incise()
+        .args(["run", scene])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take());
+    let output = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(
+        output.status.code(),
+        Some(incise::cli::BROKEN_PIPE_STATUS),
+        "{stderr}"
+    );
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert!(!stderr.contains("Broken pipe"), "{stderr}");
+}

@@ -40,6 +40,16 @@ fn err(e: impl fmt::Display) -> GenError {
     GenError(e.to_string())
 }
 
+/// An error about the file at `path`: `path: e`.
+fn at_file(path: &Path) -> impl Fn(&dyn fmt::Display) -> GenError + '_ {
+    move |e| GenError(format!("{}: {e}", path.display()))
+}
+
+/// Writes `contents` to `path`; an error names the file.
+fn write_file(path: &Path, contents: impl AsRef<[u8]>) -> Result<(), GenError> {
+    std::fs::write(path, contents).map_err(|e| at_file(path)(&e))
+}
+
 /// What was generated.
 #[derive(Clone, Debug)]
 pub struct Generated {
@@ -396,10 +406,13 @@ pub fn object_meshes(
 /// at rest.
 ///
 /// # Errors
-/// A [`GenError`] for a bad scenario or a mesh that cannot be read.
+/// A [`GenError`] for a bad scenario or a mesh that cannot be read; it names the scenario file
+/// (once).
 pub fn prepare(scenario_path: &Path) -> Result<Prepared, GenError> {
+    // A load error names the file itself.
     let s = Scenario::load(scenario_path).map_err(err)?;
     prepare_scenario(s, scenario_path.parent().unwrap_or(Path::new(".")))
+        .map_err(|e| at_file(scenario_path)(&e))
 }
 
 /// [`prepare`] for a scenario in memory whose mesh paths are relative to `base`.
@@ -485,9 +498,9 @@ pub fn prepare_scenario(s: Scenario, base: &Path) -> Result<Prepared, GenError> 
 ///
 /// # Errors
 /// A [`GenError`] for a bad scenario, a mesh that cannot be read, or a simulation that does
-/// not converge.
+/// not converge; it names the scenario file.
 pub fn simulate(scenario_path: &Path, progress: bool) -> Result<Simulation, GenError> {
-    simulate_prepared(prepare(scenario_path)?, progress)
+    simulate_prepared(prepare(scenario_path)?, progress).map_err(|e| at_file(scenario_path)(&e))
 }
 
 /// [`simulate`] for a scenario in memory whose mesh paths are relative to `base`.
@@ -650,7 +663,7 @@ pub fn generate_scenario(
     progress: bool,
 ) -> Result<Generated, GenError> {
     let sim = simulate_scenario(s, base, progress)?;
-    std::fs::create_dir_all(out).map_err(|e| GenError(format!("{}: {e}", out.display())))?;
+    std::fs::create_dir_all(out).map_err(|e| at_file(out)(&e))?;
     let mut written = s.clone();
     rebase_mesh_paths(&mut written, base, out);
     let file = out.join("scenario.toml");
@@ -659,7 +672,7 @@ pub fn generate_scenario(
          regenerates the scene beside it.\n{}",
         written.to_toml().map_err(GenError)?
     );
-    std::fs::write(&file, text).map_err(|e| GenError(format!("{}: {e}", file.display())))?;
+    write_file(&file, text)?;
     write_scene(&sim, &file, out, progress)
 }
 
@@ -683,7 +696,8 @@ pub fn rebase_mesh_paths(s: &mut Scenario, from: &Path, to: &Path) {
 /// has not started.
 ///
 /// # Errors
-/// A [`GenError`] if a file cannot be written.
+/// A [`GenError`] naming the file that cannot be written, or the scenario file if its
+/// features cannot be placed.
 pub fn write_scene(
     sim: &Simulation,
     scenario_path: &Path,
@@ -697,7 +711,8 @@ pub fn write_scene(
     let model = &sim.model;
     let model_fixed = sim.model_fixed.clone();
     let model_mesh_ref = &sim.model_mesh_file;
-    std::fs::create_dir_all(out.join("gt").join("silhouettes")).map_err(err)?;
+    let silhouettes = out.join("gt").join("silhouettes");
+    std::fs::create_dir_all(&silhouettes).map_err(|e| at_file(&silhouettes)(&e))?;
     let mut rng = Rng::new(s.seed);
     let depth0 = DepthBuffer::render(camera, &real.nodes, &triangles);
     let t = &s.tracking;
@@ -713,7 +728,7 @@ pub fn write_scene(
         t.outlier_jump_px,
         &mut rng,
     )
-    .map_err(err)?;
+    .map_err(|e| at_file(scenario_path)(&e))?;
     let targets = sample_targets(real, s.object.targets, &mut rng);
 
     // The true cut line: lips on the original surface, seen at rest, ordered along the slit;
@@ -760,10 +775,8 @@ pub fn write_scene(
         tracks.push(observe_frame(
             frame, &features, real, x, camera, depth, tolerance, t.noise_px, t.dropout, &mut rng,
         ));
-        depth
-            .mask()
-            .save_png(&silhouette_path(out, frame as usize))
-            .map_err(err)?;
+        let png = silhouette_path(out, frame as usize);
+        depth.mask().save_png(&png).map_err(|e| at_file(&png)(&e))?;
         for (id, (tet, w)) in targets.iter().enumerate() {
             let p = interpolate(x, real.tets[*tet], *w);
             target_rows.push_str(&format!(
@@ -808,7 +821,8 @@ pub fn write_scene(
     let mesh_field = match &model_mesh_ref {
         Some(path) => relative_path(path, out).to_string_lossy().into_owned(),
         None => {
-            msh::write_msh22(&out.join("model.msh"), &model.nodes, &model.tets).map_err(err)?;
+            let file = out.join("model.msh");
+            msh::write_msh22(&file, &model.nodes, &model.tets).map_err(|e| at_file(&file)(&e))?;
             "model.msh".into()
         }
     };
@@ -853,16 +867,15 @@ pub fn write_scene(
             |n| n.to_string_lossy().into_owned()
         )
     );
-    let body = toml::to_string(&scene).map_err(err)?;
-    std::fs::write(out.join("scene.toml"), header + &body).map_err(err)?;
-    std::fs::write(out.join("tracks.csv"), write_tracks(&tracks)).map_err(err)?;
-    std::fs::write(out.join("gt").join("targets.csv"), target_rows).map_err(err)?;
-    std::fs::write(out.join("gt").join("cut.csv"), cut_rows).map_err(err)?;
-    std::fs::write(
-        out.join("gt").join("surface.obj"),
+    let body = toml::to_string(&scene).map_err(|e| at_file(&out.join("scene.toml"))(&e))?;
+    write_file(&out.join("scene.toml"), header + &body)?;
+    write_file(&out.join("tracks.csv"), write_tracks(&tracks))?;
+    write_file(&out.join("gt").join("targets.csv"), target_rows)?;
+    write_file(&out.join("gt").join("cut.csv"), cut_rows)?;
+    write_file(
+        &out.join("gt").join("surface.obj"),
         write_obj(&sim.positions[sim.positions.len() - 1], &triangles),
-    )
-    .map_err(err)?;
+    )?;
     Ok(Generated {
         dir: out.to_path_buf(),
         frames: s.frames,
