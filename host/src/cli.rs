@@ -235,8 +235,7 @@ pub fn run(cli: Cli) -> i32 {
             },
             variants,
             json,
-        )
-        .map_err(Failure::from),
+        ),
         Command::Gen {
             family: Some(family),
             out,
@@ -371,23 +370,20 @@ fn eval_command(
     options: &crate::eval::EvalOptions,
     per_variant: bool,
     json: bool,
-) -> Result<(), String> {
+) -> Result<(), Failure> {
     let mut done = vec![];
     for f in families {
         done.push(crate::eval::eval_family(f, options)?);
     }
     if json {
-        println!(
-            "{}",
-            serde_json::to_string_pretty(&done).map_err(|e| e.to_string())?
-        );
-        return Ok(());
+        let text = serde_json::to_string_pretty(&done).map_err(|e| e.to_string())?;
+        return outln!("{text}");
     }
-    print!("{}", crate::eval::markdown_table(&done));
+    out!("{}", crate::eval::markdown_table(&done))?;
     if per_variant {
         for f in &done {
-            println!("\n{}:\n", f.family);
-            print!("{}", crate::eval::variant_table(f));
+            outln!("\n{}:\n", f.family)?;
+            out!("{}", crate::eval::variant_table(f))?;
         }
     }
     Ok(())
