@@ -52,8 +52,8 @@ pub const ACCEPTANCE: Acceptance = Acceptance {
 pub struct VariantResult {
     /// Variant (scene) name.
     pub name: String,
-    /// `intact`, `pre-cut` or `live`.
-    pub kind: &'static str,
+    /// Intact, pre-cut or live.
+    pub kind: Kind,
     /// Frame the cut opens (ground truth), none when intact.
     pub open_frame: Option<u32>,
     /// Frame the cut was detected, if it was.
@@ -158,14 +158,6 @@ pub struct EvalOptions {
     pub progress: bool,
 }
 
-fn kind_name(k: Kind) -> &'static str {
-    match k {
-        Kind::Intact => "intact",
-        Kind::PreCut => "pre-cut",
-        Kind::Live => "live",
-    }
-}
-
 /// Whether `dir` holds the scene of scenario `s` (drawn relative to `base`) already.
 fn is_generated(s: &Scenario, base: &Path, dir: &Path) -> bool {
     if !dir.join("scene.toml").is_file() {
@@ -234,7 +226,7 @@ fn variant_result(name: &str, kind: Kind, summary: Summary) -> VariantResult {
     let open = summary.cut_open_frame;
     VariantResult {
         name: name.to_string(),
-        kind: kind_name(kind),
+        kind,
         open_frame: open,
         detected_frame: detected,
         latency: match (detected, open) {
@@ -254,7 +246,7 @@ fn variant_result(name: &str, kind: Kind, summary: Summary) -> VariantResult {
 
 /// Sums up a family's variant results and checks [`ACCEPTANCE`].
 pub fn summarise(family: &str, variants: Vec<VariantResult>) -> FamilySummary {
-    let cut: Vec<&VariantResult> = variants.iter().filter(|v| v.kind != "intact").collect();
+    let cut: Vec<&VariantResult> = variants.iter().filter(|v| v.kind != Kind::Intact).collect();
     let detected: Vec<&&VariantResult> = cut.iter().filter(|v| !v.missed).collect();
     let over = |f: &dyn Fn(&VariantResult) -> f64| Spread::of(cut.iter().map(|v| f(v)));
     let latency = Spread::of(detected.iter().filter_map(|v| v.latency.map(|l| l as f64)));
@@ -276,7 +268,7 @@ pub fn summarise(family: &str, variants: Vec<VariantResult>) -> FamilySummary {
         family: family.to_string(),
         intact: variants.len() - cut.len(),
         cut: cut.len(),
-        live: cut.iter().filter(|v| v.kind == "live").count(),
+        live: cut.iter().filter(|v| v.kind == Kind::Live).count(),
         false_cuts,
         missed,
         early: detected
@@ -353,7 +345,7 @@ pub fn variant_table(f: &FamilySummary) -> String {
         t.push_str(&format!(
             "| {} | {} | {} | {}{} | {} | {:.3} → {:.3} | {:.2} → {:.2} |\n",
             v.name,
-            v.kind,
+            v.kind.name(),
             frame(v.open_frame),
             frame(v.detected_frame),
             flag,

@@ -124,8 +124,9 @@ pub struct Family {
     pub overrides: toml::Table,
 }
 
-/// What a variant is.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// What a variant is (`intact`, `pre-cut` or `live` when written out).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
 pub enum Kind {
     /// No slit.
     Intact,
@@ -133,6 +134,17 @@ pub enum Kind {
     PreCut,
     /// The same, cut while filmed.
     Live,
+}
+
+impl Kind {
+    /// The name `incise eval` prints: `intact`, `pre-cut` or `live`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Kind::Intact => "intact",
+            Kind::PreCut => "pre-cut",
+            Kind::Live => "live",
+        }
+    }
 }
 
 impl Family {
@@ -557,9 +569,8 @@ fn derive(
         }
     };
     let what = match kind {
-        Kind::Intact => "intact",
-        Kind::PreCut => "pre-cut",
         Kind::Live => "live cut",
+        k => k.name(),
     };
     s.description = format!("{} variant {index} ({what}): {notes}", family.name);
     Ok(s)
