@@ -639,7 +639,9 @@ pub fn write_tracks(frames: &[Vec<Observation<f64>>]) -> String {
 /// Reads a CSV of `frame,id,x,y,z` rows (`gt/targets.csv`) into per-frame point lists.
 ///
 /// # Errors
-/// A [`SceneError`] with the line for a malformed row.
+/// A [`SceneError`] with the line for a malformed row, a value that is not a finite number, or
+/// a frame or id that is not a whole number below its bound ([`limits::MAX_FRAMES`],
+/// [`limits::MAX_TARGETS`]).
 pub fn read_points_csv(text: &str, file: &Path) -> Result<Vec<Vec<[f64; 3]>>, SceneError> {
     let mut frames: Vec<Vec<[f64; 3]>> = vec![];
     for (i, line) in text.lines().enumerate().skip(1) {
@@ -663,8 +665,8 @@ pub fn read_points_csv(text: &str, file: &Path) -> Result<Vec<Vec<[f64; 3]>>, Sc
                     SceneError::new(file, n, format!("{:?} is not a finite number", f[k]))
                 })
         };
-        let frame = num(0)? as usize;
-        let id = num(1)? as usize;
+        let frame = whole(f[0], "frame", limits::MAX_FRAMES, file, n)?;
+        let id = whole(f[1], "target id", limits::MAX_TARGETS, file, n)?;
         frames.resize_with(frames.len().max(frame + 1), Vec::new);
         if id != frames[frame].len() {
             return Err(SceneError::new(
@@ -678,10 +680,31 @@ pub fn read_points_csv(text: &str, file: &Path) -> Result<Vec<Vec<[f64; 3]>>, Sc
     Ok(frames)
 }
 
+/// A frame number or id of a ground-truth CSV: a whole number below `bound` (written as an
+/// integer or, as some tools do, `12.0`).
+fn whole(
+    text: &str,
+    what: &str,
+    bound: u64,
+    file: &Path,
+    line: usize,
+) -> Result<usize, SceneError> {
+    let value = text.parse::<f64>().ok().filter(|v| v.fract() == 0.0);
+    match value {
+        Some(v) if v >= 0.0 && v < bound as f64 => Ok(v as usize),
+        _ => Err(SceneError::new(
+            file,
+            line,
+            format!("{what} {text:?} is not a whole number below {bound}"),
+        )),
+    }
+}
+
 /// Reads `gt/cut.csv` (`frame,u,v`): the true cut line per frame.
 ///
 /// # Errors
-/// A [`SceneError`] with the line for a malformed row.
+/// A [`SceneError`] with the line for a malformed row, or a frame that is not a whole number
+/// below [`limits::MAX_FRAMES`].
 pub fn read_cut_csv(text: &str, file: &Path) -> Result<Vec<Vec<[f64; 2]>>, SceneError> {
     let mut frames: Vec<Vec<[f64; 2]>> = vec![];
     for (i, line) in text.lines().enumerate().skip(1) {
@@ -695,8 +718,8 @@ pub fn read_cut_csv(text: &str, file: &Path) -> Result<Vec<Vec<[f64; 2]>>, Scene
             .map(|s| s.parse::<f64>().ok().filter(|v| v.is_finite()))
             .collect();
         match parsed.as_deref() {
-            Some([frame, u, v]) => {
-                let frame = *frame as usize;
+            Some([_, u, v]) => {
+                let frame = whole(f[0], "frame", limits::MAX_FRAMES, file, n)?;
                 frames.resize_with(frames.len().max(frame + 1), Vec::new);
                 frames[frame].push([*u, *v]);
             }
@@ -994,6 +1017,33 @@ mod tests {
         let missing = "name = \"x\"\n";
         let err = SceneFile::parse(missing, Path::new("scene.toml")).unwrap_err();
         assert!(err.message.contains("model"), "{err}");
+    }
+
+    #[test]
+    fn ground_truth_frames_and_ids_are_bounded() {
+        // Once cast to an index, 1e19 overflowed `frame + 1`; 1e12 asked for a terabyte.
+        for row in [
+            "1e19,0,0,0,0",
+            "1000000000000,0,0,0,0",
+            "-1,0,0,0,0",
+            "0.5,0,0,0,0",
+        ] {
+            let text = format!("frame,id,x,y,z\n0,0,0,0,0\n{row}\n");
+            let err = read_points_csv(&text, Path::new("t.csv")).unwrap_err();
+            assert_eq!(err.line, 3, "{err}");
+            assert!(err.message.contains("frame"), "{err}");
+        }
+        let err =
+            read_points_csv("frame,id,x,y,z\n0,1e19,0,0,0\n", Path::new("t.csv")).unwrap_err();
+        assert!(err.message.contains("target id"), "{err}");
+        let err = read_cut_csv("frame,u,v\n1e12,1,2\n", Path::new("c.csv")).unwrap_err();
+        assert_eq!(
+            (err.line, err.file.as_path()),
+            (2, Path::new("c.csv")),
+            "{err}"
+        );
+        let ok = read_points_csv("frame,id,x,y,z\n1.0,0.0,1,2,3\n", Path::new("t.csv")).unwrap();
+        assert_eq!(ok, vec![vec![], vec![[1.0, 2.0, 3.0]]]);
     }
 
     #[test]

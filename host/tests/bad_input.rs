@@ -303,3 +303,22 @@ fn copy_dir(from: &Path, to: &Path) {
         }
     }
 }
+
+#[test]
+fn every_shipped_scene_and_scenario_passes_the_checks() {
+    let fixtures = Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures");
+    let mut scenes = 0;
+    for e in std::fs::read_dir(&fixtures).unwrap() {
+        let dir = e.unwrap().path();
+        if dir.join("scene.toml").exists() {
+            Scene::load(&dir).unwrap();
+            scenes += 1;
+        }
+        if dir.join("scenario.toml").exists() {
+            incise::generate::scenario::Scenario::load(&dir.join("scenario.toml")).unwrap();
+        }
+    }
+    assert!(scenes >= 7, "{scenes} scenes");
+    incise::generate::scenario::Scenario::load(&fixtures.join("families/dome-scenario.toml"))
+        .unwrap();
+}
