@@ -866,6 +866,22 @@ impl Scene {
                 ));
             }
         }
+        // The core holds as many features as the capacity says: refuse more now rather than
+        // after the model is built.
+        let room = scene.file.capacities.features;
+        if frames[0].len() > room {
+            let toml = dir.join("scene.toml");
+            let text = read_text(&toml)?;
+            return Err(SceneError::new(
+                &toml,
+                limits::key_line(&text, "capacities", "features"),
+                format!(
+                    "[capacities] features: {room}, but {} tracks {} features at frame 0",
+                    tracks_path.display(),
+                    frames[0].len()
+                ),
+            ));
+        }
         scene.frames = frames;
         // The scene's length, if stated: frames after the last row of tracks.csv lost every
         // feature.

@@ -118,6 +118,12 @@ fn a_scene_that_cannot_work_is_refused_saying_why() {
         "features = 0",
         &["[capacities] features"],
     );
+    // Fewer than the 300 features tracks.csv follows.
+    run_refuses(
+        "features = 1024",
+        "features = 100",
+        &["scene.toml:34:", "[capacities] features", "tracks.csv"],
+    );
     // Every one of the 204 nodes fixed.
     let all: Vec<String> = (0..204).map(|v| v.to_string()).collect();
     let toml = std::fs::read_to_string(fixture().join("scene.toml")).unwrap();
