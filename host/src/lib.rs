@@ -11,6 +11,8 @@
 //! - [`metrics`]: Dice, surface and target errors, polyline distances.
 //! - [`generate`]: the synthetic-scene generator (`incise gen`) (the "real" object, its motion and its images).
 //! - [`scene`]: the scene directory format (scene.toml, tracks, ground truth).
+//! - [`limits`]: the bounds every size of a scene or scenario is checked against, and the
+//!   memory budget.
 //! - [`run`]: `incise run`, the frame loop over a scene and its metrics.
 //! - [`rng`]: a small seeded random generator, so that everything generated is reproducible.
 //! - [`report`]: human summaries, overview pictures, plots.
@@ -26,6 +28,7 @@
 pub mod cli;
 pub mod eval;
 pub mod generate;
+pub mod limits;
 pub mod metrics;
 pub mod msh;
 pub mod render;

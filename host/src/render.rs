@@ -62,11 +62,10 @@ impl Mask {
     /// Reads a grey or colour PNG; a pixel is set when its luma is at least 128.
     ///
     /// # Errors
-    /// A message naming the file if it cannot be read or decoded.
-    pub fn load_png(path: &Path) -> Result<Mask, String> {
-        let img = image::open(path)
-            .map_err(|e| format!("{}: {e}", path.display()))?
-            .to_luma8();
+    /// The image crate's error if the file cannot be read or decoded (it does not name the
+    /// file: the caller does, once).
+    pub fn load_png(path: &Path) -> Result<Mask, image::ImageError> {
+        let img = image::open(path)?.to_luma8();
         let (width, height) = img.dimensions();
         let data = img.pixels().map(|p| u8::from(p.0[0] >= 128)).collect();
         Ok(Mask {

@@ -15,6 +15,7 @@ use incise_core::{
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 
+use crate::limits::{self, Refusal};
 use crate::metrics::{dice, paired_rms, surface_rms};
 use crate::render::{Canvas, Mask, colour, silhouette};
 use crate::scene::{
@@ -67,6 +68,40 @@ fn output(e: impl fmt::Display) -> RunError {
     RunError::Output(e.to_string())
 }
 
+/// Why a model's storage was not allocated.
+#[derive(Debug, Clone, PartialEq)]
+pub enum StorageError {
+    /// A capacity beyond its bound, or storage beyond the host's memory budget
+    /// ([`crate::limits`]).
+    Refused(Refusal),
+    /// The core refused the mesh.
+    Core(CoreError),
+}
+
+impl fmt::Display for StorageError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            StorageError::Refused(r) => write!(f, "{r}"),
+            StorageError::Core(e) => write!(f, "{e}"),
+        }
+    }
+}
+
+impl std::error::Error for StorageError {}
+
+impl StorageError {
+    /// The error of a run of the scene whose `scene.toml` is `toml`.
+    pub fn in_scene(self, toml: &Path) -> RunError {
+        match self {
+            StorageError::Refused(r) => RunError::Scene(SceneError::new(toml, 0, r.to_string())),
+            StorageError::Core(error) => RunError::Core {
+                context: "sizing the model".into(),
+                error,
+            },
+        }
+    }
+}
+
 /// The storage of one model, owned: what a host does with the core's caller-sized API.
 pub struct ModelStorage<T> {
     /// The sizes.
@@ -80,14 +115,38 @@ pub struct ModelStorage<T> {
 impl<T: Real> ModelStorage<T> {
     /// Sizes storage for `mesh` with the scene's capacities: the mesh's nodes and tetrahedra
     /// plus the room a cut may take, and the factor entries the section states (absent: three
-    /// times the uncut model's).
+    /// times the uncut model's). Checks the capacities and the memory first
+    /// ([`ModelStorage::plan`]).
     ///
     /// # Errors
-    /// The core's error for a mesh it refuses.
-    pub fn new(mesh: &MeshInput<'_, T>, c: &CapacitySection) -> Result<Self, CoreError> {
+    /// As [`ModelStorage::plan`].
+    pub fn new(mesh: &MeshInput<'_, T>, c: &CapacitySection) -> Result<Self, StorageError> {
+        let (size, analysis) = Self::plan(mesh, c)?;
+        Ok(ModelStorage {
+            size,
+            analysis,
+            reals: vec![T::zero(); size.real_len()],
+            indices: vec![0; size.index_len()],
+        })
+    }
+
+    /// The sizes [`ModelStorage::new`] would allocate, and the mesh's analysis, with nothing
+    /// allocated but the analysis's workspace (the size of the mesh): every capacity is
+    /// checked against its bound ([`CapacitySection::check`]) and the storage against
+    /// [`limits::MEMORY_BUDGET`].
+    ///
+    /// # Errors
+    /// [`StorageError::Refused`] naming the capacity at fault, or the whole `[capacities]`
+    /// section when only their sum is too much; [`StorageError::Core`] for a mesh the core
+    /// refuses.
+    pub fn plan(
+        mesh: &MeshInput<'_, T>,
+        c: &CapacitySection,
+    ) -> Result<(ModelSize, MeshAnalysis), StorageError> {
+        c.check(false).map_err(StorageError::Refused)?;
         let (n, t) = (mesh.rest.len(), mesh.tets.len());
         let mut work = vec![0u32; analyse_mesh_work_len(n, t)];
-        let analysis = analyse_mesh(mesh, &mut work)?;
+        let analysis = analyse_mesh(mesh, &mut work).map_err(StorageError::Core)?;
         let tets = t.saturating_add(c.cut_tets);
         let caps = Capacities {
             mesh: MeshCapacity {
@@ -102,12 +161,20 @@ impl<T: Real> ModelStorage<T> {
             cut_vertices: c.cut_vertices,
         };
         let size = ModelSize::new(&caps);
-        Ok(ModelStorage {
-            size,
-            analysis,
-            reals: vec![T::zero(); size.real_len()],
-            indices: vec![0; size.index_len()],
-        })
+        let bytes = size.real_len() as u128 * std::mem::size_of::<T>() as u128
+            + size.index_len() as u128 * 4;
+        limits::budget(
+            "capacities",
+            "",
+            bytes,
+            &format!(
+                "the model's storage ({n} nodes and {t} tetrahedra, with room for {} features, \
+                 {} pairs, {} cut nodes, {} cut tetrahedra and {} factor entries)",
+                caps.features, caps.pairs, c.cut_nodes, c.cut_tets, caps.factor_entries
+            ),
+        )
+        .map_err(StorageError::Refused)?;
+        Ok((size, analysis))
     }
 
     /// Storage for `mesh` with room for `features` features and the default capacities
@@ -115,7 +182,7 @@ impl<T: Real> ModelStorage<T> {
     ///
     /// # Errors
     /// As [`ModelStorage::new`].
-    pub fn with_features(mesh: &MeshInput<'_, T>, features: usize) -> Result<Self, CoreError> {
+    pub fn with_features(mesh: &MeshInput<'_, T>, features: usize) -> Result<Self, StorageError> {
         Self::new(
             mesh,
             &CapacitySection {
@@ -365,7 +432,8 @@ fn load_truth(scene: &Scene) -> Result<Option<Truth>, SceneError> {
 /// The true silhouette of `frame`, checked against the camera's size.
 fn load_silhouette(scene: &Scene, frame: usize, model_mask: &Mask) -> Result<Mask, SceneError> {
     let path = scene.silhouette_path(frame);
-    let mask = Mask::load_png(&path).map_err(|m| SceneError::new(&path, 0, m))?;
+    let mask = Mask::load_png(&path)
+        .map_err(|e| SceneError::new(&path, 0, format!("cannot read: {e}")))?;
     if (mask.width, mask.height) != (model_mask.width, model_mask.height) {
         return Err(SceneError::new(
             &path,
@@ -503,7 +571,7 @@ pub fn run_with(
         fixed: &scene.file.model.fixed,
     };
     let caps = &scene.file.capacities;
-    let mut storage = ModelStorage::new(&input, caps).map_err(core("sizing the model"))?;
+    let mut storage = ModelStorage::new(&input, caps).map_err(|e| e.in_scene(&toml))?;
     let model_bytes = storage.bytes();
     let mut model = storage
         .model(&input, &config)

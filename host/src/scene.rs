@@ -21,6 +21,7 @@ use incise_core::nalgebra::{Matrix3, Vector3};
 use incise_core::{Camera, Intrinsics, Material, ModelConfig, Observation, SolverConfig, Strategy};
 use serde::{Deserialize, Serialize};
 
+use crate::limits::{self, Refusal};
 use crate::msh;
 
 /// An error while reading a scene: the file, the line (0 when the whole file is at fault) and
@@ -313,6 +314,66 @@ impl Default for CapacitySection {
     }
 }
 
+impl CapacitySection {
+    /// Checks every capacity against its bound in [`crate::limits`]; with `detection` on, the
+    /// detection needs room for at least one pair and a cut line of two vertices (with none,
+    /// it could never report a cut).
+    ///
+    /// # Errors
+    /// A [`Refusal`] naming the first key out of bounds.
+    pub fn check(&self, detection: bool) -> Result<(), Refusal> {
+        const S: &str = "capacities";
+        limits::within(S, "features", self.features as u64, 1, limits::MAX_FEATURES)?;
+        limits::within(S, "targets", self.targets as u64, 0, limits::MAX_TARGETS)?;
+        limits::within(
+            S,
+            "cut_nodes",
+            self.cut_nodes as u64,
+            0,
+            limits::MAX_CUT_NODES,
+        )?;
+        limits::within(S, "cut_tets", self.cut_tets as u64, 0, limits::MAX_CUT_TETS)?;
+        if let Some(entries) = self.factor_entries {
+            limits::within(
+                S,
+                "factor_entries",
+                entries as u64,
+                1,
+                limits::MAX_FACTOR_ENTRIES,
+            )?;
+        }
+        for (key, value, least, max, what) in [
+            (
+                "pairs",
+                self.pairs,
+                1,
+                limits::MAX_PAIRS,
+                "neighbour pairs to compare",
+            ),
+            (
+                "cut_vertices",
+                self.cut_vertices,
+                limits::MIN_CUT_VERTICES,
+                limits::MAX_CUT_VERTICES,
+                "a cut line of at least two vertices",
+            ),
+        ] {
+            if detection && (value as u64) < least {
+                return Err(Refusal::new(
+                    S,
+                    key,
+                    format!(
+                        "{value}, but cut detection is on ([detection] enabled) and needs \
+                         {what}; set [detection] enabled = false to run without it"
+                    ),
+                ));
+            }
+            limits::within(S, key, value as u64, 0, max)?;
+        }
+        Ok(())
+    }
+}
+
 /// `[ground_truth]`: facts the generator knows.
 #[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
@@ -320,7 +381,9 @@ pub struct GroundTruthSection {
     /// First frame at which the true cut has opened (absent: no cut).
     #[serde(default)]
     pub cut_open_frame: Option<u32>,
-    /// Number of frames, frame 0 included.
+    /// Number of frames, frame 0 included (0: as many as `tracks.csv` holds). `tracks.csv`
+    /// may not hold more; frames after its last row are frames in which every feature was
+    /// lost.
     #[serde(default)]
     pub frames: u32,
 }
@@ -351,10 +414,57 @@ impl SceneFile {
     /// # Errors
     /// A [`SceneError`] with the line of the offending key or value.
     pub fn parse(text: &str, file: &Path) -> Result<Self, SceneError> {
-        toml::from_str(text).map_err(|e| {
+        let scene: SceneFile = toml::from_str(text).map_err(|e| {
             let line = e.span().map_or(0, |s| line_of(text, s.start));
             SceneError::new(file, line, e.message().to_string())
-        })
+        })?;
+        scene
+            .check()
+            .map_err(|r| SceneError::new(file, r.line(text), r.to_string()))?;
+        Ok(scene)
+    }
+
+    /// Checks the values that need no mesh: every capacity against its bound (see
+    /// [`CapacitySection::check`]), the image size, the model's scale and material, and the
+    /// ground truth's frames. [`SceneFile::parse`] calls it; [`Scene::load_model`] checks what
+    /// needs the mesh.
+    ///
+    /// # Errors
+    /// A [`Refusal`] naming the first key at fault.
+    pub fn check(&self) -> Result<(), Refusal> {
+        self.capacities.check(self.detection.enabled)?;
+        let c = &self.camera;
+        limits::within("camera", "width", c.width.into(), 1, limits::MAX_IMAGE_SIDE)?;
+        limits::within(
+            "camera",
+            "height",
+            c.height.into(),
+            1,
+            limits::MAX_IMAGE_SIDE,
+        )?;
+        let m = &self.model;
+        limits::positive("model", "scale", m.scale)?;
+        limits::positive("model", "young", m.young)?;
+        limits::poisson("model", "poisson", m.poisson)?;
+        let g = &self.ground_truth;
+        limits::within(
+            "ground_truth",
+            "frames",
+            g.frames.into(),
+            0,
+            limits::MAX_FRAMES,
+        )?;
+        if let Some(open) = g.cut_open_frame
+            && g.frames > 0
+            && open >= g.frames
+        {
+            return Err(Refusal::new(
+                "ground_truth",
+                "cut_open_frame",
+                format!("{open} is not a frame of the scene's {}", g.frames),
+            ));
+        }
+        Ok(())
     }
 
     /// The camera.
@@ -385,17 +495,29 @@ impl SceneFile {
     /// # Errors
     /// A [`SceneError`] naming `scene.toml` for an unknown strategy or an invalid value.
     pub fn solver(&self, file: &Path) -> Result<SolverConfig<f64>, SceneError> {
-        let s = &self.solver;
+        self.solver
+            .config()
+            .map_err(|r| SceneError::new(file, 0, r.to_string()))
+    }
+}
+
+impl SolverSection {
+    /// The core's solver configuration, validated.
+    ///
+    /// # Errors
+    /// A [`Refusal`] naming `[solver]` for an unknown strategy or an invalid value.
+    pub fn config(&self) -> Result<SolverConfig<f64>, Refusal> {
+        let s = self;
         let strategy = match s.strategy.as_str() {
             "refactor" => Strategy::Refactor,
             "frozen" => Strategy::Frozen {
                 pcg_iterations: s.pcg_iterations,
             },
             other => {
-                return Err(SceneError::new(
-                    file,
-                    0,
-                    format!("[solver] strategy must be \"refactor\" or \"frozen\", not {other:?}"),
+                return Err(Refusal::new(
+                    "solver",
+                    "strategy",
+                    format!("must be \"refactor\" or \"frozen\", not {other:?}"),
                 ));
             }
         };
@@ -410,7 +532,7 @@ impl SceneFile {
         };
         config
             .validate()
-            .map_err(|e| SceneError::new(file, 0, format!("[solver]: {e}")))?;
+            .map_err(|e| Refusal::new("solver", "", e.to_string()))?;
         Ok(config)
     }
 }
@@ -482,11 +604,14 @@ pub fn read_tracks(text: &str, file: &Path) -> Result<Vec<Vec<Observation<f64>>>
                 ),
             ));
         }
-        if frame > 100_000 {
+        if frame as u64 >= limits::MAX_FRAMES {
             return Err(SceneError::new(
                 file,
                 n,
-                format!("frame {frame} is implausibly large"),
+                format!(
+                    "frame {frame} is beyond the bound of {} frames",
+                    limits::MAX_FRAMES
+                ),
             ));
         }
         frames.resize_with(frames.len().max(frame + 1), Vec::new);
@@ -520,7 +645,9 @@ pub fn write_tracks(frames: &[Vec<Observation<f64>>]) -> String {
 /// Reads a CSV of `frame,id,x,y,z` rows (`gt/targets.csv`) into per-frame point lists.
 ///
 /// # Errors
-/// A [`SceneError`] with the line for a malformed row.
+/// A [`SceneError`] with the line for a malformed row, a value that is not a finite number, or
+/// a frame or id that is not a whole number below its bound ([`limits::MAX_FRAMES`],
+/// [`limits::MAX_TARGETS`]).
 pub fn read_points_csv(text: &str, file: &Path) -> Result<Vec<Vec<[f64; 3]>>, SceneError> {
     let mut frames: Vec<Vec<[f64; 3]>> = vec![];
     for (i, line) in text.lines().enumerate().skip(1) {
@@ -544,8 +671,8 @@ pub fn read_points_csv(text: &str, file: &Path) -> Result<Vec<Vec<[f64; 3]>>, Sc
                     SceneError::new(file, n, format!("{:?} is not a finite number", f[k]))
                 })
         };
-        let frame = num(0)? as usize;
-        let id = num(1)? as usize;
+        let frame = whole(f[0], "frame", limits::MAX_FRAMES, file, n)?;
+        let id = whole(f[1], "target id", limits::MAX_TARGETS, file, n)?;
         frames.resize_with(frames.len().max(frame + 1), Vec::new);
         if id != frames[frame].len() {
             return Err(SceneError::new(
@@ -559,10 +686,31 @@ pub fn read_points_csv(text: &str, file: &Path) -> Result<Vec<Vec<[f64; 3]>>, Sc
     Ok(frames)
 }
 
+/// A frame number or id of a ground-truth CSV: a whole number below `bound` (written as an
+/// integer or, as some tools do, `12.0`).
+fn whole(
+    text: &str,
+    what: &str,
+    bound: u64,
+    file: &Path,
+    line: usize,
+) -> Result<usize, SceneError> {
+    let value = text.parse::<f64>().ok().filter(|v| v.fract() == 0.0);
+    match value {
+        Some(v) if v >= 0.0 && v < bound as f64 => Ok(v as usize),
+        _ => Err(SceneError::new(
+            file,
+            line,
+            format!("{what} {text:?} is not a whole number below {bound}"),
+        )),
+    }
+}
+
 /// Reads `gt/cut.csv` (`frame,u,v`): the true cut line per frame.
 ///
 /// # Errors
-/// A [`SceneError`] with the line for a malformed row.
+/// A [`SceneError`] with the line for a malformed row, or a frame that is not a whole number
+/// below [`limits::MAX_FRAMES`].
 pub fn read_cut_csv(text: &str, file: &Path) -> Result<Vec<Vec<[f64; 2]>>, SceneError> {
     let mut frames: Vec<Vec<[f64; 2]>> = vec![];
     for (i, line) in text.lines().enumerate().skip(1) {
@@ -576,8 +724,8 @@ pub fn read_cut_csv(text: &str, file: &Path) -> Result<Vec<Vec<[f64; 2]>>, Scene
             .map(|s| s.parse::<f64>().ok().filter(|v| v.is_finite()))
             .collect();
         match parsed.as_deref() {
-            Some([frame, u, v]) => {
-                let frame = *frame as usize;
+            Some([_, u, v]) => {
+                let frame = whole(f[0], "frame", limits::MAX_FRAMES, file, n)?;
                 frames.resize_with(frames.len().max(frame + 1), Vec::new);
                 frames[frame].push([*u, *v]);
             }
@@ -724,7 +872,42 @@ impl Scene {
                 ));
             }
         }
+        // The core holds as many features as the capacity says: refuse more now rather than
+        // after the model is built.
+        let room = scene.file.capacities.features;
+        if frames[0].len() > room {
+            let toml = dir.join("scene.toml");
+            let text = read_text(&toml)?;
+            return Err(SceneError::new(
+                &toml,
+                limits::key_line(&text, "capacities", "features"),
+                format!(
+                    "[capacities] features: {room}, but {} tracks {} features at frame 0",
+                    tracks_path.display(),
+                    frames[0].len()
+                ),
+            ));
+        }
         scene.frames = frames;
+        // The scene's length, if stated: frames after the last row of tracks.csv lost every
+        // feature.
+        let stated = scene.file.ground_truth.frames as usize;
+        if stated > 0 {
+            if scene.frames.len() > stated {
+                let toml = dir.join("scene.toml");
+                let text = read_text(&toml)?;
+                return Err(SceneError::new(
+                    &toml,
+                    limits::key_line(&text, "ground_truth", "frames"),
+                    format!(
+                        "[ground_truth] frames: {stated}, but {} holds {} frames",
+                        tracks_path.display(),
+                        scene.frames.len()
+                    ),
+                ));
+            }
+            scene.frames.resize_with(stated, Vec::new);
+        }
         Ok(scene)
     }
 
@@ -735,7 +918,8 @@ impl Scene {
     /// As [`Scene::load`], for `scene.toml` and the mesh.
     pub fn load_model(dir: &Path) -> Result<Scene, SceneError> {
         let toml_path = dir.join("scene.toml");
-        let file = SceneFile::parse(&read_text(&toml_path)?, &toml_path)?;
+        let text = read_text(&toml_path)?;
+        let file = SceneFile::parse(&text, &toml_path)?;
         file.camera(&toml_path)?;
         file.solver(&toml_path)?;
         let mesh_path = dir.join(&file.model.mesh);
@@ -743,23 +927,43 @@ impl Scene {
             .map_err(|e| SceneError::new(&e.file, e.line, e.message.clone()))?;
         mesh.orient_positive();
         let scale = file.model.scale;
-        if !(scale.is_finite() && scale > 0.0) {
-            return Err(SceneError::new(
-                &toml_path,
-                0,
-                "[model] scale must be positive",
-            ));
-        }
         let rest: Vec<[f64; 3]> = mesh.nodes.iter().map(|p| p.map(|c| c * scale)).collect();
+        let fixed_line = || limits::key_line(&text, "model", "fixed");
         if let Some(&bad) = file.model.fixed.iter().find(|&&f| f as usize >= rest.len()) {
             return Err(SceneError::new(
                 &toml_path,
-                0,
+                fixed_line(),
                 format!(
                     "[model] fixed node {bad} does not exist: the mesh has {} nodes",
                     rest.len()
                 ),
             ));
+        }
+        let mut fixed = file.model.fixed.clone();
+        fixed.sort_unstable();
+        fixed.dedup();
+        if fixed.len() == rest.len() {
+            return Err(SceneError::new(
+                &toml_path,
+                fixed_line(),
+                format!(
+                    "[model] fixed: every one of the mesh's {} nodes is fixed, so nothing can \
+                     move; leave free the nodes the features should pull",
+                    rest.len()
+                ),
+            ));
+        }
+        // The memory the capacities imply with this mesh, before a run asks for it. A mesh
+        // the core refuses is left to the run, which says why in its own words.
+        let input = incise_core::MeshInput {
+            rest: &rest,
+            tets: &mesh.tets,
+            fixed: &file.model.fixed,
+        };
+        if let Err(crate::run::StorageError::Refused(r)) =
+            crate::run::ModelStorage::<f64>::plan(&input, &file.capacities)
+        {
+            return Err(SceneError::new(&toml_path, r.line(&text), r.to_string()));
         }
         Ok(Scene {
             dir: dir.to_path_buf(),
@@ -835,6 +1039,33 @@ mod tests {
         let missing = "name = \"x\"\n";
         let err = SceneFile::parse(missing, Path::new("scene.toml")).unwrap_err();
         assert!(err.message.contains("model"), "{err}");
+    }
+
+    #[test]
+    fn ground_truth_frames_and_ids_are_bounded() {
+        // Once cast to an index, 1e19 overflowed `frame + 1`; 1e12 asked for a terabyte.
+        for row in [
+            "1e19,0,0,0,0",
+            "1000000000000,0,0,0,0",
+            "-1,0,0,0,0",
+            "0.5,0,0,0,0",
+        ] {
+            let text = format!("frame,id,x,y,z\n0,0,0,0,0\n{row}\n");
+            let err = read_points_csv(&text, Path::new("t.csv")).unwrap_err();
+            assert_eq!(err.line, 3, "{err}");
+            assert!(err.message.contains("frame"), "{err}");
+        }
+        let err =
+            read_points_csv("frame,id,x,y,z\n0,1e19,0,0,0\n", Path::new("t.csv")).unwrap_err();
+        assert!(err.message.contains("target id"), "{err}");
+        let err = read_cut_csv("frame,u,v\n1e12,1,2\n", Path::new("c.csv")).unwrap_err();
+        assert_eq!(
+            (err.line, err.file.as_path()),
+            (2, Path::new("c.csv")),
+            "{err}"
+        );
+        let ok = read_points_csv("frame,id,x,y,z\n1.0,0.0,1,2,3\n", Path::new("t.csv")).unwrap();
+        assert_eq!(ok, vec![vec![], vec![[1.0, 2.0, 3.0]]]);
     }
 
     #[test]

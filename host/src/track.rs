@@ -818,8 +818,8 @@ pub fn rest_silhouette(scene: &Scene) -> Result<Mask, RunError> {
         move |error| RunError::Core { context, error }
     };
     // The model exactly as a run builds it, for its checked mesh and boundary surface.
-    let mut storage = ModelStorage::<f64>::new(&input, &scene.file.capacities)
-        .map_err(core("sizing the model"))?;
+    let mut storage =
+        ModelStorage::<f64>::new(&input, &scene.file.capacities).map_err(|e| e.in_scene(&toml))?;
     let config = incise_core::ModelConfig {
         material: incise_core::Material {
             young: scene.file.model.young,

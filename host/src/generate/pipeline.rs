@@ -1,6 +1,7 @@
 //! `incise gen`: simulate the scenario's real object frame by frame and write the scene.
 
 use std::fmt;
+use std::io::Write;
 use std::path::{Component, Path, PathBuf};
 
 use incise_core::Camera;
@@ -387,6 +388,8 @@ pub fn object_meshes(
         "mesh" => {
             let path = base.join(&o.mesh);
             let model = read_tet_mesh(&path, o.scale)?;
+            // The refinement has eight times the tetrahedra: check the model first.
+            s.check_meshes(model.nodes.len(), 0).map_err(err)?;
             let fine = if o.real_mesh.is_empty() {
                 model.refine()
             } else {
@@ -420,8 +423,12 @@ pub fn prepare(scenario_path: &Path) -> Result<Prepared, GenError> {
 /// # Errors
 /// A [`GenError`] for a bad scenario or a mesh that cannot be read.
 pub fn prepare_scenario(s: Scenario, base: &Path) -> Result<Prepared, GenError> {
-    // The model mesh and the finer real mesh.
+    // Sizes and values first (a scenario read from a file was checked as it was read; one
+    // made in memory, a family's variant, is checked here), then the meshes.
+    s.check().map_err(err)?;
     let (model, fine, model_mesh_ref) = object_meshes(&s, base)?;
+    s.check_meshes(model.nodes.len(), fine.nodes.len())
+        .map_err(err)?;
     let camera = scenario_camera(&s)?;
     let cut_camera = slit_camera(&s, &camera)?;
     let (real, pairs, slit_front, release) = match make_slit(&s, &fine, &cut_camera)? {
@@ -563,8 +570,12 @@ pub fn simulate_prepared(prepared: Prepared, progress: bool) -> Result<Simulatio
         .fold(f64::INFINITY, f64::min);
     let tolerance = 0.05 * extent;
 
-    let bar = progress_bar(progress, &s.name, "simulating")?;
-    bar.set_length(u64::from(s.frames.saturating_sub(1)));
+    let mut bar = Progress::new(
+        progress,
+        &s.name,
+        "simulating",
+        u64::from(s.frames.saturating_sub(1)),
+    )?;
     let mut positions = vec![real.nodes.clone()];
     for frame in 1..s.frames {
         let now_open = live::released(&release, frame);
@@ -604,9 +615,9 @@ pub fn simulate_prepared(prepared: Prepared, progress: bool) -> Result<Simulatio
             }
         }
         positions.push(x);
-        bar.inc(1);
+        bar.inc();
     }
-    bar.finish_and_clear();
+    bar.finish();
     Ok(Simulation {
         scenario: s,
         camera,
@@ -624,19 +635,70 @@ pub fn simulate_prepared(prepared: Prepared, progress: bool) -> Result<Simulatio
     })
 }
 
-fn progress_bar(progress: bool, name: &str, what: &str) -> Result<ProgressBar, GenError> {
-    if !progress {
-        return Ok(ProgressBar::hidden());
+/// Progress over the frames of a phase of `incise gen`: a bar on a terminal; elsewhere (a log,
+/// CI) a line on standard error every [`Progress::PLAIN_EVERY`], so that a long run is never
+/// silent (a short one prints nothing).
+struct Progress {
+    bar: ProgressBar,
+    /// Without a terminal: what to call the phase, the frames, and when a line was last
+    /// printed.
+    plain: Option<(String, u64, std::time::Instant)>,
+}
+
+impl Progress {
+    /// Time between two lines without a terminal.
+    const PLAIN_EVERY: std::time::Duration = std::time::Duration::from_secs(10);
+
+    /// Progress of phase `what` of scenario `name` over `len` frames; nothing shown unless
+    /// `progress`.
+    fn new(progress: bool, name: &str, what: &str, len: u64) -> Result<Progress, GenError> {
+        use std::io::IsTerminal;
+        if !progress {
+            return Ok(Progress {
+                bar: ProgressBar::hidden(),
+                plain: None,
+            });
+        }
+        if !std::io::stderr().is_terminal() {
+            return Ok(Progress {
+                bar: ProgressBar::hidden(),
+                plain: Some((format!("{name}: {what}"), len, std::time::Instant::now())),
+            });
+        }
+        let b = ProgressBar::new(len);
+        b.set_style(
+            ProgressStyle::with_template("{prefix:>16} [{bar:30}] {pos}/{len} frames {msg}")
+                .map_err(err)?
+                .progress_chars("=> "),
+        );
+        b.set_prefix(name.to_string());
+        b.set_message(what.to_string());
+        Ok(Progress {
+            bar: b,
+            plain: None,
+        })
     }
-    let b = ProgressBar::new(0);
-    b.set_style(
-        ProgressStyle::with_template("{prefix:>16} [{bar:30}] {pos}/{len} frames {msg}")
-            .map_err(err)?
-            .progress_chars("=> "),
-    );
-    b.set_prefix(name.to_string());
-    b.set_message(what.to_string());
-    Ok(b)
+
+    /// One more frame done.
+    fn inc(&mut self) {
+        self.bar.inc(1);
+        if let Some((label, len, last)) = &mut self.plain
+            && last.elapsed() >= Self::PLAIN_EVERY
+        {
+            *last = std::time::Instant::now();
+            // Standard error may be closed: progress is not worth an error.
+            let _ = writeln!(
+                std::io::stderr(),
+                "{label}: {}/{len} frames",
+                self.bar.position()
+            );
+        }
+    }
+
+    /// The phase is over: the bar goes.
+    fn finish(&self) {
+        self.bar.finish_and_clear();
+    }
 }
 
 /// Runs the scenario at `scenario_path` and writes the scene into `out`.
@@ -758,8 +820,7 @@ pub fn write_scene(
         .map(|l| opens.get(l).copied().unwrap_or(NEVER))
         .collect();
 
-    let bar = progress_bar(progress, &s.name, "writing")?;
-    bar.set_length(u64::from(s.frames));
+    let mut bar = Progress::new(progress, &s.name, "writing", u64::from(s.frames))?;
     let mut tracks = vec![];
     let mut target_rows = String::from("frame,id,x,y,z\n");
     let mut cut_rows = String::from("frame,u,v\n");
@@ -813,9 +874,9 @@ pub fn write_scene(
                 cut_rows.push_str(&format!("{frame},{:.3},{:.3}\n", uv.x, uv.y));
             }
         }
-        bar.inc(1);
+        bar.inc();
     }
-    bar.finish_and_clear();
+    bar.finish();
 
     // The scene.
     let mesh_field = match &model_mesh_ref {

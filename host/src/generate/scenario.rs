@@ -5,6 +5,7 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
+use crate::limits::{self, Refusal};
 use crate::scene::{CapacitySection, DetectionSection, SceneError, SolverSection};
 
 /// A whole scenario.
@@ -92,6 +93,28 @@ pub struct ObjectSection {
 
 fn one() -> f64 {
     1.0
+}
+
+/// Refuses `section.key` = `value` beyond `[capacities] capacity` = `room` (a scene that
+/// `incise run` would refuse), then checks it against `lo..=max`.
+fn within_capacity(
+    (section, key): (&'static str, &'static str),
+    value: usize,
+    (capacity, room): (&str, usize),
+    lo: u64,
+    max: u64,
+) -> Result<(), Refusal> {
+    if value > room {
+        return Err(Refusal::new(
+            section,
+            key,
+            format!(
+                "{value} is more than the scene's [capacities] {capacity} = {room} holds; \
+                 raise that or ask for fewer"
+            ),
+        ));
+    }
+    limits::within(section, key, value as u64, lo, max)
 }
 
 fn is_zero(x: &f64) -> bool {
@@ -247,12 +270,166 @@ impl Scenario {
     /// # Errors
     /// A [`SceneError`] naming `path` and the line.
     pub fn parse(text: &str, path: &Path) -> Result<Scenario, SceneError> {
-        toml::from_str(text).map_err(|e| {
+        let s: Scenario = toml::from_str(text).map_err(|e| {
             let line = e.span().map_or(0, |s| {
                 text[..s.start.min(text.len())].matches('\n').count() + 1
             });
             SceneError::new(path, line, e.message().to_string())
-        })
+        })?;
+        s.check()
+            .map_err(|r| SceneError::new(path, r.line(text), r.to_string()))?;
+        Ok(s)
+    }
+
+    /// Checks, before anything is built or simulated, that the scenario writes a scene that
+    /// `incise run` can use, and that its sizes hold to the bounds of [`crate::limits`]:
+    /// at least two frames (the rest state and one moving frame); at least one feature and no
+    /// more than the scene's `[capacities]` hold, and so for targets; tracking noise, drop-out
+    /// and outliers that are finite and probabilities where they should be (a drop-out of 1
+    /// would lose every feature after frame 0); a band or dome with cells along every axis
+    /// and no more nodes than [`limits::MAX_FINE_NODES`] (real object) and
+    /// [`limits::MAX_MODEL_NODES`] (model); positive moduli and Poisson ratios in
+    /// `(-1, 0.5)`; a valid solver and detection; and the positions of every frame of the
+    /// real object within [`limits::MEMORY_BUDGET`]. A mesh read from a file is checked once
+    /// read ([`Scenario::check_meshes`]).
+    ///
+    /// # Errors
+    /// A [`Refusal`] naming the first key at fault.
+    pub fn check(&self) -> Result<(), Refusal> {
+        limits::within("", "frames", self.frames.into(), 2, limits::MAX_FRAMES)?;
+        let o = &self.object;
+        limits::positive("object", "young", o.young)?;
+        limits::poisson("object", "poisson", o.poisson)?;
+        limits::positive("object", "scale", o.scale)?;
+        if let Some(scale) = o.real_scale {
+            limits::positive("object", "real_scale", scale)?;
+        }
+        if matches!(o.shape.as_str(), "band" | "dome") {
+            for (k, &v) in o.size.iter().enumerate() {
+                if !(v.is_finite() && v > 0.0) {
+                    return Err(Refusal::new(
+                        "object",
+                        "size",
+                        format!("{v} (axis {k}) must be positive and finite"),
+                    ));
+                }
+            }
+            for (key, cells, max) in [
+                ("fine_cells", o.fine_cells, limits::MAX_FINE_NODES),
+                ("model_cells", o.model_cells, limits::MAX_MODEL_NODES),
+            ] {
+                for c in cells {
+                    limits::within("object", key, c as u64, 1, limits::MAX_CELLS)?;
+                }
+                let nodes: u64 = cells.iter().map(|&c| c as u64 + 1).product();
+                if nodes > max {
+                    return Err(Refusal::new(
+                        "object",
+                        key,
+                        format!(
+                            "{cells:?} make a mesh of {nodes} nodes, beyond the bound of {max}"
+                        ),
+                    ));
+                }
+            }
+            let nodes: u64 = o.fine_cells.iter().map(|&c| c as u64 + 1).product();
+            self.check_frames_memory(nodes)?;
+        }
+        let caps = &self.capacities;
+        caps.check(self.detection.enabled)?;
+        within_capacity(
+            ("object", "targets"),
+            o.targets,
+            ("targets", caps.targets),
+            0,
+            limits::MAX_TARGETS,
+        )?;
+        let t = &self.tracking;
+        within_capacity(
+            ("tracking", "features"),
+            t.features,
+            ("features", caps.features),
+            1,
+            limits::MAX_FEATURES,
+        )?;
+        limits::within_f64(
+            "tracking",
+            "noise_px",
+            t.noise_px,
+            0.0,
+            limits::MAX_NOISE_PX,
+        )?;
+        if !(t.dropout >= 0.0 && t.dropout < 1.0) {
+            return Err(Refusal::new(
+                "tracking",
+                "dropout",
+                format!(
+                    "{} must be a probability below 1 (at 1 every feature is lost after frame 0)",
+                    t.dropout
+                ),
+            ));
+        }
+        limits::within_f64("tracking", "outlier_fraction", t.outlier_fraction, 0.0, 1.0)?;
+        limits::within_f64(
+            "tracking",
+            "outlier_jump_px",
+            t.outlier_jump_px,
+            0.0,
+            limits::MAX_JUMP_PX,
+        )?;
+        let c = &self.camera;
+        limits::within("camera", "width", c.width.into(), 1, limits::MAX_IMAGE_SIDE)?;
+        limits::within(
+            "camera",
+            "height",
+            c.height.into(),
+            1,
+            limits::MAX_IMAGE_SIDE,
+        )?;
+        limits::positive("camera", "focal", c.focal)?;
+        limits::positive("model", "young", self.model.young)?;
+        limits::poisson("model", "poisson", self.model.poisson)?;
+        self.solver.config()?;
+        self.detection
+            .config()
+            .validate()
+            .map_err(|e| Refusal::new("detection", "", e.to_string()))?;
+        Ok(())
+    }
+
+    /// Checks the real object's node count once its mesh is built or read, and the memory
+    /// its positions over every frame take.
+    ///
+    /// # Errors
+    /// A [`Refusal`] naming `[object]` or `frames`.
+    pub fn check_meshes(&self, model_nodes: usize, real_nodes: usize) -> Result<(), Refusal> {
+        for (what, nodes, max) in [
+            ("model", model_nodes, limits::MAX_MODEL_NODES),
+            ("real object", real_nodes, limits::MAX_FINE_NODES),
+        ] {
+            if nodes as u64 > max {
+                return Err(Refusal::new(
+                    "object",
+                    "",
+                    format!("the {what}'s mesh has {nodes} nodes, beyond the bound of {max}"),
+                ));
+            }
+        }
+        self.check_frames_memory(real_nodes as u64)
+    }
+
+    /// The real object's positions, one copy per frame, within the memory budget.
+    fn check_frames_memory(&self, real_nodes: u64) -> Result<(), Refusal> {
+        let bytes = u128::from(self.frames) * u128::from(real_nodes) * 24;
+        limits::budget(
+            "",
+            "frames",
+            bytes,
+            &format!(
+                "the real object's positions over {} frames ({real_nodes} nodes each)",
+                self.frames
+            ),
+        )
     }
 
     /// The scenario as the text of a `scenario.toml` that [`Scenario::load`] reads back equal.

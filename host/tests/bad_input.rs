@@ -1,0 +1,338 @@
+//! Bad input, tried as a new user would, each on a copy of `band-side-cut`: every value is
+//! refused before anything is allocated or simulated, with exit status 1 and a message naming
+//! the file, the line and the key; nothing panics.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use incise::scene::Scene;
+
+fn incise() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_incise"))
+}
+
+fn fixture() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/band-side-cut")
+}
+
+/// `text` with `from` (which must be there) replaced by `to`.
+fn edit(text: &str, from: &str, to: &str) -> String {
+    assert!(text.contains(from), "{from:?} is not in the file");
+    text.replacen(from, to, 1)
+}
+
+/// A copy of the scene in a temporary directory, `scene.toml` edited.
+fn scene_with(from: &str, to: &str) -> tempfile::TempDir {
+    let tmp = tempfile::tempdir().unwrap();
+    let src = fixture();
+    for f in ["scene.toml", "model.msh", "tracks.csv"] {
+        std::fs::copy(src.join(f), tmp.path().join(f)).unwrap();
+    }
+    let toml = std::fs::read_to_string(src.join("scene.toml")).unwrap();
+    std::fs::write(tmp.path().join("scene.toml"), edit(&toml, from, to)).unwrap();
+    tmp
+}
+
+/// Exit status 1, no panic, and a message that holds every one of `words`; the message.
+fn refused(output: &Output, words: &[&str]) -> String {
+    let stderr = String::from_utf8_lossy(&output.stderr).into_owned();
+    assert_eq!(output.status.code(), Some(1), "{stderr}");
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    for w in words {
+        assert!(stderr.contains(w), "{w:?} missing from: {stderr}");
+    }
+    stderr
+}
+
+/// `incise run` on the scene with `from` replaced by `to` is refused, naming `words`.
+fn run_refuses(from: &str, to: &str, words: &[&str]) -> String {
+    let tmp = scene_with(from, to);
+    let output = incise().arg("run").arg(tmp.path()).output().unwrap();
+    refused(&output, words)
+}
+
+#[test]
+fn scene_sizes_beyond_their_bounds_are_refused_naming_the_key_and_line() {
+    run_refuses(
+        "features = 1024",
+        "features = 10000000000",
+        &["scene.toml:34:", "[capacities] features", "65536"],
+    );
+    run_refuses(
+        "cut_tets = 1024",
+        "cut_tets = 4000000",
+        &["scene.toml:", "[capacities]", "budget"],
+    );
+    run_refuses(
+        "cut_vertices = 64",
+        "cut_vertices = 64\nfactor_entries = 200000000",
+        &["[capacities]", "200000000 factor entries", "GiB"],
+    );
+    run_refuses(
+        "pairs = 32768",
+        "pairs = 100000000",
+        &["scene.toml:38:", "[capacities] pairs"],
+    );
+    run_refuses(
+        "width = 640",
+        "width = 100000",
+        &["scene.toml:17:", "[camera] width"],
+    );
+    run_refuses(
+        "frames = 40",
+        "frames = 1000000",
+        &["scene.toml:43:", "[ground_truth] frames"],
+    );
+}
+
+#[test]
+fn unknown_keys_are_refused() {
+    // The issue's `factor_headroom_percent` is not a key of this scene format.
+    run_refuses(
+        "cut_vertices = 64",
+        "cut_vertices = 64\nfactor_headroom_percent = 4000000000",
+        &["scene.toml:40:", "unknown field `factor_headroom_percent`"],
+    );
+    run_refuses(
+        "frames = 40",
+        "frames = 40\nframe_rate = 25",
+        &["scene.toml:44:", "unknown field `frame_rate`"],
+    );
+}
+
+#[test]
+fn a_scene_that_cannot_work_is_refused_saying_why() {
+    let e = run_refuses(
+        "cut_vertices = 64",
+        "cut_vertices = 0",
+        &["scene.toml:39:", "[capacities] cut_vertices", "detection"],
+    );
+    assert!(e.contains("enabled = false"), "{e}");
+    run_refuses(
+        "pairs = 32768",
+        "pairs = 0",
+        &["scene.toml:38:", "[capacities] pairs", "detection"],
+    );
+    run_refuses(
+        "features = 1024",
+        "features = 0",
+        &["[capacities] features"],
+    );
+    // Fewer than the 300 features tracks.csv follows.
+    run_refuses(
+        "features = 1024",
+        "features = 100",
+        &["scene.toml:34:", "[capacities] features", "tracks.csv"],
+    );
+    // Every one of the 204 nodes fixed.
+    let all: Vec<String> = (0..204).map(|v| v.to_string()).collect();
+    let toml = std::fs::read_to_string(fixture().join("scene.toml")).unwrap();
+    let fixed = toml.lines().find(|l| l.starts_with("fixed = ")).unwrap();
+    run_refuses(
+        fixed,
+        &format!("fixed = [{}]", all.join(", ")),
+        &["scene.toml:8:", "[model] fixed", "every one"],
+    );
+    run_refuses(
+        "young = 30000.0",
+        "young = -1.0",
+        &["scene.toml:9:", "[model] young"],
+    );
+}
+
+#[test]
+fn the_ground_truth_frames_are_read() {
+    // Fewer frames than tracks.csv holds: refused.
+    run_refuses(
+        "frames = 40",
+        "frames = 30",
+        &["scene.toml:43:", "[ground_truth] frames", "40 frames"],
+    );
+    // More: the frames after the last row lost every feature.
+    let tmp = scene_with("frames = 40", "frames = 42");
+    let scene = Scene::load(tmp.path()).unwrap();
+    assert_eq!(scene.frames.len(), 42);
+    assert!(scene.frames[40].is_empty() && scene.frames[41].is_empty());
+    assert!(!scene.frames[39].is_empty());
+    // Absent: tracks.csv decides.
+    let tmp = scene_with("frames = 40", "");
+    assert_eq!(Scene::load(tmp.path()).unwrap().frames.len(), 40);
+}
+
+#[test]
+fn capacities_without_detection_need_no_cut_line() {
+    let tmp = scene_with(
+        "cut_vertices = 64",
+        "cut_vertices = 0\n\n[detection]\nenabled = false",
+    );
+    Scene::load(tmp.path()).unwrap();
+}
+
+/// A copy of the scenario in a temporary directory with `from` replaced by `to`; its path.
+fn scenario_with(tmp: &Path, from: &str, to: &str) -> PathBuf {
+    let text = std::fs::read_to_string(fixture().join("scenario.toml")).unwrap();
+    let path = tmp.join("scenario.toml");
+    std::fs::write(&path, edit(&text, from, to)).unwrap();
+    path
+}
+
+/// `incise gen` on the scenario with `from` replaced by `to` is refused, naming `words`, and
+/// writes nothing.
+fn gen_refuses(from: &str, to: &str, words: &[&str]) -> String {
+    let tmp = tempfile::tempdir().unwrap();
+    let path = scenario_with(tmp.path(), from, to);
+    let out = tmp.path().join("out");
+    let output = incise()
+        .arg("gen")
+        .arg(&path)
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    let e = refused(&output, words);
+    assert!(!out.exists(), "gen wrote {} before refusing", out.display());
+    // The path once, not twice.
+    let name = path.display().to_string();
+    assert_eq!(e.matches(&name).count(), 1, "{e}");
+    e
+}
+
+#[test]
+fn scenario_sizes_beyond_their_bounds_are_refused_before_any_work() {
+    gen_refuses(
+        "fine_cells = [40, 12, 2]",
+        "fine_cells = [10000, 10000, 10000]",
+        &["scenario.toml:13:", "[object] fine_cells"],
+    );
+    gen_refuses(
+        "fine_cells = [40, 12, 2]",
+        "fine_cells = [1000, 1000, 2]",
+        &["scenario.toml:13:", "[object] fine_cells", "nodes"],
+    );
+    gen_refuses(
+        "targets = 20",
+        "targets = 100000000",
+        &["scenario.toml:17:", "[object] targets"],
+    );
+    gen_refuses(
+        "features = 300",
+        "features = 10000000",
+        &["scenario.toml:42:", "[tracking] features"],
+    );
+    // Within the bound, but more than the scene's capacity: `run` would refuse the scene.
+    gen_refuses(
+        "features = 300",
+        "features = 2000",
+        &["[tracking] features", "[capacities] features = 1024"],
+    );
+    gen_refuses(
+        "frames = 40",
+        "frames = 10000000",
+        &["scenario.toml:8:", "frames", "100000"],
+    );
+    // Within the bound, but the positions of every frame are beyond the memory budget.
+    gen_refuses(
+        "frames = 40",
+        "frames = 60000",
+        &["scenario.toml:8:", "frames", "budget"],
+    );
+    gen_refuses("width = 640", "width = 100000", &["[camera] width"]);
+}
+
+#[test]
+fn scenarios_that_would_write_an_unusable_scene_are_refused() {
+    gen_refuses(
+        "noise_px = 0.3",
+        "noise_px = nan",
+        &["scenario.toml:43:", "[tracking] noise_px"],
+    );
+    gen_refuses(
+        "dropout = 0.02",
+        "dropout = 2.0",
+        &["scenario.toml:44:", "[tracking] dropout"],
+    );
+    gen_refuses("dropout = 0.02", "dropout = 1.0", &["[tracking] dropout"]);
+    gen_refuses(
+        "features = 300",
+        "features = 0",
+        &["scenario.toml:42:", "[tracking] features"],
+    );
+    gen_refuses("frames = 40", "frames = 0", &["scenario.toml:8:", "frames"]);
+    gen_refuses("frames = 40", "frames = 1", &["scenario.toml:8:", "frames"]);
+    gen_refuses(
+        "fine_cells = [40, 12, 2]",
+        "fine_cells = [40, 0, 2]",
+        &["[object] fine_cells"],
+    );
+    gen_refuses(
+        "outlier_fraction = 0.01",
+        "outlier_fraction = -0.5",
+        &["[tracking] outlier_fraction"],
+    );
+    gen_refuses(
+        "strategy = \"refactor\"",
+        "strategy = \"fast\"",
+        &["[solver] strategy"],
+    );
+    gen_refuses(
+        "features = 300",
+        "features = 300\nspeed = 2",
+        &["scenario.toml:43:", "unknown field `speed`"],
+    );
+}
+
+#[test]
+fn unreadable_files_are_named_once() {
+    let tmp = tempfile::tempdir().unwrap();
+    let missing = tmp.path().join("missing.toml");
+    let output = incise().arg("gen").arg(&missing).output().unwrap();
+    let e = refused(&output, &["cannot read"]);
+    assert_eq!(e.matches(&missing.display().to_string()).count(), 1, "{e}");
+    // A missing silhouette (a scene that claims more frames than its ground truth has).
+    let tmp = scene_with("frames = 40", "frames = 42");
+    let src = fixture();
+    copy_dir(&src.join("gt"), &tmp.path().join("gt"));
+    let output = incise().arg("run").arg(tmp.path()).output().unwrap();
+    let e = refused(&output, &["0040.png", "cannot read"]);
+    assert_eq!(e.matches("0040.png").count(), 1, "{e}");
+}
+
+fn copy_dir(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for e in std::fs::read_dir(from).unwrap() {
+        let p = e.unwrap().path();
+        let q = to.join(p.file_name().unwrap());
+        if p.is_dir() {
+            copy_dir(&p, &q);
+        } else {
+            std::fs::copy(&p, &q).unwrap();
+        }
+    }
+}
+
+#[test]
+fn every_shipped_scene_and_scenario_passes_the_checks() {
+    let fixtures = Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures");
+    let mut scenes = 0;
+    for e in std::fs::read_dir(&fixtures).unwrap() {
+        let dir = e.unwrap().path();
+        if dir.join("scene.toml").exists() {
+            Scene::load(&dir).unwrap();
+            scenes += 1;
+        }
+        if dir.join("scenario.toml").exists() {
+            incise::generate::scenario::Scenario::load(&dir.join("scenario.toml")).unwrap();
+        }
+    }
+    assert!(scenes >= 7, "{scenes} scenes");
+    // Every family's base scenario (read and checked as a scenario).
+    let mut families = 0;
+    for e in std::fs::read_dir(fixtures.join("families")).unwrap() {
+        let path = e.unwrap().path();
+        if let Ok(family) = incise::generate::family::Family::load(&path) {
+            family.base_scenario(&path).unwrap();
+            families += 1;
+        }
+    }
+    assert!(families >= 3, "{families} families");
+}
