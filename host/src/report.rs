@@ -16,7 +16,7 @@ pub fn human_summary(s: &Summary) -> String {
          cut: opens at {} (truth), detected at {}, mesh cut {} time(s) ({} nodes, {} tetrahedra at the end){}\n\
          Dice last frame {:.3} (uncut {:.3}), mean after the cut opens {:.3}\n\
          surface RMS {:.2} mm, target error {:.2} mm (uncut {:.2} mm, rest model {:.2} mm) at the last frame\n\
-         step time median {:.2} ms, max {:.2} ms{}; model storage {:.1} KiB\n",
+         step time median {:.2} ms, max {:.2} ms{}; model storage {:.1} KiB\n{}",
         s.scene,
         s.frames,
         s.features,
@@ -41,7 +41,11 @@ pub fn human_summary(s: &Summary) -> String {
         s.ms_cut_frame_max.map_or(String::new(), |m| format!(
             " (a frame that cuts: {m:.2} ms)"
         )),
-        s.model_bytes as f64 / 1024.0
+        s.model_bytes as f64 / 1024.0,
+        s.first_rejected.as_ref().map_or(String::new(), |r| format!(
+            "{} frame(s) refused by the core and skipped (the model kept its state), the first at {r}\n",
+            s.frames_rejected
+        )),
     )
 }
 

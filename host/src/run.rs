@@ -288,6 +288,10 @@ pub struct Summary {
     pub image_height: u32,
     /// Bytes of the model's fixed storage.
     pub model_bytes: usize,
+    /// Frames the core refused (the model stayed as it was and the run went on).
+    pub frames_rejected: usize,
+    /// The first refused frame and the core's reason.
+    pub first_rejected: Option<String>,
 }
 
 /// Per-frame record of one run.
@@ -386,6 +390,9 @@ pub struct Trace {
     pub tre_rest_final: f64,
     /// Cutting the mesh.
     pub cuts: CutTrace,
+    /// Frames the core refused, with its reason; the model stayed as it was and the run went
+    /// on.
+    pub rejected: Vec<(usize, String)>,
     /// Nodes and tetrahedra of the model at the end.
     pub mesh_final: (usize, usize),
     /// Features embedded / missed.
@@ -620,6 +627,7 @@ pub fn run_with(
     let (mut last_dice, mut last_tre) = (0.0, 0.0);
     let mut recorded = vec![];
     let mut cuts = CutTrace::default();
+    let mut rejected = vec![];
     for f in 0.. {
         let frame = match pending.take() {
             Some(frame) => frame,
@@ -640,12 +648,16 @@ pub fn run_with(
                 .filter(|o| model.features().slot_of(o.id).is_some())
                 .collect();
             observed = known.len();
-            if known.is_empty() {
-                // Nothing seen: the model stays where it is.
-            } else {
-                let t0 = Instant::now();
-                let report = model.step(&known).map_err(core(format!("frame {f}")))?;
-                ms = t0.elapsed().as_secs_f64() * 1e3;
+            let t0 = Instant::now();
+            // A frame the core refuses (nothing seen, a non-finite or out-of-image point, a
+            // solve that breaks down) leaves the model as it was: the run notes it and goes on
+            // with the next frame, as the device would.
+            let step = model.step(&known);
+            ms = t0.elapsed().as_secs_f64() * 1e3;
+            if let Err(e) = &step {
+                rejected.push((f, e.to_string()));
+            }
+            if let Ok(report) = step {
                 frame_detection = (
                     report.detection.outliers,
                     report.detection.separation_points,
@@ -824,6 +836,7 @@ pub fn run_with(
             .filter(|gt| gt.len() == rest_targets.len() && !gt.is_empty())
             .map_or(f64::NAN, |gt| paired_rms(&rest_targets, gt)),
         cuts,
+        rejected,
         mesh_final: (model.mesh().n_nodes(), model.mesh().n_tets()),
         embedded: report.embedded,
         missed: report.missed,
@@ -929,6 +942,11 @@ pub fn run_scene_with(
         image_width: camera.width,
         image_height: camera.height,
         model_bytes: trace.model_bytes,
+        frames_rejected: trace.rejected.len(),
+        first_rejected: trace
+            .rejected
+            .first()
+            .map(|(f, e)| format!("frame {f}: {e}")),
     };
     Ok((summary, trace))
 }
