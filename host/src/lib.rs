@@ -25,6 +25,7 @@
 // be true for NaN.
 #![allow(clippy::needless_range_loop, clippy::neg_cmp_op_on_partial_ord)]
 
+pub mod calibration;
 pub mod cli;
 pub mod eval;
 pub mod generate;

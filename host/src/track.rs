@@ -13,12 +13,11 @@ use std::path::{Path, PathBuf};
 
 use image::RgbImage;
 use incise_core::{MeshInput, Observation};
-use opencv::core::{
-    self as cvcore, FileStorage, Mat, Point2d, Point2f, Size, TermCriteria, Vector,
-};
+use opencv::core::{self as cvcore, Mat, Point2d, Point2f, Size, TermCriteria, Vector};
 use opencv::prelude::*;
 use opencv::{calib3d, imgproc, video};
 
+use crate::calibration::read_calibration;
 use crate::render::{Mask, silhouette};
 use crate::run::{FrameSource, ModelStorage, RunError, SourceFrame};
 use crate::scene::{CameraSection, Scene};
@@ -492,123 +491,28 @@ pub struct Calibration {
 }
 
 impl Calibration {
-    /// Reads an OpenCV `FileStorage` file (YAML or XML) with the matrices `camera_matrix` and
-    /// `dist_coeffs` (or `distortion_coefficients`, as OpenCV's calibration sample writes), and
-    /// optionally `image_width` and `image_height`.
+    /// Reads a calibration file in OpenCV's `FileStorage` format (YAML or XML) with the
+    /// matrices `camera_matrix` and `dist_coeffs` (or `distortion_coefficients`, as OpenCV's
+    /// calibration sample writes), and optionally `image_width` and `image_height`; read by the
+    /// host's own reader ([`crate::calibration`] says why not OpenCV's).
     ///
     /// # Errors
-    /// [`TrackError::Calibration`] naming the file: missing, unreadable, a key absent, a matrix
-    /// of the wrong shape, or intrinsics the core cannot represent (skew, non-positive focal
-    /// length).
+    /// [`TrackError::Calibration`] naming the file and line: missing, unreadable, a key absent,
+    /// a matrix of the wrong shape, or intrinsics the core cannot represent (skew,
+    /// non-positive focal length).
     pub fn load(path: &Path) -> Result<Self, TrackError> {
-        let fail = |m: String| TrackError::Calibration {
-            path: path.to_path_buf(),
-            message: m,
-        };
-        if !path.is_file() {
-            return Err(fail("no such file".into()));
-        }
-        let name = path
-            .to_str()
-            .ok_or_else(|| fail("the path is not valid UTF-8".into()))?;
-        let unreadable = |e: opencv::Error| {
-            fail(format!(
-                "cannot read as an OpenCV YAML/XML file: {}",
-                e.message
-            ))
-        };
-        let fs = FileStorage::new(name, cvcore::FileStorage_READ, "").map_err(unreadable)?;
-        if !fs.is_opened().map_err(unreadable)? {
-            return Err(fail("cannot read as an OpenCV YAML/XML file".into()));
-        }
-        let matrix = |key: &str| -> Result<Option<Vec<f64>>, TrackError> {
-            let node = fs.get(key).map_err(unreadable)?;
-            if node.empty().map_err(unreadable)? || node.is_none().map_err(unreadable)? {
-                return Ok(None);
-            }
-            let m = node
-                .mat()
-                .map_err(|e| fail(format!("{key} is not a matrix: {}", e.message)))?;
-            let mut m64 = Mat::default();
-            m.convert_to(&mut m64, cvcore::CV_64F, 1.0, 0.0)
-                .map_err(|e| fail(format!("{key}: {}", e.message)))?;
-            let v = if m64.empty() {
-                vec![]
+        let file = read_calibration(path).map_err(|e| TrackError::Calibration {
+            path: e.path,
+            message: if e.line > 0 {
+                format!("line {}: {}", e.line, e.message)
             } else {
-                let m64 = m64
-                    .reshape(1, 1)
-                    .map_err(|e| fail(format!("{key}: {}", e.message)))?
-                    .try_clone()
-                    .map_err(|e| fail(format!("{key}: {}", e.message)))?;
-                m64.data_typed::<f64>()
-                    .map_err(|e| fail(format!("{key}: {}", e.message)))?
-                    .to_vec()
-            };
-            if v.iter().any(|x| !x.is_finite()) {
-                return Err(fail(format!("{key} holds a non-finite number")));
-            }
-            Ok(Some(v))
-        };
-        let k = matrix("camera_matrix")?.ok_or_else(|| fail("no camera_matrix".into()))?;
-        if k.len() != 9 {
-            return Err(fail(format!(
-                "camera_matrix must be 3×3, it has {} entries",
-                k.len()
-            )));
-        }
-        let dist = match matrix("dist_coeffs")? {
-            Some(d) => d,
-            None => matrix("distortion_coefficients")?
-                .ok_or_else(|| fail("no dist_coeffs (nor distortion_coefficients)".into()))?,
-        };
-        if ![0, 4, 5, 8, 12, 14].contains(&dist.len()) {
-            return Err(fail(format!(
-                "dist_coeffs must hold 4, 5, 8, 12 or 14 numbers, not {}",
-                dist.len()
-            )));
-        }
-        let camera_matrix = [[k[0], k[1], k[2]], [k[3], k[4], k[5]], [k[6], k[7], k[8]]];
-        let [fx, fy] = [k[0], k[4]];
-        if !(fx > 0.0 && fy > 0.0) {
-            return Err(fail(format!(
-                "camera_matrix: focal lengths must be positive (fx {fx}, fy {fy})"
-            )));
-        }
-        if k[1].abs() > 1e-9 * fx {
-            return Err(fail(format!(
-                "camera_matrix: skew {} is not supported (the model's camera has none)",
-                k[1]
-            )));
-        }
-        if k[3] != 0.0 || k[6] != 0.0 || k[7] != 0.0 || k[8] != 1.0 {
-            return Err(fail(
-                "camera_matrix is not a pinhole matrix [[fx 0 cx] [0 fy cy] [0 0 1]]".into(),
-            ));
-        }
-        let int = |key: &str| -> Result<Option<u32>, TrackError> {
-            let node = fs.get(key).map_err(unreadable)?;
-            if node.empty().map_err(unreadable)? || node.is_none().map_err(unreadable)? {
-                return Ok(None);
-            }
-            let v = node.real().map_err(unreadable)?;
-            if !(v >= 1.0 && v <= f64::from(u32::MAX) && v.fract() == 0.0) {
-                return Err(fail(format!("{key} must be a positive whole number")));
-            }
-            Ok(Some(v as u32))
-        };
-        let image_size = match (int("image_width")?, int("image_height")?) {
-            (Some(w), Some(h)) => Some((w, h)),
-            (None, None) => None,
-            _ => {
-                return Err(fail(
-                    "image_width and image_height go together: one is missing".into(),
-                ));
-            }
-        };
+                e.message
+            },
+        })?;
         Ok(Calibration {
-            camera_matrix,
-            dist_coeffs: dist,
-            image_size,
+            camera_matrix: file.camera_matrix,
+            dist_coeffs: file.dist_coeffs,
+            image_size: file.image_size,
             path: path.to_path_buf(),
         })
     }

@@ -1,6 +1,6 @@
 //! Property tests of the host's file readers: Gmsh meshes (versions 1, 2.2 and 4.1),
 //! `scene.toml` (read alone, and loaded with its mesh and tracks), `scenario.toml`, and the
-//! CSV and OBJ files of a scene. Valid files are damaged (a token replaced by junk, lines
+//! CSV and OBJ files of a scene, and the OpenCV camera calibration in YAML and XML. Valid files are damaged (a token replaced by junk, lines
 //! deleted, repeated or cut short, random text inserted) and random text is fed whole: every
 //! input gives a value or an error naming the file and a line within it, never a panic.
 //!
@@ -319,6 +319,103 @@ proptest! {
             prop_assert!(!scene.frames.is_empty());
             let n = scene.rest.len();
             prop_assert!(scene.file.model.fixed.iter().all(|&f| (f as usize) < n));
+        }
+    }
+}
+
+/// The camera calibration (OpenCV's YAML and XML, read by the host's own reader: OpenCV 4.6's
+/// `FileStorage` crashed on some of these damaged files): every damaged or random file gives a
+/// calibration whose invariants hold or an error naming the file and a line within it.
+mod calibration {
+    use super::*;
+    use incise::calibration::read_calibration;
+
+    const YAML: &str = "%YAML:1.0
+---
+image_width: 640
+image_height: 400
+camera_matrix: !!opencv-matrix
+   rows: 3
+   cols: 3
+   dt: d
+   data: [ 500., 0., 320., 0., 510., 200., 0., 0., 1. ]
+dist_coeffs: !!opencv-matrix
+   rows: 1
+   cols: 5
+   dt: d
+   data: [ -0.2, 0.05, 0.001, -0.002, 0.01 ]
+";
+
+    const XML: &str = "<?xml version=\"1.0\"?>
+<opencv_storage>
+<image_width>640</image_width>
+<image_height>400</image_height>
+<camera_matrix type_id=\"opencv-matrix\">
+  <rows>3</rows>
+  <cols>3</cols>
+  <dt>d</dt>
+  <data>
+    500. 0. 320. 0. 510. 200. 0. 0. 1.</data></camera_matrix>
+<distortion_coefficients type_id=\"opencv-matrix\">
+  <rows>5</rows>
+  <cols>1</cols>
+  <dt>d</dt>
+  <data>
+    -0.2 0.05 0.001 -0.002 0.01</data></distortion_coefficients>
+</opencv_storage>
+";
+
+    fn check(text: &str, ext: &str) {
+        let tmp = tempfile::tempdir().unwrap();
+        let path = tmp.path().join(format!("camera.{ext}"));
+        std::fs::write(&path, text).unwrap();
+        match read_calibration(&path) {
+            Ok(c) => {
+                let k = c.camera_matrix;
+                assert!(k.iter().flatten().all(|x| x.is_finite()));
+                assert!(k[0][0] > 0.0 && k[1][1] > 0.0 && k[2] == [0.0, 0.0, 1.0]);
+                assert!([0, 4, 5, 8, 12, 14].contains(&c.dist_coeffs.len()));
+                assert!(c.dist_coeffs.iter().all(|x| x.is_finite()));
+            }
+            Err(e) => {
+                assert_eq!(e.path, path, "{e}");
+                assert!(e.line <= text.lines().count() + 1, "{e}");
+                assert!(!e.message.is_empty());
+            }
+        }
+    }
+
+    #[test]
+    fn the_undamaged_files_read() {
+        for (text, ext) in [(YAML, "yml"), (XML, "xml")] {
+            let tmp = tempfile::tempdir().unwrap();
+            let path = tmp.path().join(format!("camera.{ext}"));
+            std::fs::write(&path, text).unwrap();
+            let c = read_calibration(&path).unwrap_or_else(|e| panic!("{e}"));
+            assert_eq!((c.camera_matrix[1][1], c.dist_coeffs.len()), (510.0, 5));
+        }
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: cases(), ..ProptestConfig::default() })]
+
+        #[test]
+        fn damaged_calibrations_give_errors_naming_the_line(
+            xml in any::<bool>(),
+            damages in damages(),
+        ) {
+            let (text, ext) = if xml { (XML, "xml") } else { (YAML, "yml") };
+            check(&damaged(text, &damages), ext);
+        }
+
+        #[test]
+        fn random_text_is_no_calibration(xml in any::<bool>(), body in "\\PC{0,200}") {
+            let (head, ext) = if xml {
+                ("<?xml version=\"1.0\"?>\n<opencv_storage>\n", "xml")
+            } else {
+                ("%YAML:1.0\n---\n", "yml")
+            };
+            check(&format!("{head}{body}"), ext);
         }
     }
 }
