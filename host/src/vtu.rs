@@ -20,6 +20,9 @@ use crate::msh::RoundTrip;
 /// VTK's cell type number of the linear tetrahedron (`VTK_TETRA`).
 const VTK_TETRA: u8 = 10;
 
+/// Largest `.vtu` file [`read_vtu`] reads, bytes (256 MiB: a mesh of millions of elements).
+pub const MAX_VTU_BYTES: u64 = 256 << 20;
+
 /// How many scalars, offsets or types go on one line of a data array.
 const PER_ROW: usize = 8;
 
@@ -209,6 +212,15 @@ pub fn read_vtu(path: &Path) -> Result<VtuMesh, VtuError> {
         file: file.clone(),
         message,
     };
+    // Checked before vtkio reads the file whole (SOFA's fine liver is 1 MB).
+    let bytes = std::fs::metadata(path)
+        .map_err(|e| fail(format!("cannot read: {e}")))?
+        .len();
+    if bytes > MAX_VTU_BYTES {
+        return Err(fail(format!(
+            "{bytes} bytes; a model mesh file is at most {MAX_VTU_BYTES} bytes"
+        )));
+    }
     let vtk = vtkio::Vtk::import(path).map_err(|e| fail(format!("cannot read: {e}")))?;
     let DataSet::UnstructuredGrid { pieces, .. } = vtk.data else {
         return Err(fail(

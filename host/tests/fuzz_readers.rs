@@ -1,8 +1,9 @@
 //! Property tests of the host's file readers: Gmsh meshes (versions 1, 2.2 and 4.1),
 //! `scene.toml` (read alone, and loaded with its mesh and tracks), `scenario.toml`, and the
-//! CSV and OBJ files of a scene, and the OpenCV camera calibration in YAML and XML. Valid files are damaged (a token replaced by junk, lines
-//! deleted, repeated or cut short, random text inserted) and random text is fed whole: every
-//! input gives a value or an error naming the file and a line within it, never a panic.
+//! CSV and OBJ files of a scene, the OpenCV camera calibration in YAML and XML, and VTU meshes.
+//! Valid files are damaged (a token replaced by junk, lines deleted, repeated or cut short,
+//! random text inserted) and random text is fed whole: every input gives a value or an error
+//! naming the file (and, for the project's own readers, a line within it), never a panic.
 //!
 //! The case count per property is 256 in CI; `INCISE_FUZZ_CASES=100000 cargo test -p incise
 //! --release --test fuzz_readers` runs more.
@@ -416,6 +417,88 @@ dist_coeffs: !!opencv-matrix
                 ("%YAML:1.0\n---\n", "yml")
             };
             check(&format!("{head}{body}"), ext);
+        }
+    }
+}
+
+/// The VTK XML unstructured grid (`.vtu`, read through `vtkio`): damaged or random files give a
+/// mesh whose promises hold or an error naming the file; never a panic.
+mod vtu {
+    use super::*;
+    use incise::vtu::{read_vtu, write_vtu};
+
+    fn valid() -> String {
+        let tmp = tempfile::tempdir().unwrap();
+        let path = tmp.path().join("m.vtu");
+        let points = [
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [0.0, 0.0, 1.0],
+            [1.0, 1.0, 1.0],
+        ];
+        write_vtu(&path, &points, &[[0, 1, 2, 3], [1, 2, 3, 4]], &[], &[]).unwrap();
+        std::fs::read_to_string(&path).unwrap()
+    }
+
+    fn check(text: &str) {
+        let tmp = tempfile::tempdir().unwrap();
+        let path = tmp.path().join("m.vtu");
+        std::fs::write(&path, text).unwrap();
+        match read_vtu(&path) {
+            Ok(m) => {
+                assert!(!m.tets.is_empty());
+                assert!(m.nodes.iter().flatten().all(|c| c.is_finite()));
+                assert!(
+                    m.tets
+                        .iter()
+                        .flatten()
+                        .all(|&v| (v as usize) < m.nodes.len())
+                );
+            }
+            Err(e) => assert_eq!(e.file, path.display().to_string(), "{e}"),
+        }
+    }
+
+    #[test]
+    fn the_undamaged_file_reads() {
+        let tmp = tempfile::tempdir().unwrap();
+        let path = tmp.path().join("m.vtu");
+        std::fs::write(&path, valid()).unwrap();
+        let m = read_vtu(&path).unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!((m.nodes.len(), m.tets.len()), (5, 2));
+    }
+
+    #[test]
+    fn huge_counts_are_refused_without_allocating_them() {
+        let text = valid();
+        for (from, to) in [
+            ("NumberOfPoints=\"5\"", "NumberOfPoints=\"1000000000\""),
+            ("NumberOfCells=\"2\"", "NumberOfCells=\"1000000000\""),
+            (
+                "NumberOfPoints=\"5\"",
+                "NumberOfPoints=\"18446744073709551615\"",
+            ),
+        ] {
+            assert!(text.contains(from), "{from}");
+            let tmp = tempfile::tempdir().unwrap();
+            let path = tmp.path().join("m.vtu");
+            std::fs::write(&path, text.replace(from, to)).unwrap();
+            let _ = read_vtu(&path);
+        }
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: cases(), ..ProptestConfig::default() })]
+
+        #[test]
+        fn damaged_vtu_files_give_errors_not_panics(damages in damages()) {
+            check(&damaged(&valid(), &damages));
+        }
+
+        #[test]
+        fn random_text_is_no_vtu(body in "\\PC{0,300}") {
+            check(&format!("<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\">\n{body}"));
         }
     }
 }
