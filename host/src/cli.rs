@@ -435,7 +435,8 @@ fn demo(out: &Path) -> Result<(), Failure> {
     let (summary, trace) = run_scene(&scene, &options).map_err(|e| e.to_string())?;
     out!("{}", crate::report::human_summary(&summary))?;
     let sheet = out.join("overview.png");
-    crate::report::contact_sheet(&frames_dir, &trace, &sheet).map_err(|e| e.to_string())?;
+    crate::report::contact_sheet(&frames_dir, &trace, summary.cut_open_frame, &sheet)
+        .map_err(|e| e.to_string())?;
     let plot = out.join("dice.svg");
     crate::report::plot_dice(&trace, &summary, &plot).map_err(|e| e.to_string())?;
     outln!(

@@ -184,6 +184,8 @@ pub mod colour {
     pub const BACKGROUND: [u8; 3] = [24, 24, 28];
     /// True silhouette.
     pub const TRUTH: [u8; 3] = [90, 90, 100];
+    /// Outline of the true silhouette, drawn over the model.
+    pub const TRUTH_OUTLINE: [u8; 3] = [200, 200, 210];
     /// Model wireframe.
     pub const MODEL: [u8; 3] = [80, 200, 255];
     /// Model wireframe with cutting switched off.
@@ -322,6 +324,103 @@ impl Canvas {
         }
     }
 
+    /// Darkens the rectangle at `(x, y)` of `w × h` pixels (clipped), so that text on it reads
+    /// over any picture.
+    pub fn shade(&mut self, x: i64, y: i64, w: u32, h: u32) {
+        for py in y.max(0)..(y + i64::from(h)).min(i64::from(self.image.height())) {
+            for px in x.max(0)..(x + i64::from(w)).min(i64::from(self.image.width())) {
+                let p = self.image.get_pixel_mut(px as u32, py as u32);
+                for c in &mut p.0 {
+                    *c = (u16::from(*c) * 2 / 7) as u8;
+                }
+            }
+        }
+    }
+
+    /// Writes `text` with its top left corner at `(x, y)` in an 8 × 8 bitmap font scaled by
+    /// `scale` (characters outside ASCII are drawn as `?`).
+    pub fn text(&mut self, x: i64, y: i64, text: &str, colour: [u8; 3], scale: u32) {
+        let s = i64::from(scale.max(1));
+        for (k, ch) in text.chars().enumerate() {
+            let code = if ch.is_ascii() {
+                ch as usize
+            } else {
+                '?' as usize
+            };
+            let glyph = font8x8::legacy::BASIC_LEGACY[code];
+            let left = x + k as i64 * 8 * s;
+            for (row, bits) in glyph.iter().enumerate() {
+                for col in 0..8 {
+                    if bits & (1 << col) != 0 {
+                        for dy in 0..s {
+                            for dx in 0..s {
+                                self.plot(left + col * s + dx, y + row as i64 * s + dy, colour);
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    /// Width in pixels of `text` written by [`Canvas::text`] at `scale`.
+    pub fn text_width(text: &str, scale: u32) -> u32 {
+        text.chars().count() as u32 * 8 * scale.max(1)
+    }
+
+    /// A title line on a shaded band across the top of the picture.
+    pub fn title(&mut self, text: &str) {
+        let width = self.image.width();
+        self.shade(0, 0, width, 20);
+        self.text(6, 6, text, [235, 235, 235], 1);
+    }
+
+    /// A legend in the top right corner: a colour swatch and its meaning per line.
+    pub fn legend(&mut self, entries: &[([u8; 3], &str)]) {
+        let line = 14i64;
+        let longest = entries
+            .iter()
+            .map(|(_, t)| Canvas::text_width(t, 1))
+            .max()
+            .unwrap_or(0);
+        let w = longest + 30;
+        let h = entries.len() as u32 * line as u32 + 8;
+        let x = i64::from(self.image.width()) - i64::from(w) - 4;
+        let y = 24;
+        self.shade(x, y, w, h);
+        for (k, (colour, label)) in entries.iter().enumerate() {
+            let top = y + 4 + k as i64 * line;
+            for dy in 1..9 {
+                for dx in 0..14 {
+                    self.plot(x + 6 + dx, top + dy, *colour);
+                }
+            }
+            self.text(x + 24, top + 1, label, [235, 235, 235], 1);
+        }
+    }
+
+    /// Paints the boundary pixels of `mask` (set pixels with an unset 4-neighbour): an outline
+    /// that stays visible over whatever is drawn inside.
+    pub fn outline(&mut self, mask: &Mask, colour: [u8; 3]) {
+        let (w, h) = (mask.width, mask.height);
+        for y in 0..h {
+            for x in 0..w {
+                if mask.get(x, y)
+                    && (x == 0
+                        || y == 0
+                        || x + 1 == w
+                        || y + 1 == h
+                        || !mask.get(x - 1, y)
+                        || !mask.get(x + 1, y)
+                        || !mask.get(x, y - 1)
+                        || !mask.get(x, y + 1))
+                {
+                    self.plot(i64::from(x), i64::from(y), colour);
+                }
+            }
+        }
+    }
+
     /// Writes the picture as PNG.
     ///
     /// # Errors
@@ -360,5 +459,35 @@ mod tests {
         let mut m3 = Mask::new(8, 8);
         m3.fill_triangle([[f64::NAN, 0.0], [1.0, 1.0], [2.0, 0.0]]);
         assert_eq!(m3.count(), 0);
+    }
+
+    #[test]
+    fn text_legend_and_outline_stay_where_they_are_put() {
+        let mut c = Canvas::new(200, 100, [0, 0, 0]);
+        c.text(10, 10, "Ab", [255, 255, 255], 2);
+        let lit: Vec<(u32, u32)> = c
+            .image
+            .enumerate_pixels()
+            .filter(|(_, _, p)| p.0 == [255, 255, 255])
+            .map(|(x, y, _)| (x, y))
+            .collect();
+        assert!(!lit.is_empty());
+        let w = Canvas::text_width("Ab", 2);
+        assert_eq!(w, 32);
+        assert!(
+            lit.iter()
+                .all(|&(x, y)| (10..10 + w).contains(&x) && (10..26).contains(&y))
+        );
+        // Off the picture, and characters outside ASCII: drawn as far as they fit, no panic.
+        c.text(190, 95, "é—x", [1, 2, 3], 3);
+        c.legend(&[([9, 9, 9], "a very long legend line that does not fit")]);
+        c.title("title");
+        let mut m = Mask::new(20, 20);
+        m.fill_triangle([[2.0, 2.0], [18.0, 2.0], [2.0, 18.0]]);
+        let mut o = Canvas::new(20, 20, [0, 0, 0]);
+        o.outline(&m, [255, 0, 0]);
+        let edge = o.image.pixels().filter(|p| p.0 == [255, 0, 0]).count();
+        assert!(edge > 0 && edge < m.count(), "{edge} of {}", m.count());
+        assert_ne!(o.image.get_pixel(3, 3).0, [255, 0, 0]);
     }
 }

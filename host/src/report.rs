@@ -5,6 +5,7 @@ use std::path::Path;
 use image::{RgbImage, imageops};
 use plotters::prelude::*;
 
+use crate::render::Canvas;
 use crate::run::{Summary, Trace};
 use crate::scene::SolverSection;
 
@@ -86,19 +87,76 @@ pub fn markdown_table(rows: &[Summary]) -> String {
     out
 }
 
-/// Four frames of a run side by side (first, a third, two thirds, last), from the overlay
-/// pictures in `frames_dir`.
+/// The four frames of a run that tell its story, with a caption under each: for a cut scene,
+/// before the cut opens, the cut detected, the mesh cut (or the model opening), and the last
+/// frame; for an intact one, the first, a third, two thirds and the last frame.
+pub fn story_frames(trace: &Trace, open: Option<u32>) -> Vec<(usize, String)> {
+    let n = trace.frames.len();
+    let last = n.saturating_sub(1);
+    let dice = |f: usize| {
+        trace
+            .frames
+            .get(f)
+            .map_or(String::new(), |r| format!(", Dice {:.3}", r.dice))
+    };
+    let Some(open) = open.map(|o| (o as usize).min(last)) else {
+        return [0, n / 3, 2 * n / 3, last]
+            .into_iter()
+            .map(|f| (f, format!("frame {f}{}", dice(f))))
+            .collect();
+    };
+    let before = open.saturating_sub(1);
+    let mut picks = vec![(before, format!("before the cut opens (frame {before})"))];
+    match trace.detection.detected_frame.map(|f| f as usize) {
+        Some(det) => {
+            let cut_at_detection = trace.cuts.frames.first() == Some(&det);
+            picks.push((
+                det,
+                if cut_at_detection {
+                    format!("cut detected, mesh cut (frame {det})")
+                } else {
+                    format!("cut detected (frame {det})")
+                },
+            ));
+            // A later cut event shows the line growing; one right after detection looks
+            // like panel 2, and the model opening says more.
+            let third = match trace.cuts.frames.iter().find(|&&f| f > det + 3) {
+                Some(&f) if f < last => (f, format!("the mesh cut further (frame {f})")),
+                _ => {
+                    let f = det + (last - det.min(last)) / 2;
+                    (f, format!("the model opens (frame {f})"))
+                }
+            };
+            picks.push(third);
+        }
+        None => {
+            let f = open + (last - open) / 3;
+            picks.push((f, format!("cut open, not detected (frame {f})")));
+            let g = open + 2 * (last - open) / 3;
+            picks.push((g, format!("frame {g}")));
+        }
+    }
+    picks.push((last, format!("last frame ({last}){}", dice(last))));
+    picks
+}
+
+/// The overview of a run: the four frames of [`story_frames`] from the overlay pictures in
+/// `frames_dir`, two by two, each captioned.
 ///
 /// # Errors
 /// If a picture cannot be read or the result written.
-pub fn contact_sheet(frames_dir: &Path, trace: &Trace, out: &Path) -> Result<(), String> {
-    let n = trace.frames.len();
-    if n == 0 {
+pub fn contact_sheet(
+    frames_dir: &Path,
+    trace: &Trace,
+    open: Option<u32>,
+    out: &Path,
+) -> Result<(), String> {
+    if trace.frames.is_empty() {
         return Ok(());
     }
-    let picks = [0, n / 3, 2 * n / 3, n - 1];
+    let picks = story_frames(trace, open);
     let mut tiles = vec![];
-    for &f in &picks {
+    for (f, _) in &picks {
         let p = frames_dir.join(format!("frame_{f:04}.png"));
         tiles.push(
             image::open(&p)
@@ -106,15 +164,23 @@ pub fn contact_sheet(frames_dir: &Path, trace: &Trace, out: &Path) -> Result<(),
                 .to_rgb8(),
         );
     }
+    const CAPTION: u32 = 30;
     let (w, h) = tiles[0].dimensions();
-    let mut sheet = RgbImage::new(2 * w, 2 * h);
-    for (k, tile) in tiles.iter().enumerate() {
-        imageops::overlay(
-            &mut sheet,
-            tile,
-            i64::from((k as u32 % 2) * w),
-            i64::from((k as u32 / 2) * h),
-        );
+    let mut sheet = Canvas {
+        image: RgbImage::from_pixel(2 * w, 2 * (h + CAPTION), image::Rgb([12, 12, 14])),
+    };
+    for (k, (tile, (_, caption))) in tiles.iter().zip(&picks).enumerate() {
+        let (x, y) = ((k as u32 % 2) * w, (k as u32 / 2) * (h + CAPTION));
+        imageops::overlay(&mut sheet.image, tile, i64::from(x), i64::from(y));
+        let label = format!("{}. {caption}", k + 1);
+        // Large where it fits in the tile, small where it does not.
+        let scale = if Canvas::text_width(&label, 2) + 16 <= w {
+            2
+        } else {
+            1
+        };
+        let top = i64::from(y + h) + if scale == 2 { 7 } else { 11 };
+        sheet.text(i64::from(x) + 8, top, &label, [240, 240, 240], scale);
     }
     sheet
         .save(out)

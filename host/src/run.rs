@@ -712,8 +712,12 @@ pub fn run_with(
             };
             canvas.tint(&model_mask, colour::MODEL, 0.3);
             canvas.front_wireframe(&camera, &x, &surface, colour::MODEL);
+            // The true silhouette's outline on top, so that the model does not hide it.
+            if let Some(t) = &truth_mask {
+                canvas.outline(t, colour::TRUTH_OUTLINE);
+            }
             for o in obs {
-                canvas.dot(o.uv, 1.5, colour::FEATURE);
+                canvas.dot(o.uv, 2.0, colour::FEATURE);
             }
             for slot in 0..model.features().len() {
                 if let Ok(uv) = model.projected_feature(slot) {
@@ -732,6 +736,29 @@ pub fn run_with(
                     canvas.cross_mark([uv.x, uv.y], 3.0, colour::TARGET);
                 }
             }
+            let mut title = format!("{}  frame {f}", scene.file.name);
+            if d.is_finite() {
+                title.push_str(&format!("  Dice {d:.3}"));
+            }
+            if tre.is_finite() && !predicted.is_empty() {
+                title.push_str(&format!("  target error {:.1} mm", tre * 1e3));
+            }
+            canvas.title(&title);
+            let mut legend = vec![];
+            if truth_mask.is_some() {
+                legend.push((colour::TRUTH_OUTLINE, "true silhouette"));
+            }
+            legend.push((colour::MODEL, "model (mesh)"));
+            legend.push((colour::FEATURE, "tracked features"));
+            legend.push((colour::VIRTUAL, "model's features"));
+            if !predicted.is_empty() {
+                legend.push((colour::TARGET, "internal targets"));
+            }
+            if truth.is_some() {
+                legend.push((colour::TRUE_CUT, "true cut"));
+            }
+            legend.push((colour::CUT, "detected cut"));
+            canvas.legend(&legend);
             if let Some(sink) = sink.as_deref_mut() {
                 sink.write(&canvas.image)?;
             }
