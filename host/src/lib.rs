@@ -32,6 +32,7 @@ pub mod generate;
 pub mod limits;
 pub mod metrics;
 pub mod msh;
+pub mod overlay;
 pub mod render;
 pub mod report;
 pub mod rng;

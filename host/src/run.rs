@@ -7,7 +7,6 @@ use std::time::Instant;
 
 use image::RgbImage;
 use incise_core::mesh::MeshCapacity;
-use incise_core::nalgebra::Vector3;
 use incise_core::{
     Capacities, Error as CoreError, MeshAnalysis, MeshInput, Model, ModelBuffers, ModelConfig,
     ModelSize, Observation, Real, analyse_mesh, analyse_mesh_work_len,
@@ -17,7 +16,7 @@ use serde::Serialize;
 
 use crate::limits::{self, Refusal};
 use crate::metrics::{dice, paired_rms, surface_rms};
-use crate::render::{Canvas, Mask, colour, silhouette};
+use crate::render::{Mask, silhouette};
 use crate::scene::{
     CapacitySection, Scene, SceneError, Surface, read_cut_csv, read_obj, read_points_csv,
 };
@@ -697,68 +696,27 @@ pub fn run_with(
                 }
             });
         if out.is_some() || sink.is_some() {
-            let mut canvas = match &frame.image {
-                Some(image) => Canvas {
-                    image: image.clone(),
-                },
-                None => {
-                    let mut c =
-                        Canvas::new(model_mask.width, model_mask.height, colour::BACKGROUND);
-                    if let Some(t) = &truth_mask {
-                        c.tint(t, colour::TRUTH, 1.0);
-                    }
-                    c
-                }
-            };
-            canvas.tint(&model_mask, colour::MODEL, 0.3);
-            canvas.front_wireframe(&camera, &x, &surface, colour::MODEL);
-            // The true silhouette's outline on top, so that the model does not hide it.
-            if let Some(t) = &truth_mask {
-                canvas.outline(t, colour::TRUTH_OUTLINE);
-            }
-            for o in obs {
-                canvas.dot(o.uv, 2.0, colour::FEATURE);
-            }
-            for slot in 0..model.features().len() {
-                if let Ok(uv) = model.projected_feature(slot) {
-                    canvas.cross_mark(uv, 1.5, colour::VIRTUAL);
-                }
-            }
-            if let Some(line) = truth.as_ref().and_then(|t| t.cut.get(f)) {
-                canvas.polyline(line, colour::TRUE_CUT, 1);
-            }
-            for p in model.detector().points() {
-                canvas.dot(*p, 1.0, colour::CUT);
-            }
-            canvas.polyline(&detection.polyline, colour::CUT, 3);
-            for p in &predicted {
-                if let Ok(uv) = camera.project(&Vector3::from(*p), 0) {
-                    canvas.cross_mark([uv.x, uv.y], 3.0, colour::TARGET);
-                }
-            }
-            let mut title = format!("{}  frame {f}", scene.file.name);
-            if d.is_finite() {
-                title.push_str(&format!("  Dice {d:.3}"));
-            }
-            if tre.is_finite() && !predicted.is_empty() {
-                title.push_str(&format!("  target error {:.1} mm", tre * 1e3));
-            }
-            canvas.title(&title);
-            let mut legend = vec![];
-            if truth_mask.is_some() {
-                legend.push((colour::TRUTH_OUTLINE, "true silhouette"));
-            }
-            legend.push((colour::MODEL, "model (mesh)"));
-            legend.push((colour::FEATURE, "tracked features"));
-            legend.push((colour::VIRTUAL, "model's features"));
-            if !predicted.is_empty() {
-                legend.push((colour::TARGET, "internal targets"));
-            }
-            if truth.is_some() {
-                legend.push((colour::TRUE_CUT, "true cut"));
-            }
-            legend.push((colour::CUT, "detected cut"));
-            canvas.legend(&legend);
+            let canvas = crate::overlay::draw(&crate::overlay::Overlay {
+                scene: &scene.file.name,
+                frame: f,
+                camera: &camera,
+                picture: frame.image.as_ref(),
+                model: &model,
+                positions: &x,
+                surface: &surface,
+                model_mask: &model_mask,
+                truth_mask: truth_mask.as_ref(),
+                true_cut: truth
+                    .as_ref()
+                    .and_then(|t| t.cut.get(f))
+                    .map(Vec::as_slice)
+                    .filter(|l| !l.is_empty()),
+                observations: obs,
+                cut_line: &detection.polyline,
+                targets: &predicted,
+                dice: d,
+                target_error_mm: tre * 1e3,
+            });
             if let Some(sink) = sink.as_deref_mut() {
                 sink.write(&canvas.image)?;
             }
@@ -769,22 +727,7 @@ pub fn run_with(
             }
         }
         if let Some(dir) = out {
-            // The mesh as it is now: cut, with its lips apart.
-            let name = format!("mesh_{f:04}.vtu");
-            let disp: Vec<[f64; 3]> = x
-                .iter()
-                .zip(model.mesh().rest())
-                .map(|(a, b)| [a[0] - b[0], a[1] - b[1], a[2] - b[2]])
-                .collect();
-            vtu::write_vtu(
-                &dir.join(&name),
-                &x,
-                model.mesh().tets(),
-                &[("displacement", &disp)],
-                &[],
-            )
-            .map_err(output)?;
-            pvd.push((f as f64, name));
+            pvd.push((f as f64, write_mesh(dir, f, &model)?));
         }
         frames.push(FrameRecord {
             frame: f,
@@ -804,42 +747,11 @@ pub fn run_with(
     bar.finish_and_clear();
     if let Some(dir) = out {
         vtu::write_pvd(&dir.join("mesh.pvd"), &pvd).map_err(output)?;
-        let mut csv = String::from(
-            "frame,dice,tre_mm,step_ms,observed,outlier_pairs,separation_points,cut_vertices\n",
-        );
-        for r in &frames {
-            csv.push_str(&format!(
-                "{},{:.5},{:.4},{:.3},{},{},{},{}\n",
-                r.frame,
-                r.dice,
-                r.tre_mm,
-                r.ms,
-                r.observed,
-                r.outlier_pairs,
-                r.separation_points,
-                r.cut_vertices
-            ));
-        }
-        std::fs::write(dir.join("frames.csv"), csv).map_err(output)?;
+        write_frames_csv(&dir.join("frames.csv"), &frames)?;
     }
-    // Surface distance, both ways: true surface points to the model, model nodes to the truth.
-    let surface_rms_final = match &truth {
-        Some(t) => {
-            let x = model.positions().to_vec();
-            let surface = model.mesh().surface();
-            let (gt_pos, gt_tri) = (&t.surface.positions, &t.surface.triangles);
-            let mut surface_nodes: Vec<u32> = surface.iter().flatten().copied().collect();
-            surface_nodes.sort_unstable();
-            surface_nodes.dedup();
-            let model_points: Vec<[f64; 3]> =
-                surface_nodes.iter().map(|&v| x[v as usize]).collect();
-            let a = surface_rms(gt_pos, &x, surface);
-            let b = surface_rms(&model_points, gt_pos, gt_tri);
-            let (na, nb) = (gt_pos.len() as f64, model_points.len() as f64);
-            ((a * a * na + b * b * nb) / (na + nb).max(1.0)).sqrt()
-        }
-        None => f64::NAN,
-    };
+    let surface_rms_final = truth
+        .as_ref()
+        .map_or(f64::NAN, |t| surface_distance(&t.surface, &model));
     detection.hausdorff_px = match (
         detection.polyline.is_empty(),
         truth.as_ref().and_then(|t| t.cut.last()),
@@ -869,6 +781,64 @@ pub fn run_with(
         missed: report.missed,
         model_bytes,
     })
+}
+
+/// RMS distance between the true surface and the model's, both ways (true surface points to
+/// the model's boundary, the model's boundary nodes to the true surface), metres.
+fn surface_distance(truth: &Surface, model: &Model<'_, f64>) -> f64 {
+    let x = model.positions();
+    let surface = model.mesh().surface();
+    let (gt_pos, gt_tri) = (&truth.positions, &truth.triangles);
+    let mut surface_nodes: Vec<u32> = surface.iter().flatten().copied().collect();
+    surface_nodes.sort_unstable();
+    surface_nodes.dedup();
+    let model_points: Vec<[f64; 3]> = surface_nodes.iter().map(|&v| x[v as usize]).collect();
+    let a = surface_rms(gt_pos, x, surface);
+    let b = surface_rms(&model_points, gt_pos, gt_tri);
+    let (na, nb) = (gt_pos.len() as f64, model_points.len() as f64);
+    ((a * a * na + b * b * nb) / (na + nb).max(1.0)).sqrt()
+}
+
+/// Writes the model as it is after frame `f` (cut, with its lips apart) as `mesh_<f>.vtu` in
+/// `dir`, with the displacement from rest; returns the file's name for the `.pvd` series.
+fn write_mesh(dir: &Path, f: usize, model: &Model<'_, f64>) -> Result<String, RunError> {
+    let name = format!("mesh_{f:04}.vtu");
+    let x = model.positions();
+    let disp: Vec<[f64; 3]> = x
+        .iter()
+        .zip(model.mesh().rest())
+        .map(|(a, b)| [a[0] - b[0], a[1] - b[1], a[2] - b[2]])
+        .collect();
+    vtu::write_vtu(
+        &dir.join(&name),
+        x,
+        model.mesh().tets(),
+        &[("displacement", &disp)],
+        &[],
+    )
+    .map_err(output)?;
+    Ok(name)
+}
+
+/// Writes the per-frame records as CSV.
+fn write_frames_csv(path: &Path, frames: &[FrameRecord]) -> Result<(), RunError> {
+    let mut csv = String::from(
+        "frame,dice,tre_mm,step_ms,observed,outlier_pairs,separation_points,cut_vertices\n",
+    );
+    for r in frames {
+        csv.push_str(&format!(
+            "{},{:.5},{:.4},{:.3},{},{},{},{}\n",
+            r.frame,
+            r.dice,
+            r.tre_mm,
+            r.ms,
+            r.observed,
+            r.outlier_pairs,
+            r.separation_points,
+            r.cut_vertices
+        ));
+    }
+    std::fs::write(path, csv).map_err(output)
 }
 
 /// Runs a scene and summarises it (with cutting on, and, for the `_uncut` figures, off).

@@ -1,0 +1,113 @@
+//! The overlay picture of one frame: what the model and the detector make of it, over the
+//! video picture (or, for a synthetic scene, over the true silhouette), with a title and a
+//! legend so that it reads on its own.
+
+use image::RgbImage;
+use incise_core::{Camera, Model, Observation};
+use nalgebra::Vector3;
+
+use crate::render::{Canvas, Mask, colour};
+
+/// Everything one frame's overlay shows.
+pub struct Overlay<'a> {
+    /// Scene name (title).
+    pub scene: &'a str,
+    /// Frame number (title).
+    pub frame: usize,
+    /// The scene's camera.
+    pub camera: &'a Camera<f64>,
+    /// The video picture, if there is one; otherwise the true silhouette is the background.
+    pub picture: Option<&'a RgbImage>,
+    /// The model after the frame.
+    pub model: &'a Model<'a, f64>,
+    /// Its node positions and boundary triangles (copied out of the model by the caller, who
+    /// also measures with them).
+    pub positions: &'a [[f64; 3]],
+    /// Boundary triangles of the model.
+    pub surface: &'a [[u32; 3]],
+    /// The model's silhouette.
+    pub model_mask: &'a Mask,
+    /// The true silhouette, with a ground truth.
+    pub truth_mask: Option<&'a Mask>,
+    /// The true cut in the image, with a ground truth.
+    pub true_cut: Option<&'a [[f64; 2]]>,
+    /// The frame's tracked features.
+    pub observations: &'a [Observation<f64>],
+    /// The detected cut line, pixels.
+    pub cut_line: &'a [[f64; 2]],
+    /// The internal targets where the model carries them.
+    pub targets: &'a [[f64; 3]],
+    /// Dice of the frame (NaN without a ground truth).
+    pub dice: f64,
+    /// Target error of the frame, millimetres (NaN without a ground truth).
+    pub target_error_mm: f64,
+}
+
+/// Draws the overlay: background (picture or true silhouette), the model tinted with its front
+/// wireframe, the true silhouette's outline over it, tracked and virtual features, the true
+/// and the detected cut with its separation points, the internal targets, then the title and
+/// a legend of what is drawn.
+pub fn draw(o: &Overlay<'_>) -> Canvas {
+    let mut canvas = match o.picture {
+        Some(image) => Canvas {
+            image: image.clone(),
+        },
+        None => {
+            let mut c = Canvas::new(o.model_mask.width, o.model_mask.height, colour::BACKGROUND);
+            if let Some(t) = o.truth_mask {
+                c.tint(t, colour::TRUTH, 1.0);
+            }
+            c
+        }
+    };
+    canvas.tint(o.model_mask, colour::MODEL, 0.3);
+    canvas.front_wireframe(o.camera, o.positions, o.surface, colour::MODEL);
+    // The true silhouette's outline on top, so that the model does not hide it.
+    if let Some(t) = o.truth_mask {
+        canvas.outline(t, colour::TRUTH_OUTLINE);
+    }
+    for obs in o.observations {
+        canvas.dot(obs.uv, 2.0, colour::FEATURE);
+    }
+    for slot in 0..o.model.features().len() {
+        if let Ok(uv) = o.model.projected_feature(slot) {
+            canvas.cross_mark(uv, 1.5, colour::VIRTUAL);
+        }
+    }
+    if let Some(line) = o.true_cut {
+        canvas.polyline(line, colour::TRUE_CUT, 1);
+    }
+    for p in o.model.detector().points() {
+        canvas.dot(*p, 1.0, colour::CUT);
+    }
+    canvas.polyline(o.cut_line, colour::CUT, 3);
+    for p in o.targets {
+        if let Ok(uv) = o.camera.project(&Vector3::from(*p), 0) {
+            canvas.cross_mark([uv.x, uv.y], 3.0, colour::TARGET);
+        }
+    }
+    let mut title = format!("{}  frame {}", o.scene, o.frame);
+    if o.dice.is_finite() {
+        title.push_str(&format!("  Dice {:.3}", o.dice));
+    }
+    if o.target_error_mm.is_finite() && !o.targets.is_empty() {
+        title.push_str(&format!("  target error {:.1} mm", o.target_error_mm));
+    }
+    canvas.title(&title);
+    let mut legend = vec![];
+    if o.truth_mask.is_some() {
+        legend.push((colour::TRUTH_OUTLINE, "true silhouette"));
+    }
+    legend.push((colour::MODEL, "model (mesh)"));
+    legend.push((colour::FEATURE, "tracked features"));
+    legend.push((colour::VIRTUAL, "model's features"));
+    if !o.targets.is_empty() {
+        legend.push((colour::TARGET, "internal targets"));
+    }
+    if o.true_cut.is_some() {
+        legend.push((colour::TRUE_CUT, "true cut"));
+    }
+    legend.push((colour::CUT, "detected cut"));
+    canvas.legend(&legend);
+    canvas
+}
