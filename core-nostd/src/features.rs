@@ -86,10 +86,32 @@ impl<'a, T: Real> Features<'a, T> {
         self.len
     }
 
-    /// Forgets every feature.
+    /// Makes this a copy of `other`'s features (ids, targets, observed flags), for a caller
+    /// that must give them back when a call fails. The duplicate stamps are scratch and stay
+    /// as they are (a stamp handed back would mark slots as seen in the next frame). Copies
+    /// `5 · len` entries. Both must have the same capacity (the model's copy does).
+    pub(crate) fn copy_from(&mut self, other: &Features<'_, T>) {
+        let n = other.len.min(self.active.len());
+        self.lookup[..n].copy_from_slice(&other.lookup[..n]);
+        self.target[..n].copy_from_slice(&other.target[..n]);
+        self.active[..n].copy_from_slice(&other.active[..n]);
+        self.len = n;
+    }
+
+    /// Marks `slot` as not observed in this frame (its virtual point cannot be seen).
     #[cfg_attr(not(feature = "cut"), allow(dead_code))]
-    pub(crate) fn forget(&mut self) {
-        self.len = 0;
+    pub(crate) fn set_unobserved(&mut self, slot: usize) {
+        if let Some(a) = self.active[..self.len].get_mut(slot) {
+            *a = 0;
+        }
+    }
+
+    /// The error for the virtual feature in `slot` lying behind the camera, naming its id.
+    pub(crate) fn behind_camera(&self, slot: usize) -> Error {
+        Error::FeatureBehindCamera {
+            slot,
+            id: self.id_of(slot).unwrap_or(u32::MAX),
+        }
     }
 
     /// Whether no feature is embedded.
