@@ -685,3 +685,46 @@ fn sparse_phases_keep_what_they_held_on_error() {
     factor.commit();
     assert_ne!(values(&factor), first);
 }
+
+#[test]
+fn duplicated_and_disconnected_elements_get_the_answer_the_readme_gives() {
+    let b = bench();
+    let caps = default_caps(&b);
+    let config = b.config(Strategy::Refactor);
+    // A tetrahedron listed twice: its faces are shared by too many tetrahedra.
+    let mut tets = b.tets.clone();
+    tets.push(tets[0]);
+    let mut storage = Storage::new(&caps);
+    let input = incise_core::MeshInput {
+        rest: &b.rest,
+        tets: &tets,
+        fixed: &b.fixed,
+    };
+    assert!(matches!(
+        storage.model(&input, &config).map(|_| ()),
+        Err(Error::NonManifold { .. })
+    ));
+    // A floating tetrahedron with no fixed node is accepted, and frames keep it finite.
+    let mut rest = b.rest.clone();
+    let base = rest.len() as u32;
+    rest.extend([
+        [0.1, 0.1, 0.0],
+        [0.11, 0.1, 0.0],
+        [0.1, 0.11, 0.0],
+        [0.1, 0.1, 0.01],
+    ]);
+    let mut tets = b.tets.clone();
+    tets.push([base, base + 1, base + 2, base + 3]);
+    let mut storage = Storage::new(&caps);
+    let input = incise_core::MeshInput {
+        rest: &rest,
+        tets: &tets,
+        fixed: &b.fixed,
+    };
+    let mut model = storage.model(&input, &config).unwrap();
+    model.embed_features(&b.frame0()).unwrap();
+    for t in 1..6 {
+        model.step(&b.frame(t, 3.0)).unwrap();
+    }
+    assert!(model.positions().iter().flatten().all(|c| c.is_finite()));
+}
