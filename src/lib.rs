@@ -2,6 +2,7 @@
 //! random generator, the whole sparse pipeline of the core driven from `Vec` storage, and the
 //! `faer` oracle it is checked against. Not part of the product.
 
+pub mod bench_model;
 pub mod oracle;
 pub use incise::rng;
 pub mod cutcheck;

@@ -99,7 +99,7 @@ fn every_cut_event_keeps_the_mesh_valid_and_everything_on_its_side() {
                 .map_err(at)
                 .unwrap();
             let mut line = vec![[0.0; 2]; 64];
-            let n = model.cut_polyline(&mut line);
+            let n = model.cut_polyline(&mut line).unwrap();
             sides += check_feature_sides(&model, &line[..n], margin)
                 .map_err(at)
                 .unwrap();

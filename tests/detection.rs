@@ -119,10 +119,25 @@ fn the_separation_surface_is_the_line_extruded_along_the_camera_rays() {
         model.step(&known).unwrap();
     }
     let mut line = [[0.0; 2]; 64];
-    let n = model.cut_polyline(&mut line);
+    let n = model.cut_polyline(&mut line).unwrap();
     assert!(n >= 2);
     let mut quads = [[[0.0; 3]; 4]; 64];
-    let m = model.separation_surface(&mut quads);
+    let m = model.separation_surface(&mut quads).unwrap();
+    // No silent truncation: a buffer one short is refused whole.
+    assert!(matches!(
+        model.cut_polyline(&mut line[..n - 1]),
+        Err(incise_core::Error::Capacity {
+            resource: incise_core::Resource::CutVertices,
+            ..
+        })
+    ));
+    assert!(matches!(
+        model.separation_surface(&mut quads[..m - 1]),
+        Err(incise_core::Error::Capacity {
+            resource: incise_core::Resource::CutSegments,
+            ..
+        })
+    ));
     assert_eq!(m, n - 1, "one quad per segment");
     let view = camera.view_direction();
     let centre = *camera.centre();

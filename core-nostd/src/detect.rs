@@ -17,6 +17,7 @@
 //! Cost per frame: bounded by [`DetectionWork::bound`] in the capacities.
 
 use crate::error::Error;
+use crate::error::Parameter;
 use crate::real::Real;
 
 /// Parameters of the detection and of the cut line.
@@ -109,44 +110,66 @@ impl<T: Real> DetectionConfig<T> {
         }
     }
 
-    /// Checks the ranges.
+    /// Checks the ranges, field by field in declaration order (`max_step` before `min_step`,
+    /// which must not exceed it).
     ///
     /// # Errors
-    /// [`Error::InvalidParameter`] with [`crate::Parameter::Detection`].
+    /// [`Error::InvalidParameter`] naming the first field out of its range
+    /// ([`Parameter::RadiusPx`] … [`Parameter::Depth`]).
     pub fn validate(&self) -> Result<(), Error> {
         let pos = |x: T| x.finite() && x > T::zero();
-        let ok = self.radius_px.finite()
-            && self.radius_px >= T::zero()
-            && pos(self.radius_spacings)
-            && self.max_surface_ratio.finite()
-            && (self.max_surface_ratio == T::zero() || self.max_surface_ratio >= T::one())
-            && pos(self.outlier_sigmas)
-            && pos(self.temporal_sigmas)
-            && self.min_difference_px.finite()
-            && self.min_difference_px >= T::zero()
-            && self.persistence >= 1
-            && self.persistence < 255
-            && self.init_points >= 2
-            && self.alpha_degrees.finite()
-            && self.alpha_degrees > T::zero()
-            && self.alpha_degrees <= T::of(90.0)
-            && pos(self.max_step)
-            && self.min_step.finite()
-            && self.min_step >= T::zero()
-            && self.min_step <= self.max_step
-            && self.min_support >= 1
-            && pos(self.line_tolerance)
-            && pos(self.max_line_spread)
-            && pos(self.max_outlier_fraction)
-            && self
-                .depth
-                .is_none_or(|d| d.iter().all(|c| c.finite()) && d.iter().any(|c| *c != T::zero()));
-        if ok {
-            Ok(())
-        } else {
-            Err(Error::InvalidParameter {
-                parameter: crate::error::Parameter::Detection,
-            })
+        let checks = [
+            (
+                Parameter::RadiusPx,
+                self.radius_px.finite() && self.radius_px >= T::zero(),
+            ),
+            (Parameter::RadiusSpacings, pos(self.radius_spacings)),
+            (
+                Parameter::MaxSurfaceRatio,
+                self.max_surface_ratio.finite()
+                    && (self.max_surface_ratio == T::zero() || self.max_surface_ratio >= T::one()),
+            ),
+            (Parameter::OutlierSigmas, pos(self.outlier_sigmas)),
+            (Parameter::TemporalSigmas, pos(self.temporal_sigmas)),
+            (
+                Parameter::MinDifferencePx,
+                self.min_difference_px.finite() && self.min_difference_px >= T::zero(),
+            ),
+            (
+                Parameter::Persistence,
+                self.persistence >= 1 && self.persistence < 255,
+            ),
+            (Parameter::InitPoints, self.init_points >= 2),
+            (
+                Parameter::AlphaDegrees,
+                self.alpha_degrees.finite()
+                    && self.alpha_degrees > T::zero()
+                    && self.alpha_degrees <= T::of(90.0),
+            ),
+            (Parameter::MaxStep, pos(self.max_step)),
+            (
+                Parameter::MinStep,
+                self.min_step.finite()
+                    && self.min_step >= T::zero()
+                    && self.min_step <= self.max_step,
+            ),
+            (Parameter::MinSupport, self.min_support >= 1),
+            (Parameter::LineTolerance, pos(self.line_tolerance)),
+            (Parameter::MaxLineSpread, pos(self.max_line_spread)),
+            (
+                Parameter::MaxOutlierFraction,
+                pos(self.max_outlier_fraction),
+            ),
+            (
+                Parameter::Depth,
+                self.depth.is_none_or(|d| {
+                    d.iter().all(|c| c.finite()) && d.iter().any(|c| *c != T::zero())
+                }),
+            ),
+        ];
+        match checks.iter().find(|(_, ok)| !ok) {
+            Some(&(parameter, _)) => Err(Error::InvalidParameter { parameter }),
+            None => Ok(()),
         }
     }
 }
@@ -403,7 +426,8 @@ mod detector {
         /// # Errors
         /// [`Error::Capacity`] naming [`Resource::Pairs`] if more pairs lie within the radius than
         /// the capacity holds (a smaller radius or a larger capacity is needed), or
-        /// [`Resource::Features`] for more slots than the storage holds; the detector is then empty.
+        /// [`Resource::Features`] for more slots than the storage holds. On error the detector
+        /// is as it was before the call (the pairs are counted before any is stored).
         pub fn init(
             &mut self,
             uv: &[[T; 2]],
@@ -423,10 +447,6 @@ mod detector {
             config: &DetectionConfig<T>,
             apart: impl Fn(usize, usize, T) -> bool,
         ) -> Result<(), Error> {
-            self.n_pairs = 0;
-            self.n_points = 0;
-            self.pairs_lost = 0;
-            self.features_filtered = 0;
             let n = uv.len();
             if n > self.feature_state.len() || d.len() != n {
                 return Err(Error::Capacity {
@@ -436,6 +456,10 @@ mod detector {
                 });
             }
             if n == 0 {
+                self.n_pairs = 0;
+                self.n_points = 0;
+                self.pairs_lost = 0;
+                self.features_filtered = 0;
                 return Ok(());
             }
             let (mut lo, mut hi) = ([uv[0][0], uv[0][1]], [uv[0][0], uv[0][1]]);
@@ -447,13 +471,12 @@ mod detector {
             }
             let (w, h) = (hi[0] - lo[0], hi[1] - lo[1]);
             let area = (w * h).max(T::one());
-            self.spacing = (area / T::of(n as f64)).sqrt();
-            self.radius = if config.radius_px > T::zero() {
+            let spacing = (area / T::of(n as f64)).sqrt();
+            let r = if config.radius_px > T::zero() {
                 config.radius_px
             } else {
-                config.radius_spacings * self.spacing
+                config.radius_spacings * spacing
             };
-            let r = self.radius;
             // Cells at least `r` wide, no more than the grid holds.
             let side = T::of(libm::floor(libm::sqrt(GRID_CELLS as f64)));
             let cell = r.max(w / side).max(h / side).max(T::EPS);
@@ -486,37 +509,56 @@ mod detector {
             }
             start[0] = 0;
             let r2 = r * r;
-            for (i, p) in uv.iter().enumerate() {
-                let (cx, cy) = cell_of(p);
-                for gy in cy.saturating_sub(1)..(cy + 2).min(ny) {
-                    for gx in cx.saturating_sub(1)..(cx + 2).min(nx) {
-                        let c = gy * nx + gx;
-                        for &j in &items[start[c] as usize..start[c + 1] as usize] {
-                            if (j as usize) <= i {
-                                continue;
-                            }
-                            let q = &uv[j as usize];
-                            let (dx, dy) = (q[0] - p[0], q[1] - p[1]);
-                            if dx * dx + dy * dy < r2
-                                && !apart(i, j as usize, (dx * dx + dy * dy).sqrt())
-                            {
-                                if self.n_pairs == self.pairs.len() {
-                                    let needed = self.n_pairs + 1;
-                                    self.n_pairs = 0;
-                                    return Err(Error::Capacity {
-                                        resource: Resource::Pairs,
-                                        needed,
-                                        available: self.pairs.len(),
-                                    });
+            // Every pair within the radius, in a fixed order: counted first, so that a capacity
+            // error leaves the detector as it was, then stored.
+            let visit_pairs = |visit: &mut dyn FnMut(u32, u32)| {
+                for (i, p) in uv.iter().enumerate() {
+                    let (cx, cy) = cell_of(p);
+                    for gy in cy.saturating_sub(1)..(cy + 2).min(ny) {
+                        for gx in cx.saturating_sub(1)..(cx + 2).min(nx) {
+                            let c = gy * nx + gx;
+                            for &j in &items[start[c] as usize..start[c + 1] as usize] {
+                                if (j as usize) <= i {
+                                    continue;
                                 }
-                                self.pairs[self.n_pairs] = [i as u32, j];
-                                self.pair_state[self.n_pairs] = 0;
-                                self.n_pairs += 1;
+                                let q = &uv[j as usize];
+                                let (dx, dy) = (q[0] - p[0], q[1] - p[1]);
+                                if dx * dx + dy * dy < r2
+                                    && !apart(i, j as usize, (dx * dx + dy * dy).sqrt())
+                                {
+                                    visit(i as u32, j);
+                                }
                             }
                         }
                     }
                 }
+            };
+            let mut count = 0usize;
+            visit_pairs(&mut |_, _| count += 1);
+            if count > self.pairs.len() {
+                return Err(Error::Capacity {
+                    resource: Resource::Pairs,
+                    needed: count,
+                    available: self.pairs.len(),
+                });
             }
+            self.n_pairs = 0;
+            self.n_points = 0;
+            self.pairs_lost = 0;
+            self.features_filtered = 0;
+            self.spacing = spacing;
+            self.radius = r;
+            let (pairs, pair_state, n_pairs) =
+                (&mut *self.pairs, &mut *self.pair_state, &mut self.n_pairs);
+            visit_pairs(&mut |i, j| {
+                if let (Some(pair), Some(state)) =
+                    (pairs.get_mut(*n_pairs), pair_state.get_mut(*n_pairs))
+                {
+                    *pair = [i, j];
+                    *state = 0;
+                    *n_pairs += 1;
+                }
+            });
             // Each feature's pairs, by counting sort.
             let start = &mut self.incident_start[..=n];
             start.fill(0);

@@ -46,6 +46,10 @@ pub enum Resource {
     Unknowns,
     /// Internal targets carried by the model.
     Targets,
+    /// Slots of the embedded features (`0..` the number embedded), as opposed to their ids.
+    FeatureSlots,
+    /// Segments of the cut line (quadrilaterals of the separation surface).
+    CutSegments,
 }
 
 impl fmt::Display for Resource {
@@ -69,6 +73,8 @@ impl fmt::Display for Resource {
             Resource::CutVertices => "cut-line vertices",
             Resource::Unknowns => "unknowns",
             Resource::Targets => "internal targets",
+            Resource::FeatureSlots => "feature slots",
+            Resource::CutSegments => "cut-line segments",
         };
         f.write_str(s)
     }
@@ -92,12 +98,46 @@ pub enum Parameter {
     Intrinsics,
     /// Camera pose (finite, rotation orthonormal with determinant 1).
     Pose,
-    /// Iteration counts of the solver (Newton, line search, PCG): positive and bounded.
-    Iterations,
+    /// Newton iterations per frame (1 to [`crate::solve::MAX_NEWTON_ITERATIONS`]).
+    NewtonIterations,
+    /// Line-search trials per Newton step (1 to [`crate::solve::MAX_LINE_SEARCH_STEPS`]).
+    LineSearchSteps,
+    /// PCG iterations of [`crate::Strategy::Frozen`] (1 to [`crate::solve::MAX_PCG_ITERATIONS`]).
+    PcgIterations,
     /// Image margin beyond which an observation is rejected (non-negative).
     ImageMargin,
-    /// Cut detection parameters (positive thresholds, `α` in `(0, 90]` degrees, steps ordered).
-    Detection,
+    /// Cut detection, `radius_px`: neighbour radius in pixels (finite, non-negative; 0 derives it).
+    RadiusPx,
+    /// Cut detection, `radius_spacings`: neighbour radius in feature spacings (positive, finite).
+    RadiusSpacings,
+    /// Cut detection, `max_surface_ratio`: surface-to-image distance ratio of a pair (0, or finite and at least 1).
+    MaxSurfaceRatio,
+    /// Cut detection, `outlier_sigmas`: outlier threshold of a pair, robust deviations (positive, finite).
+    OutlierSigmas,
+    /// Cut detection, `temporal_sigmas`: threshold of the temporal filter, robust deviations (positive, finite).
+    TemporalSigmas,
+    /// Cut detection, `min_difference_px`: floor of an outlier difference, pixels (finite, non-negative).
+    MinDifferencePx,
+    /// Cut detection, `persistence`: frames a pair must stay an outlier (1 to 254).
+    Persistence,
+    /// Cut detection, `init_points`: separation points that start the cut line (at least 2).
+    InitPoints,
+    /// Cut detection, `alpha_degrees`: angular restriction of a front, degrees (in `(0, 90]`).
+    AlphaDegrees,
+    /// Cut detection, `min_step`: shortest advance of a front, spacings (finite, non-negative, at most `max_step`).
+    MinStep,
+    /// Cut detection, `max_step`: longest advance of a front, spacings (positive, finite).
+    MaxStep,
+    /// Cut detection, `min_support`: separation points needed to advance a front (at least 1).
+    MinSupport,
+    /// Cut detection, `line_tolerance`: distance of a point counted for the line fit, spacings (positive, finite).
+    LineTolerance,
+    /// Cut detection, `max_line_spread`: spread of the points across the fitted line (positive, finite).
+    MaxLineSpread,
+    /// Cut detection, `max_outlier_fraction`: fraction of outlier pairs that makes a feature a tracking failure (positive, finite).
+    MaxOutlierFraction,
+    /// Cut detection, `depth`: extrusion direction of the cut (finite, not zero).
+    Depth,
 }
 
 impl fmt::Display for Parameter {
@@ -112,11 +152,38 @@ impl fmt::Display for Parameter {
                 "camera intrinsics need positive focal lengths, a finite centre and a positive image size"
             }
             Parameter::Pose => "camera pose must be finite with an orthonormal rotation",
-            Parameter::Iterations => "iteration counts must be positive and within their bounds",
-            Parameter::ImageMargin => "image margin must be non-negative and finite",
-            Parameter::Detection => {
-                "detection needs positive thresholds, an angle in (0, 90] degrees and min step <= max step"
+            Parameter::NewtonIterations => {
+                "newton_iterations must lie in 1..=MAX_NEWTON_ITERATIONS"
             }
+            Parameter::LineSearchSteps => "line_search_steps must lie in 1..=MAX_LINE_SEARCH_STEPS",
+            Parameter::PcgIterations => "pcg_iterations must lie in 1..=MAX_PCG_ITERATIONS",
+            Parameter::ImageMargin => "image margin must be non-negative and finite",
+            Parameter::RadiusPx => {
+                "detection radius_px must be finite and non-negative (0 derives it from the features' density)"
+            }
+            Parameter::RadiusSpacings => "detection radius_spacings must be positive and finite",
+            Parameter::MaxSurfaceRatio => {
+                "detection max_surface_ratio must be 0 or finite and at least 1"
+            }
+            Parameter::OutlierSigmas => "detection outlier_sigmas must be positive and finite",
+            Parameter::TemporalSigmas => "detection temporal_sigmas must be positive and finite",
+            Parameter::MinDifferencePx => {
+                "detection min_difference_px must be finite and non-negative"
+            }
+            Parameter::Persistence => "detection persistence must lie in 1..=254",
+            Parameter::InitPoints => "detection init_points must be at least 2",
+            Parameter::AlphaDegrees => "detection alpha_degrees must lie in (0, 90] degrees",
+            Parameter::MinStep => {
+                "detection min_step must be finite, non-negative and at most max_step"
+            }
+            Parameter::MaxStep => "detection max_step must be positive and finite",
+            Parameter::MinSupport => "detection min_support must be at least 1",
+            Parameter::LineTolerance => "detection line_tolerance must be positive and finite",
+            Parameter::MaxLineSpread => "detection max_line_spread must be positive and finite",
+            Parameter::MaxOutlierFraction => {
+                "detection max_outlier_fraction must be positive and finite"
+            }
+            Parameter::Depth => "detection depth must be finite and not zero",
         };
         f.write_str(s)
     }
@@ -236,8 +303,17 @@ pub enum Error {
     NoFixedNodes,
     /// A point lies at or behind the camera's plane of projection.
     BehindCamera {
-        /// Index of the point (node or feature, per the call).
+        /// Index of the point, as the caller of [`crate::Camera::project`] numbered it (a
+        /// virtual feature is reported as [`Error::FeatureBehindCamera`] instead).
         index: usize,
+    },
+    /// The virtual feature in `slot` (tracked as `id`) lies at or behind the camera's plane of
+    /// projection, so its spring cannot be evaluated.
+    FeatureBehindCamera {
+        /// Slot of the feature in the model (see [`crate::features::Features::ids`]).
+        slot: usize,
+        /// Its id, as the frames name it.
+        id: u32,
     },
     /// A frame names a feature id that was not registered at frame 0.
     UnknownFeature {
@@ -329,6 +405,10 @@ impl fmt::Display for Error {
             Error::BehindCamera { index } => {
                 write!(f, "point {index} lies at or behind the camera")
             }
+            Error::FeatureBehindCamera { slot, id } => write!(
+                f,
+                "virtual feature of id {id} (slot {slot}) lies at or behind the camera"
+            ),
             Error::UnknownFeature { id } => write!(f, "unknown feature id {id}"),
             Error::DuplicateFeature { id } => write!(f, "feature id {id} appears twice"),
             Error::OutsideImage { id } => {

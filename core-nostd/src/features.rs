@@ -3,6 +3,10 @@
 //! observation. This module holds the observation side (ids, the latest pixel of each feature,
 //! whether it is seen in this frame) and places the features at frame 0.
 
+// The reader of the frames: every index here comes from input (ids, slots, counts), so indexing
+// that could panic is denied and each access is checked (issue 13).
+#![cfg_attr(not(test), deny(clippy::indexing_slicing))]
+
 use nalgebra::Vector3;
 
 use crate::camera::Camera;
@@ -86,10 +90,34 @@ impl<'a, T: Real> Features<'a, T> {
         self.len
     }
 
-    /// Forgets every feature.
+    /// Makes this a copy of `other`'s features (ids, targets, observed flags), for a caller
+    /// that must give them back when a call fails. The duplicate stamps are scratch and stay
+    /// as they are (a stamp handed back would mark slots as seen in the next frame). Copies
+    /// `5 · len` entries. Both must have the same capacity (the model's copy does).
+    pub(crate) fn copy_from(&mut self, other: &Features<'_, T>) {
+        let n = other.len.min(self.active.len());
+        copy_prefix(self.lookup, other.lookup, n);
+        copy_prefix(self.target, other.target, n);
+        copy_prefix(self.active, other.active, n);
+        self.len = n;
+    }
+
+    /// Marks `slot` as not observed in this frame (its virtual point cannot be seen).
     #[cfg_attr(not(feature = "cut"), allow(dead_code))]
-    pub(crate) fn forget(&mut self) {
-        self.len = 0;
+    pub(crate) fn set_unobserved(&mut self, slot: usize) {
+        if slot < self.len
+            && let Some(a) = self.active.get_mut(slot)
+        {
+            *a = 0;
+        }
+    }
+
+    /// The error for the virtual feature in `slot` lying behind the camera, naming its id.
+    pub(crate) fn behind_camera(&self, slot: usize) -> Error {
+        Error::FeatureBehindCamera {
+            slot,
+            id: self.id_of(slot).unwrap_or(u32::MAX),
+        }
     }
 
     /// Whether no feature is embedded.
@@ -128,12 +156,16 @@ impl<'a, T: Real> Features<'a, T> {
         check_observations(camera, obs, margin)?;
         // The duplicate check sorts the ids in the stamp array, scratch between frames.
         self.stamp_value = 0;
-        let ids = &mut self.stamp[..obs.len()];
+        // `obs.len()` fits the capacity, checked above.
+        let ids = self.stamp.get_mut(..obs.len()).unwrap_or_default();
         for (slot, o) in ids.iter_mut().zip(obs) {
             *slot = o.id;
         }
         ids.sort_unstable();
-        let duplicate = ids.windows(2).find(|w| w[0] == w[1]).map(|w| w[0]);
+        let duplicate = ids
+            .windows(2)
+            .find(|w| w.first() == w.get(1))
+            .and_then(|w| w.first().copied());
         self.stamp.fill(0);
         if let Some(id) = duplicate {
             return Err(Error::DuplicateFeature { id });
@@ -151,9 +183,14 @@ impl<'a, T: Real> Features<'a, T> {
                 Some((tet, weights)) => {
                     // Cannot overflow: `obs.len()` fits the embedding's capacity.
                     embedding.push(tet, weights, Resource::Features)?;
-                    self.lookup[n] = [o.id, n as u32];
-                    self.target[n] = o.uv;
-                    self.active[n] = 1;
+                    let overflow = Error::Capacity {
+                        resource: Resource::Features,
+                        needed: n + 1,
+                        available: capacity,
+                    };
+                    *self.lookup.get_mut(n).ok_or(overflow)? = [o.id, n as u32];
+                    *self.target.get_mut(n).ok_or(overflow)? = o.uv;
+                    *self.active.get_mut(n).ok_or(overflow)? = 1;
                     n += 1;
                 }
                 None => {
@@ -163,7 +200,7 @@ impl<'a, T: Real> Features<'a, T> {
             }
         }
         self.len = n;
-        self.lookup[..n].sort_unstable();
+        self.lookup.get_mut(..n).unwrap_or_default().sort_unstable();
         report.embedded = n;
         Ok(report)
     }
@@ -192,19 +229,23 @@ impl<'a, T: Real> Features<'a, T> {
         }
         self.stamp_value += 1;
         for o in obs {
-            let slot = self
-                .slot_of(o.id)
-                .ok_or(Error::UnknownFeature { id: o.id })?;
-            if self.stamp[slot] == self.stamp_value {
+            let unknown = Error::UnknownFeature { id: o.id };
+            let slot = self.slot_of(o.id).ok_or(unknown)?;
+            let stamp = self.stamp.get_mut(slot).ok_or(unknown)?;
+            if *stamp == self.stamp_value {
                 return Err(Error::DuplicateFeature { id: o.id });
             }
-            self.stamp[slot] = self.stamp_value;
+            *stamp = self.stamp_value;
         }
-        self.active[..self.len].fill(0);
+        // Every id is known: from here nothing fails.
+        self.active.get_mut(..self.len).unwrap_or_default().fill(0);
         for o in obs {
-            if let Some(slot) = self.slot_of(o.id) {
-                self.target[slot] = o.uv;
-                self.active[slot] = 1;
+            if let Some(slot) = self.slot_of(o.id)
+                && let (Some(target), Some(active)) =
+                    (self.target.get_mut(slot), self.active.get_mut(slot))
+            {
+                *target = o.uv;
+                *active = 1;
             }
         }
         Ok(obs.len())
@@ -212,16 +253,14 @@ impl<'a, T: Real> Features<'a, T> {
 
     /// Slot of feature `id`, if embedded.
     pub fn slot_of(&self, id: u32) -> Option<usize> {
-        let lookup = &self.lookup[..self.len];
-        lookup
-            .binary_search_by_key(&id, |e| e[0])
-            .ok()
-            .map(|k| lookup[k][1] as usize)
+        let lookup = self.ids();
+        let k = lookup.binary_search_by_key(&id, |e| e[0]).ok()?;
+        lookup.get(k).map(|e| e[1] as usize)
     }
 
     /// Id of the feature in `slot`.
     pub fn id_of(&self, slot: usize) -> Option<u32> {
-        self.lookup[..self.len]
+        self.ids()
             .iter()
             .find(|e| e[1] as usize == slot)
             .map(|e| e[0])
@@ -229,17 +268,24 @@ impl<'a, T: Real> Features<'a, T> {
 
     /// `(id, slot)` pairs, sorted by id.
     pub fn ids(&self) -> &[[u32; 2]] {
-        &self.lookup[..self.len]
+        self.lookup.get(..self.len).unwrap_or_default()
     }
 
     /// Target pixel of each slot (the latest observation).
     pub fn targets(&self) -> &[[T; 2]] {
-        &self.target[..self.len]
+        self.target.get(..self.len).unwrap_or_default()
     }
 
     /// Whether each slot is observed in the current frame (1) or not (0).
     pub fn active(&self) -> &[u32] {
-        &self.active[..self.len]
+        self.active.get(..self.len).unwrap_or_default()
+    }
+}
+
+/// Copies the first `n` entries of `from` into `to` (as many as both hold).
+fn copy_prefix<X: Copy>(to: &mut [X], from: &[X], n: usize) {
+    for (a, b) in to.iter_mut().zip(from).take(n) {
+        *a = *b;
     }
 }
 
@@ -271,13 +317,14 @@ pub(crate) fn first_hit<T: Real>(
     uv: [T; 2],
 ) -> Option<(u32, [T; 4])> {
     let (origin, dir) = camera.ray(uv[0], uv[1]);
-    let p = |v: u32| -> Vector3<T> {
-        let q = x[v as usize];
-        Vector3::new(q[0], q[1], q[2])
-    };
+    // Node indices of the mesh are validated when it is loaded; a missing one is skipped.
+    let p = |v: u32| -> Option<Vector3<T>> { x.get(v as usize).map(|q| Vector3::from(*q)) };
     let mut best: Option<(T, usize)> = None;
     for (s, tri) in mesh.surface().iter().enumerate() {
-        if let Some(t) = ray_triangle(&origin, &dir, &p(tri[0]), &p(tri[1]), &p(tri[2]))
+        let (Some(a), Some(b), Some(c)) = (p(tri[0]), p(tri[1]), p(tri[2])) else {
+            continue;
+        };
+        if let Some(t) = ray_triangle(&origin, &dir, &a, &b, &c)
             && best.is_none_or(|(b, _)| t < b)
         {
             best = Some((t, s));
@@ -287,7 +334,12 @@ pub(crate) fn first_hit<T: Real>(
     let hit = origin + dir * t;
     let tet_index = *mesh.surface_tet().get(s)?;
     let tet = mesh.tets().get(tet_index as usize)?;
-    let corners = tet.map(|v| x[v as usize]);
+    let corners = [
+        *x.get(tet[0] as usize)?,
+        *x.get(tet[1] as usize)?,
+        *x.get(tet[2] as usize)?,
+        *x.get(tet[3] as usize)?,
+    ];
     // The hit lies on a face, so one weight is zero up to rounding: clamp and renormalise.
     let w = barycentric(&corners, [hit.x, hit.y, hit.z])?;
     Some((tet_index, clamp_weights(w)?))

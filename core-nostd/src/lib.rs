@@ -35,6 +35,20 @@
 //! - [`error`]: the one error type of the crate.
 #![no_std]
 #![forbid(unsafe_code)]
+// No panic reachable from the public API (issue 13): the panicking shortcuts are denied outside
+// the unit tests. Indexing and arithmetic are not linted crate-wide (the README's
+// "Reliability" section says how input-derived indices and sizes are checked instead).
+#![cfg_attr(
+    not(test),
+    deny(
+        clippy::unwrap_used,
+        clippy::expect_used,
+        clippy::panic,
+        clippy::todo,
+        clippy::unimplemented,
+        clippy::unreachable
+    )
+)]
 // Numerical kernels index several arrays with one loop variable; iterator chains would hide
 // which entries meet.
 #![allow(clippy::needless_range_loop)]

@@ -92,18 +92,26 @@ impl<T: Real> SolverConfig<T> {
     /// # Errors
     /// [`Error::InvalidParameter`] naming the first parameter out of range.
     pub fn validate(&self) -> Result<(), Error> {
-        let iterations_ok = (1..=MAX_NEWTON_ITERATIONS).contains(&self.newton_iterations)
-            && (1..=MAX_LINE_SEARCH_STEPS).contains(&self.line_search_steps)
-            && match self.strategy {
-                Strategy::Refactor => true,
-                Strategy::Frozen { pcg_iterations } => {
-                    (1..=MAX_PCG_ITERATIONS).contains(&pcg_iterations)
-                }
-            };
-        if !iterations_ok {
-            return Err(Error::InvalidParameter {
-                parameter: Parameter::Iterations,
-            });
+        let pcg_ok = match self.strategy {
+            Strategy::Refactor => true,
+            Strategy::Frozen { pcg_iterations } => {
+                (1..=MAX_PCG_ITERATIONS).contains(&pcg_iterations)
+            }
+        };
+        for (parameter, ok) in [
+            (
+                Parameter::NewtonIterations,
+                (1..=MAX_NEWTON_ITERATIONS).contains(&self.newton_iterations),
+            ),
+            (
+                Parameter::LineSearchSteps,
+                (1..=MAX_LINE_SEARCH_STEPS).contains(&self.line_search_steps),
+            ),
+            (Parameter::PcgIterations, pcg_ok),
+        ] {
+            if !ok {
+                return Err(Error::InvalidParameter { parameter });
+            }
         }
         if !(self.spring_stiffness.finite() && self.spring_stiffness > T::zero()) {
             return Err(Error::InvalidParameter {
@@ -179,6 +187,9 @@ pub struct WorkCount {
     pub matvec_flops: u64,
     /// Energy evaluations of the line search.
     pub energy_evaluations: u32,
+    /// Entries copied aside so that a failing frame can give the model back as it was (the
+    /// features' observations and the damping reference, see [`crate::Model::step`]).
+    pub state_copies: u64,
 }
 
 /// Everything the assembly reads, borrowed from the model.
@@ -245,7 +256,7 @@ impl<T: Real> Problem<'_, '_, T> {
     /// Energy at positions `x`.
     ///
     /// # Errors
-    /// [`Error::BehindCamera`] if a virtual feature cannot be projected.
+    /// [`Error::FeatureBehindCamera`] if a virtual feature cannot be projected.
     pub fn energy(&self, x: &[[T; 3]], work: &mut WorkCount) -> Result<Energies<T>, Error> {
         let mut e = Energies::default();
         for t in 0..self.mesh.n_tets() {
@@ -272,7 +283,10 @@ impl<T: Real> Problem<'_, '_, T> {
                 .embedding
                 .position(slot, self.mesh, x)
                 .ok_or(Error::NoFeatures)?;
-            let uv = self.camera.project(&Vector3::from(p), slot)?;
+            let uv = self
+                .camera
+                .project(&Vector3::from(p), slot)
+                .map_err(|_| self.features.behind_camera(slot))?;
             let target = self.features.targets()[slot];
             let (du, dv) = (target[0] - uv.x, target[1] - uv.y);
             sum += half_k * (du * du + dv * dv);
@@ -319,7 +333,7 @@ impl<T: Real> Problem<'_, '_, T> {
     /// given, the positive definite Hessian into the pattern's values; returns the energy.
     ///
     /// # Errors
-    /// [`Error::BehindCamera`] if a virtual feature cannot be projected.
+    /// [`Error::FeatureBehindCamera`] if a virtual feature cannot be projected.
     pub fn assemble(
         &self,
         x: &[[T; 3]],
@@ -392,7 +406,10 @@ impl<T: Real> Problem<'_, '_, T> {
                 .embedding
                 .position(slot, self.mesh, x)
                 .ok_or(Error::NoFeatures)?;
-            let (uv, j) = self.camera.project_with_jacobian(&Vector3::from(p), slot)?;
+            let (uv, j) = self
+                .camera
+                .project_with_jacobian(&Vector3::from(p), slot)
+                .map_err(|_| self.features.behind_camera(slot))?;
             let target = self.features.targets()[slot];
             let r = nalgebra::Vector2::new(target[0] - uv.x, target[1] - uv.y);
             e.spring += T::of(0.5) * k * r.norm_squared();

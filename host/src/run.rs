@@ -674,7 +674,10 @@ pub fn run_with(
         }
         let x = model.positions().to_vec();
         let surface = model.mesh().surface().to_vec();
-        let n_line = model.cut_polyline(&mut polyline);
+        // `polyline` holds `cut_vertices` entries: the whole line always fits.
+        let n_line = model
+            .cut_polyline(&mut polyline)
+            .map_err(core(format!("frame {f}: cut line")))?;
         detection.polyline = polyline[..n_line].to_vec();
         let model_mask = silhouette(&camera, &x, &surface);
         let truth_mask = match &truth {

@@ -29,7 +29,7 @@ use crate::cutline::{CutLine, CutLineReport, LineWork};
 use crate::detect::DetectionConfig;
 #[cfg(feature = "cut")]
 use crate::detect::{DetectionReport, DetectionWork, Detector};
-use crate::embed::{interpolate, locate_at_rest};
+use crate::embed::{Embedding, interpolate, locate_at_rest};
 use crate::error::{Error, Resource};
 use crate::features::{EmbedReport, Features, Observation};
 use crate::material::Lame;
@@ -152,9 +152,22 @@ pub struct Model<'a, T: Real> {
     #[cfg(feature = "cut")]
     work: &'a mut [u32],
     features: Features<'a, T>,
+    /// What a failing call gives back (no meaning between calls).
+    saved: Saved<'a, T>,
     #[cfg(feature = "cut")]
     cut: CutState<'a, T>,
     frame: u32,
+}
+
+/// Copies of the state that [`Model::step`] and [`Model::embed_features`] overwrite before they
+/// know whether they succeed, so that a failure can put it back bit for bit.
+struct Saved<'a, T> {
+    /// The features' ids, targets and observed flags.
+    features: Features<'a, T>,
+    /// The virtual features' embedding.
+    embedding: Embedding<'a, T>,
+    /// The damping reference (positions before the last frame).
+    previous: &'a mut [[T; 3]],
 }
 
 /// The detector, the cut line and their scratch.
@@ -216,6 +229,11 @@ impl<'a, T: Real> Model<'a, T> {
             cursor: is.take(dofs)?,
         };
         let features = Features::new(caps.features, &mut rs, &mut is)?;
+        let saved = Saved {
+            features: Features::new(caps.features, &mut rs, &mut is)?,
+            embedding: Embedding::with_capacity(caps.features, &mut rs, &mut is)?,
+            previous: rs.take(3 * caps.mesh.nodes)?.as_chunks_mut::<3>().0,
+        };
         #[cfg(feature = "cut")]
         let cut = CutState {
             detector: Detector::new(caps.features, caps.pairs, &mut rs, &mut is)?,
@@ -242,6 +260,7 @@ impl<'a, T: Real> Model<'a, T> {
             #[cfg(feature = "cut")]
             work,
             features,
+            saved,
             #[cfg(feature = "cut")]
             cut,
             frame: 0,
@@ -296,13 +315,14 @@ impl<'a, T: Real> Model<'a, T> {
     /// World position of the virtual feature in `slot`, metres.
     ///
     /// # Errors
-    /// [`Error::IndexOutOfRange`] naming [`Resource::Features`] for a slot not in use.
+    /// [`Error::IndexOutOfRange`] naming [`Resource::FeatureSlots`] for a slot not in use
+    /// (slots are `0..` the number embedded; [`Features::slot_of`] gives a feature id's).
     pub fn feature_position(&self, slot: usize) -> Result<[T; 3], Error> {
         self.live
             .features
             .position(slot, &self.live.mesh, self.positions())
             .ok_or(Error::IndexOutOfRange {
-                resource: Resource::Features,
+                resource: Resource::FeatureSlots,
                 position: slot,
                 index: slot,
                 bound: self.live.features.len(),
@@ -312,10 +332,14 @@ impl<'a, T: Real> Model<'a, T> {
     /// Current pixel of the virtual feature in `slot`.
     ///
     /// # Errors
-    /// As [`Model::feature_position`]; [`Error::BehindCamera`].
+    /// As [`Model::feature_position`]; [`Error::FeatureBehindCamera`].
     pub fn projected_feature(&self, slot: usize) -> Result<[T; 2], Error> {
         let p = self.feature_position(slot)?;
-        let uv = self.config.camera.project(&Vector3::from(p), slot)?;
+        let uv = self
+            .config
+            .camera
+            .project(&Vector3::from(p), slot)
+            .map_err(|_| self.features.behind_camera(slot))?;
         Ok([uv.x, uv.y])
     }
 
@@ -386,13 +410,46 @@ impl<'a, T: Real> Model<'a, T> {
     }
 
     /// Embeds the features of frame 0 (see [`Features::embed`]) at the current positions,
-    /// replacing any held before, and prepares the frozen factor when that strategy is
-    /// configured.
+    /// replacing any held before, sets up the cut detection on them (`cut` feature: neighbour
+    /// pairs, a fresh cut line, frame count back to 0) and prepares the frozen factor when
+    /// that strategy is configured.
+    ///
+    /// All or nothing: the features and their embedding are copied aside first (once, `9 ·`
+    /// [`Capacities::features`] entries at most), the detector counts its pairs before it
+    /// stores any, and the factor keeps its previous values until the call succeeds
+    /// ([`LdlFactor::checkpoint`]).
     ///
     /// # Errors
-    /// As [`Features::embed`]; [`Error::NoFeatures`] if no ray hits the model. On error the
-    /// model is as before.
+    /// As [`Features::embed`]; [`Error::NoFeatures`] if no ray hits the model;
+    /// [`Error::FeatureBehindCamera`] for a virtual feature that cannot be projected;
+    /// [`Error::Capacity`] naming [`Resource::Pairs`] for more neighbour pairs than
+    /// [`Capacities::pairs`]; the factorization's errors for the frozen factor. On any error
+    /// the model is exactly as before the call ([`Model::fingerprint`] unchanged).
     pub fn embed_features(&mut self, frame0: &[Observation<T>]) -> Result<EmbedReport, Error> {
+        self.saved.features.copy_from(&self.features);
+        self.saved.embedding.copy_from(&self.live.features);
+        let holds = self.holds;
+        self.factor.checkpoint();
+        match self.embed_features_uncommitted(frame0) {
+            Ok(report) => {
+                self.factor.commit();
+                Ok(report)
+            }
+            Err(e) => {
+                self.features.copy_from(&self.saved.features);
+                self.live.features.copy_from(&self.saved.embedding);
+                self.holds = holds;
+                self.factor.rollback();
+                Err(e)
+            }
+        }
+    }
+
+    /// [`Model::embed_features`] without the roll-back: what fails comes before what cannot.
+    fn embed_features_uncommitted(
+        &mut self,
+        frame0: &[Observation<T>],
+    ) -> Result<EmbedReport, Error> {
         let margin = self.config.solver.image_margin;
         let n = self.live.mesh.n_nodes();
         let report = self.features.embed(
@@ -406,18 +463,25 @@ impl<'a, T: Real> Model<'a, T> {
         if report.embedded == 0 {
             return Err(Error::NoFeatures);
         }
-        self.holds = FactorHolds::Nothing;
         #[cfg(feature = "cut")]
         {
-            self.frame = 0;
-            self.cut.line.reset();
-            let n = self.features.len();
-            for slot in 0..n {
+            // Scratch: the projections and residuals at frame 0.
+            for slot in 0..self.features.len() {
                 let uv = self.projected_feature(slot)?;
                 let t = self.features.targets()[slot];
                 self.cut.pixels[slot] = uv;
                 self.cut.residuals[slot] = [t[0] - uv[0], t[1] - uv[1]];
             }
+        }
+        // The frozen factor is part of setting up, not of the first frame, so that every frame
+        // costs the same.
+        self.holds = FactorHolds::Nothing;
+        if let Strategy::Frozen { .. } = self.config.solver.strategy {
+            self.prepare_frozen(&mut WorkCount::default())?;
+        }
+        #[cfg(feature = "cut")]
+        {
+            let n = self.features.len();
             let (live, camera) = (&self.live, &self.config.camera);
             let focal = camera.intrinsics().fx;
             let at = |slot: usize| {
@@ -427,7 +491,8 @@ impl<'a, T: Real> Model<'a, T> {
             };
             // Pairs across a fold or a grazing slope are left out (the ratio's doc says why).
             let ratio = self.config.detection.max_surface_ratio;
-            let init = self.cut.detector.init_on_surface(
+            // The last step that can fail: it leaves the detector as it was on error.
+            self.cut.detector.init_on_surface(
                 &self.cut.pixels[..n],
                 &self.cut.residuals[..n],
                 &self.config.detection,
@@ -438,18 +503,9 @@ impl<'a, T: Real> Model<'a, T> {
                     }
                     _ => false,
                 },
-            );
-            if let Err(e) = init {
-                // The features are placed but cannot be watched for a cut: refuse them all.
-                self.live.features.clear();
-                self.features.forget();
-                return Err(e);
-            }
-        }
-        // The frozen factor is part of setting up, not of the first frame, so that every frame
-        // costs the same.
-        if let Strategy::Frozen { .. } = self.config.solver.strategy {
-            self.prepare_frozen(&mut WorkCount::default())?;
+            )?;
+            self.frame = 0;
+            self.cut.line.reset();
         }
         Ok(report)
     }
@@ -468,24 +524,46 @@ impl<'a, T: Real> Model<'a, T> {
     /// ([`StepReport::cut`]); a cut that cannot be made (a capacity, a factorization) is
     /// reported there and leaves the mesh as it was, without failing the frame.
     ///
+    /// All or nothing: before the frame is taken, the features' observations (`5 ·` features
+    /// entries) and the damping reference (`3 ·` nodes) are copied aside, and the factor keeps
+    /// its previous values ([`LdlFactor::checkpoint`], no copy); a frame that fails puts them
+    /// back. These copies are counted in [`WorkCount::state_copies`].
+    ///
     /// # Errors
     /// As [`Features::set_frame`] for a bad frame; [`Error::NoFeatures`] before
-    /// [`Model::embed_features`]; [`Error::NotPositiveDefinite`] / [`Error::Diverged`] /
-    /// [`Error::BehindCamera`] if the solve breaks down. On any error the positions and
-    /// targets are those from before the call.
+    /// [`Model::embed_features`]; [`Error::NotPositiveDefinite`] / [`Error::NotFinite`] /
+    /// [`Error::Diverged`] / [`Error::FeatureBehindCamera`] if the solve breaks down. On any error the
+    /// model is exactly as before the call ([`Model::fingerprint`] unchanged): positions,
+    /// damping reference, observations, factor, frame count.
     pub fn step(&mut self, frame: &[Observation<T>]) -> Result<StepReport<T>, Error> {
-        let observed = self.observe(frame)?;
+        if self.features.is_empty() {
+            return Err(Error::NoFeatures);
+        }
         let n_nodes = self.live.mesh.n_nodes();
+        self.saved.features.copy_from(&self.features);
+        // Checked completely before anything is written: on error nothing has changed.
+        let observed = self.observe(frame)?;
         let live = &mut self.live;
+        self.saved.previous[..n_nodes].copy_from_slice(&live.previous[..n_nodes]);
         live.previous[..n_nodes].copy_from_slice(&live.x[..n_nodes]);
+        let holds = self.holds;
+        self.factor.checkpoint();
         let mut report = match self.solve_frame() {
-            Ok(report) => report,
+            Ok(report) => {
+                self.factor.commit();
+                report
+            }
             Err(e) => {
                 let live = &mut self.live;
                 live.x[..n_nodes].copy_from_slice(&live.previous[..n_nodes]);
+                live.previous[..n_nodes].copy_from_slice(&self.saved.previous[..n_nodes]);
+                self.features.copy_from(&self.saved.features);
+                self.holds = holds;
+                self.factor.rollback();
                 return Err(e);
             }
         };
+        report.work.state_copies += (5 * self.features.len() + 3 * n_nodes) as u64;
         report.frame = self.frame;
         report.observed = observed;
         #[cfg(feature = "cut")]
@@ -707,7 +785,7 @@ impl<'a, T: Real> Model<'a, T> {
             let problem = problem_of(&self.live, &self.features, &self.lame, &self.config);
             let e = match problem.energy(&self.vectors.trial[..n_nodes], work) {
                 Ok(e) => e.total(),
-                Err(Error::BehindCamera { .. }) => T::zero() / T::zero(),
+                Err(Error::FeatureBehindCamera { .. }) => T::zero() / T::zero(),
                 Err(e) => return Err(e),
             };
             if e.finite() {
@@ -761,6 +839,7 @@ impl<'a, T: Real> Model<'a, T> {
             feature_evaluations: feats
                 * (1 + u64::from(newton) * (1 + u64::from(s.line_search_steps))),
             energy_evaluations: newton * s.line_search_steps,
+            state_copies: 5 * feats + 3 * self.live.mesh.n_nodes() as u64,
             ..WorkCount::default()
         };
         match s.strategy {
@@ -836,7 +915,7 @@ impl<'a, T: Real> Model<'a, T> {
     /// the previous frame's positions).
     ///
     /// # Errors
-    /// [`Error::BehindCamera`] if a virtual feature cannot be projected.
+    /// [`Error::FeatureBehindCamera`] if a virtual feature cannot be projected.
     pub fn energy(&self) -> Result<Energies<T>, Error> {
         problem_of(&self.live, &self.features, &self.lame, &self.config)
             .energy(self.positions(), &mut WorkCount::default())
@@ -892,10 +971,14 @@ impl<'a, T: Real> Model<'a, T> {
         let n = self.features.len();
         for slot in 0..n {
             let t = self.features.targets()[slot];
-            // A feature whose virtual point cannot be projected is treated as unobserved.
             self.cut.residuals[slot] = match self.projected_feature(slot) {
                 Ok(uv) => [t[0] - uv[0], t[1] - uv[1]],
-                Err(_) => [T::zero(); 2],
+                Err(_) => {
+                    // A feature whose virtual point cannot be projected is unobserved in this
+                    // frame: its residual has no meaning and the detector must not read it.
+                    self.features.set_unobserved(slot);
+                    [T::zero(); 2]
+                }
             };
         }
         self.cut.detector.update(
@@ -1072,18 +1155,34 @@ impl<'a, T: Real> Model<'a, T> {
         Ok(report)
     }
 
-    /// The detected cut line in the image, as its anchoring features are seen now: writes up
-    /// to `out.len()` vertices (pixels), returns how many (0 before a cut is detected).
+    /// The detected cut line in the image, as its anchoring features are seen now: writes its
+    /// vertices (pixels) to the front of `out`, returns how many (0 before a cut is detected).
+    /// [`Capacities::cut_vertices`] entries always suffice.
+    ///
+    /// # Errors
+    /// [`Error::Capacity`] naming [`Resource::CutVertices`] when `out` is shorter than the line
+    /// (nothing is written then: no silent truncation).
     #[cfg(feature = "cut")]
-    pub fn cut_polyline(&self, out: &mut [[T; 2]]) -> usize {
-        self.cut.line.project(self.features.targets(), out)
+    pub fn cut_polyline(&self, out: &mut [[T; 2]]) -> Result<usize, Error> {
+        ensure_len(out, self.cut.line.len(), Resource::CutVertices)?;
+        Ok(self.cut.line.project(self.features.targets(), out))
     }
 
     /// The separation surface of the detected cut: one quadrilateral (metres) per segment of
-    /// the cut line, extruded along the depth direction by the size of the model. Writes up to
-    /// `out.len()`, returns how many.
+    /// the cut line, extruded along the depth direction by the size of the model. Writes them
+    /// to the front of `out`, returns how many; [`Capacities::cut_vertices`] entries always
+    /// suffice.
+    ///
+    /// # Errors
+    /// [`Error::Capacity`] naming [`Resource::CutSegments`] when `out` is shorter than the
+    /// line has segments (nothing is written then).
     #[cfg(feature = "cut")]
-    pub fn separation_surface(&self, out: &mut [[[T; 3]; 4]]) -> usize {
+    pub fn separation_surface(&self, out: &mut [[[T; 3]; 4]]) -> Result<usize, Error> {
+        ensure_len(
+            out,
+            self.cut.line.len().saturating_sub(1),
+            Resource::CutSegments,
+        )?;
         let x = self.positions();
         // Long enough to pass through the whole model: its bounding-box diagonal.
         let (mut lo, mut hi) = ([T::zero(); 3], [T::zero(); 3]);
@@ -1097,7 +1196,7 @@ impl<'a, T: Real> Model<'a, T> {
             + (hi[1] - lo[1]) * (hi[1] - lo[1])
             + (hi[2] - lo[2]) * (hi[2] - lo[2]))
             .sqrt();
-        self.cut.line.separation_surface(
+        Ok(self.cut.line.separation_surface(
             self.features.targets(),
             &self.live.mesh,
             x,
@@ -1105,7 +1204,7 @@ impl<'a, T: Real> Model<'a, T> {
             &self.config.detection,
             diagonal,
             out,
-        )
+        ))
     }
 
     /// The cut detector (pairs, separation points).
@@ -1131,7 +1230,8 @@ impl<'a, T: Real> Model<'a, T> {
     /// (rest positions, element data, tetrahedra, free map, boundary surface), positions,
     /// previous positions, damping weights, stiffness pattern, symbolic analysis, scatter map,
     /// feature and target embeddings, the cut's lips, the factor in service, the features'
-    /// observations, the detector and the cut line. Scratch (the spare half, workspaces, the
+    /// observations, the frame count, the strategy and what the factor holds, the detector and
+    /// the cut line. Scratch (the spare half, workspaces, the
     /// Hessian and solve vectors) has no meaning between calls and is left out. Two models in
     /// the same state have the same fingerprint; a call that fails must leave it unchanged.
     pub fn fingerprint(&self) -> u64 {
@@ -1185,6 +1285,12 @@ impl<'a, T: Real> Model<'a, T> {
         h.reals(self.features.targets().iter().flatten());
         h.words(self.features.active());
         h.words(core::iter::once(&self.frame));
+        let strategy = match self.config.solver.strategy {
+            Strategy::Refactor => [0, 0],
+            Strategy::Frozen { pcg_iterations } => [1, pcg_iterations],
+        };
+        h.words(strategy.iter());
+        h.words(core::iter::once(&(self.holds as u32)));
         #[cfg(feature = "cut")]
         {
             self.cut.detector.fingerprint_into(&mut h);

@@ -110,6 +110,14 @@ impl ModelSize {
             + Self::lips_len(c)
     }
 
+    /// Scalars of the copies a failing call gives back (features, their embedding, the
+    /// damping reference).
+    const fn saved_real_len(c: &Capacities) -> usize {
+        Features::<f64>::real_len(c.features)
+            + Embedding::<f64>::real_len(c.features)
+            + 3 * c.mesh.nodes
+    }
+
     #[cfg(feature = "cut")]
     const fn lips_len(c: &Capacities) -> usize {
         2 * c.mesh.nodes
@@ -129,6 +137,7 @@ impl ModelSize {
             + 7 * self.unknowns // gradient, step, the PCG vectors, solve work
             + 3 * c.mesh.nodes // trial positions of the line search
             + Features::<f64>::real_len(c.features)
+            + Self::saved_real_len(c)
             + Self::detection_real_len(c)
     }
 
@@ -138,6 +147,8 @@ impl ModelSize {
         HALVES * self.half_index_len()
             + self.unknowns // factorization cursor
             + Features::<f64>::index_len(c.features)
+            + Features::<f64>::index_len(c.features) // saved copy
+            + Embedding::<f64>::index_len(c.features) // saved copy
             + Self::detection_index_len(c)
             + self.work_len()
     }

@@ -22,6 +22,8 @@ pub struct LdlFactor<'a, T> {
     d: [&'a mut [T]; 2],
     /// The value set in service and the sizes of the analysis it was computed for.
     active: Option<(usize, SymbolicSize)>,
+    /// The factor in service at [`LdlFactor::checkpoint`], kept until the checkpoint ends.
+    checkpoint: Option<Option<(usize, SymbolicSize)>>,
 }
 
 impl<'a, T: Real> LdlFactor<'a, T> {
@@ -46,7 +48,31 @@ impl<'a, T: Real> LdlFactor<'a, T> {
             l: [l0, l1],
             d: [d0, d1],
             active: None,
+            checkpoint: None,
         })
+    }
+
+    /// Keeps the factor now in service, unchanged, until [`LdlFactor::commit`] or
+    /// [`LdlFactor::rollback`]: factorizations in between write only the other value set (each
+    /// one in service once it succeeds), so that a caller running several factorizations (the
+    /// Newton steps of a frame) can give the factor back as it was when the whole fails. A
+    /// factorization that fails inside a checkpoint puts the checkpoint's factor back in
+    /// service. Costs nothing: the two value sets exist anyway.
+    pub fn checkpoint(&mut self) {
+        self.checkpoint = Some(self.active);
+    }
+
+    /// Ends a checkpoint and keeps the factor in service.
+    pub fn commit(&mut self) {
+        self.checkpoint = None;
+    }
+
+    /// Ends a checkpoint and puts its factor back in service, bit for bit (nothing has written
+    /// its value set since). Without a checkpoint, nothing happens.
+    pub fn rollback(&mut self) {
+        if let Some(active) = self.checkpoint.take() {
+            self.active = active;
+        }
     }
 
     /// Whether a successful factorization is in service.
@@ -73,7 +99,8 @@ impl<'a, T: Real> LdlFactor<'a, T> {
     /// of the permuted matrix; [`Error::Capacity`] naming [`Resource::FactorEntries`] or
     /// [`Resource::Unknowns`] if `sym` is larger than this factor's capacity;
     /// [`Error::Length`] / [`Error::Capacity`] for wrong buffer lengths. On any error the
-    /// factor in service (if any) stays in service, unchanged.
+    /// factor in service (if any) stays in service, unchanged; inside a
+    /// [`LdlFactor::checkpoint`], the checkpoint's factor is in service again.
     pub fn factorize(
         &mut self,
         sym: &Symbolic<'_>,
@@ -98,49 +125,32 @@ impl<'a, T: Real> LdlFactor<'a, T> {
         ensure_exact_len(a_values, size.nnz_a, Resource::MatrixEntries)?;
         ensure_len(work, n, Resource::Workspace)?;
         ensure_len(cursor, n, Resource::Workspace)?;
-        let target = match self.active {
-            Some((0, _)) => 1,
-            _ => 0,
+        // The set to write: not the one in service, and never the checkpoint's.
+        let keep = match (self.checkpoint, self.active) {
+            (Some(Some((set, _))), _) | (None, Some((set, _))) => Some(set),
+            _ => None,
         };
-        let (l, d) = (&mut *self.l[target], &mut *self.d[target]);
-        let y = &mut work[..n];
-        y.fill(T::zero());
-        let cursor = &mut cursor[..n];
-        cursor.copy_from_slice(&sym.l_ptr()[..n]);
-        let (c_ptr, c_row, c_src) = (sym.c_ptr(), sym.c_row(), sym.c_src());
-        let (l_ptr, l_row, lt_ptr, lt_col) = (sym.l_ptr(), sym.l_row(), sym.lt_ptr(), sym.lt_col());
-        for k in 0..n {
-            // Row k of L solves L(0..k, 0..k) D y = C(0..k, k): scatter column k of C, then
-            // eliminate along the stored row pattern (increasing columns are a topological
-            // order of the elimination tree).
-            for q in ux(c_ptr[k])..ux(c_ptr[k + 1]) {
-                y[ux(c_row[q])] += a_values[ux(c_src[q])];
+        let target = if keep == Some(0) { 1 } else { 0 };
+        let outcome = up_looking(
+            sym,
+            a_values,
+            &mut self.l[target][..],
+            &mut self.d[target][..],
+            &mut work[..n],
+            &mut cursor[..n],
+        );
+        match outcome {
+            Ok(()) => {
+                self.active = Some((target, size));
+                Ok(())
             }
-            let mut dk = y[k];
-            y[k] = T::zero();
-            for &i in &lt_col[ux(lt_ptr[k])..ux(lt_ptr[k + 1])] {
-                let i = ux(i);
-                let yi = y[i];
-                y[i] = T::zero();
-                let (start, end) = (ux(l_ptr[i]), ux(cursor[i]));
-                for (&r, &lv) in l_row[start..end].iter().zip(&l[start..end]) {
-                    y[ux(r)] -= lv * yi;
+            Err(e) => {
+                if let Some(active) = self.checkpoint {
+                    self.active = active;
                 }
-                let lki = yi / d[i];
-                dk -= lki * yi;
-                l[end] = lki;
-                cursor[i] += 1;
+                Err(e)
             }
-            if !dk.finite() {
-                return Err(Error::NotFinite { column: k });
-            }
-            if dk <= T::zero() {
-                return Err(Error::NotPositiveDefinite { column: k });
-            }
-            d[k] = dk;
         }
-        self.active = Some((target, size));
-        Ok(())
     }
 
     fn in_service(&self, sym: &Symbolic<'_>, v: &[T]) -> Result<(&[T], &[T]), Error> {
@@ -226,6 +236,54 @@ impl<'a, T: Real> LdlFactor<'a, T> {
         }
         Ok(())
     }
+}
+
+/// The numeric loop of [`LdlFactor::factorize`] into one value set `l`, `d` (lengths checked by
+/// the caller); `y` and `cursor` hold `n` entries of workspace.
+fn up_looking<T: Real>(
+    sym: &Symbolic<'_>,
+    a_values: &[T],
+    l: &mut [T],
+    d: &mut [T],
+    y: &mut [T],
+    cursor: &mut [u32],
+) -> Result<(), Error> {
+    let n = y.len();
+    y.fill(T::zero());
+    cursor.copy_from_slice(&sym.l_ptr()[..n]);
+    let (c_ptr, c_row, c_src) = (sym.c_ptr(), sym.c_row(), sym.c_src());
+    let (l_ptr, l_row, lt_ptr, lt_col) = (sym.l_ptr(), sym.l_row(), sym.lt_ptr(), sym.lt_col());
+    for k in 0..n {
+        // Row k of L solves L(0..k, 0..k) D y = C(0..k, k): scatter column k of C, then
+        // eliminate along the stored row pattern (increasing columns are a topological
+        // order of the elimination tree).
+        for q in ux(c_ptr[k])..ux(c_ptr[k + 1]) {
+            y[ux(c_row[q])] += a_values[ux(c_src[q])];
+        }
+        let mut dk = y[k];
+        y[k] = T::zero();
+        for &i in &lt_col[ux(lt_ptr[k])..ux(lt_ptr[k + 1])] {
+            let i = ux(i);
+            let yi = y[i];
+            y[i] = T::zero();
+            let (start, end) = (ux(l_ptr[i]), ux(cursor[i]));
+            for (&r, &lv) in l_row[start..end].iter().zip(&l[start..end]) {
+                y[ux(r)] -= lv * yi;
+            }
+            let lki = yi / d[i];
+            dk -= lki * yi;
+            l[end] = lki;
+            cursor[i] += 1;
+        }
+        if !dk.finite() {
+            return Err(Error::NotFinite { column: k });
+        }
+        if dk <= T::zero() {
+            return Err(Error::NotPositiveDefinite { column: k });
+        }
+        d[k] = dk;
+    }
+    Ok(())
 }
 
 /// `y = A x` for a symmetric `A` stored as its upper triangle.
