@@ -3,6 +3,10 @@
 //! tumour, vessel points) are both embeddings; a cut re-embeds them in the piece of their own
 //! side ([`crate::cut`]).
 
+// Embedded points are looked up by slot and tetrahedron numbers that come from input and
+// from cuts: indexing that could panic is denied, each access is checked (issue 13).
+#![cfg_attr(not(test), deny(clippy::indexing_slicing))]
+
 use crate::error::{Error, Resource};
 use crate::mesh::Mesh;
 use crate::real::Real;
@@ -63,12 +67,12 @@ impl<'a, T: Real> Embedding<'a, T> {
 
     /// Tetrahedron of each point.
     pub fn tets(&self) -> &[u32] {
-        &self.tet[..self.len]
+        self.tet.get(..self.len).unwrap_or_default()
     }
 
     /// Barycentric weights of each point.
     pub fn weights(&self) -> &[[T; 4]] {
-        &self.weights[..self.len]
+        self.weights.get(..self.len).unwrap_or_default()
     }
 
     /// Forgets every point.
@@ -81,51 +85,63 @@ impl<'a, T: Real> Embedding<'a, T> {
     /// # Errors
     /// [`Error::Capacity`] naming `resource` when full.
     pub(crate) fn push(&mut self, tet: u32, w: [T; 4], resource: Resource) -> Result<(), Error> {
-        if self.len == self.tet.len() {
-            return Err(Error::Capacity {
+        match (self.tet.get_mut(self.len), self.weights.get_mut(self.len)) {
+            (Some(t), Some(weights)) => {
+                *t = tet;
+                *weights = w;
+                self.len += 1;
+                Ok(())
+            }
+            _ => Err(Error::Capacity {
                 resource,
                 needed: self.len + 1,
-                available: self.tet.len(),
-            });
+                available: self.tet.len().min(self.weights.len()),
+            }),
         }
-        self.tet[self.len] = tet;
-        self.weights[self.len] = w;
-        self.len += 1;
-        Ok(())
     }
 
     /// Moves point `k` (ignored out of range).
     #[cfg_attr(not(feature = "cut"), allow(dead_code))]
     pub(crate) fn set(&mut self, k: usize, tet: u32, w: [T; 4]) {
-        if k < self.len {
-            self.tet[k] = tet;
-            self.weights[k] = w;
+        if k < self.len
+            && let (Some(t), Some(weights)) = (self.tet.get_mut(k), self.weights.get_mut(k))
+        {
+            *t = tet;
+            *weights = w;
         }
     }
 
     /// Makes this a copy of `other` (same capacity: the two halves of one model).
     #[cfg_attr(not(feature = "cut"), allow(dead_code))]
     pub(crate) fn copy_from(&mut self, other: &Embedding<'_, T>) {
-        let n = other.len.min(self.tet.len());
-        self.tet[..n].copy_from_slice(&other.tet[..n]);
-        self.weights[..n].copy_from_slice(&other.weights[..n]);
+        let mut n = 0;
+        for ((t, w), (&ot, &ow)) in self
+            .tet
+            .iter_mut()
+            .zip(self.weights.iter_mut())
+            .zip(other.tets().iter().zip(other.weights()))
+        {
+            *t = ot;
+            *w = ow;
+            n += 1;
+        }
         self.len = n;
     }
 
     /// Position of point `k` for node positions `x` (`None` out of range).
     pub fn position(&self, k: usize, mesh: &Mesh<'_, T>, x: &[[T; 3]]) -> Option<[T; 3]> {
-        let tet = mesh.tets().get(*self.tet[..self.len].get(k)? as usize)?;
-        interpolate(x, tet, &self.weights[k])
+        let tet = mesh.tets().get(*self.tets().get(k)? as usize)?;
+        interpolate(x, tet, self.weights().get(k)?)
     }
 }
 
 /// `Σ_a w_a x[tet[a]]` (`None` for a node out of range).
 pub(crate) fn interpolate<T: Real>(x: &[[T; 3]], tet: &[u32; 4], w: &[T; 4]) -> Option<[T; 3]> {
     let mut p = [T::zero(); 3];
-    for (a, &v) in tet.iter().enumerate() {
+    for (&v, &wa) in tet.iter().zip(w) {
         let xv = x.get(v as usize)?;
-        for c in 0..3 {
-            p[c] += w[a] * xv[c];
+        for (pc, &xc) in p.iter_mut().zip(xv) {
+            *pc += wa * xc;
         }
     }
     Some(p)
@@ -134,9 +150,8 @@ pub(crate) fn interpolate<T: Real>(x: &[[T; 3]], tet: &[u32; 4], w: &[T; 4]) -> 
 /// Barycentric coordinates of `p` in the tetrahedron with corners `x` (they sum to one; all
 /// non-negative inside). `None` for a flat tetrahedron.
 pub(crate) fn barycentric<T: Real>(x: &[[T; 3]; 4], p: [T; 3]) -> Option<[T; 4]> {
-    let e =
-        |k: usize| nalgebra::Vector3::new(x[k][0] - x[0][0], x[k][1] - x[0][1], x[k][2] - x[0][2]);
-    let m = nalgebra::Matrix3::from_columns(&[e(1), e(2), e(3)]);
+    let e = |xk: &[T; 3]| nalgebra::Vector3::new(xk[0] - x[0][0], xk[1] - x[0][1], xk[2] - x[0][2]);
+    let m = nalgebra::Matrix3::from_columns(&[e(&x[1]), e(&x[2]), e(&x[3])]);
     let inv = m.try_inverse()?;
     let l = inv * nalgebra::Vector3::new(p[0] - x[0][0], p[1] - x[0][1], p[2] - x[0][2]);
     let w = [T::one() - l.x - l.y - l.z, l.x, l.y, l.z];
@@ -164,7 +179,14 @@ pub(crate) fn locate_at_rest<T: Real>(mesh: &Mesh<'_, T>, p: [T; 3]) -> Option<(
     let rest = mesh.rest();
     let mut best: Option<(T, u32, [T; 4])> = None;
     for (t, tet) in mesh.tets().iter().enumerate() {
-        let Some(w) = barycentric(&tet.map(|v| rest[v as usize]), p) else {
+        let mut corners = [[T::zero(); 3]; 4];
+        for (c, &v) in corners.iter_mut().zip(tet) {
+            match rest.get(v as usize) {
+                Some(&r) => *c = r,
+                None => return None,
+            }
+        }
+        let Some(w) = barycentric(&corners, p) else {
             continue;
         };
         let outside = w.iter().fold(T::zero(), |s, &wk| s + (-wk).max(T::zero()));

@@ -7,6 +7,9 @@
 //! follow them. Heapsort keeps the cost bounded by `2 n ⌈log₂ n⌉ + 2 n` comparisons whatever the
 //! data, with no recursion and no extra storage.
 
+// The sorts run on every frame's data: indexing that could panic is denied (issue 13).
+#![cfg_attr(not(test), deny(clippy::indexing_slicing))]
+
 use crate::real::Real;
 
 /// `⌈log₂ n⌉` for `n ≥ 1` (0 for 0 and 1).
@@ -36,15 +39,18 @@ pub fn sort<T: Real>(v: &mut [T]) -> u64 {
             if child >= end {
                 break;
             }
-            if child + 1 < end {
+            if let (Some(&a), Some(&b)) = (v.get(child), v.get(child + 1))
+                && child + 1 < end
+            {
                 *comparisons += 1;
-                if less(v[child], v[child + 1]) {
+                if less(a, b) {
                     child += 1;
                 }
             }
             *comparisons += 1;
-            if !less(v[root], v[child]) {
-                break;
+            match (v.get(root), v.get(child)) {
+                (Some(&r), Some(&c)) if less(r, c) => {}
+                _ => break,
             }
             v.swap(root, child);
             root = child;
@@ -66,9 +72,9 @@ pub fn quantile_sorted<T: Real>(v: &[T], q: T) -> T {
     if v.is_empty() {
         return T::zero();
     }
-    let last = (v.len() - 1) as f64;
-    let k = libm::floor(q.to_f64().clamp(0.0, 1.0) * last) as usize;
-    v[k.min(v.len() - 1)]
+    let last = v.len().saturating_sub(1);
+    let k = libm::floor(q.to_f64().clamp(0.0, 1.0) * last as f64) as usize;
+    v.get(k.min(last)).copied().unwrap_or_else(T::zero)
 }
 
 /// Median and MAD of `v` (reordered and then overwritten with the absolute deviations);
