@@ -1,6 +1,10 @@
 //! The tetrahedral volume mesh of the model: rest positions, tetrahedra, fixed nodes and the
 //! boundary surface, in fixed-capacity storage.
 
+// The reader of the mesh a user hands in (and of the cut's edits to it): every node index
+// comes from input, so indexing that could panic is denied and each access is checked.
+#![cfg_attr(not(test), deny(clippy::indexing_slicing))]
+
 use crate::error::{Error, Resource};
 use crate::material::ElementRest;
 use crate::real::Real;
@@ -185,14 +189,18 @@ impl<'a, T: Real> Mesh<'a, T> {
         }
         // Element geometry: rejects degenerate and inverted tetrahedra before anything is kept.
         for (t, tet) in input.tets.iter().enumerate() {
-            ElementRest::new(&tet.map(|v| input.rest[v as usize]), t)?;
+            ElementRest::new(&corners(input.rest, tet)?, t)?;
         }
 
-        self.rest[..n_nodes].copy_from_slice(input.rest);
-        self.tets[..n_tets].copy_from_slice(input.tets);
-        self.free_index[..n_nodes].fill(0);
+        copy_prefix(self.rest, input.rest, Resource::Nodes)?;
+        copy_prefix(self.tets, input.tets, Resource::Tetrahedra)?;
+        for f in self.free_index.iter_mut().take(n_nodes) {
+            *f = 0;
+        }
         for &f in input.fixed {
-            self.free_index[f as usize] = NONE;
+            if let Some(slot) = self.free_index.get_mut(f as usize) {
+                *slot = NONE;
+            }
         }
         self.n_nodes = n_nodes;
         self.n_tets = n_tets;
@@ -209,16 +217,31 @@ impl<'a, T: Real> Mesh<'a, T> {
     /// Makes this mesh a copy of `other` (same capacities: the two halves of one model).
     #[cfg_attr(not(feature = "cut"), allow(dead_code))]
     pub(crate) fn copy_from(&mut self, other: &Mesh<'_, T>) {
-        let (n, t, s) = (other.n_nodes, other.n_tets, other.n_surface);
-        self.rest[..n].copy_from_slice(&other.rest[..n]);
-        self.element_rest[..t].copy_from_slice(&other.element_rest[..t]);
-        self.tets[..t].copy_from_slice(&other.tets[..t]);
-        self.free_index[..n].copy_from_slice(&other.free_index[..n]);
-        self.surface[..s].copy_from_slice(&other.surface[..s]);
-        self.surface_tet[..s].copy_from_slice(&other.surface_tet[..s]);
-        self.n_nodes = n;
-        self.n_tets = t;
-        self.n_surface = s;
+        // Same capacities: every prefix fits (`zip` stops at the shorter otherwise).
+        let copy = |to: &mut [u32], from: &[u32]| {
+            to.iter_mut().zip(from).for_each(|(a, &b)| *a = b);
+        };
+        self.rest
+            .iter_mut()
+            .zip(other.rest())
+            .for_each(|(a, &b)| *a = b);
+        self.element_rest
+            .iter_mut()
+            .zip(other.element_rest.iter().take(other.n_tets))
+            .for_each(|(a, &b)| *a = b);
+        self.tets
+            .iter_mut()
+            .zip(other.tets())
+            .for_each(|(a, &b)| *a = b);
+        copy(self.free_index, other.free_index());
+        self.surface
+            .iter_mut()
+            .zip(other.surface())
+            .for_each(|(a, &b)| *a = b);
+        copy(self.surface_tet, other.surface_tet());
+        self.n_nodes = other.n_nodes.min(self.rest.len());
+        self.n_tets = other.n_tets.min(self.tets.len());
+        self.n_surface = other.n_surface.min(self.surface.len());
         self.n_free = other.n_free;
     }
 
@@ -231,8 +254,13 @@ impl<'a, T: Real> Mesh<'a, T> {
     pub(crate) fn push_node(&mut self, rest: [T; 3], fixed: bool) -> Result<u32, Error> {
         check_capacity(Resource::Nodes, self.n_nodes + 1, self.capacity.nodes)?;
         let v = self.n_nodes;
-        self.rest[v] = rest;
-        self.free_index[v] = if fixed { NONE } else { 0 };
+        match (self.rest.get_mut(v), self.free_index.get_mut(v)) {
+            (Some(r), Some(f)) => {
+                *r = rest;
+                *f = if fixed { NONE } else { 0 };
+            }
+            _ => return Err(full(Resource::Nodes, v + 1, self.rest.len())),
+        }
         self.n_nodes += 1;
         Ok(v as u32)
     }
@@ -240,7 +268,9 @@ impl<'a, T: Real> Mesh<'a, T> {
     /// Moves the rest position of node `v` (element data follows in [`Mesh::finish_edit`]).
     #[cfg_attr(not(feature = "cut"), allow(dead_code))]
     pub(crate) fn set_rest(&mut self, v: usize, p: [T; 3]) {
-        if let Some(slot) = self.rest[..self.n_nodes].get_mut(v) {
+        if v < self.n_nodes
+            && let Some(slot) = self.rest.get_mut(v)
+        {
             *slot = p;
         }
     }
@@ -248,7 +278,9 @@ impl<'a, T: Real> Mesh<'a, T> {
     /// Replaces the nodes of tetrahedron `t`.
     #[cfg_attr(not(feature = "cut"), allow(dead_code))]
     pub(crate) fn set_tet(&mut self, t: usize, tet: [u32; 4]) {
-        if let Some(slot) = self.tets[..self.n_tets].get_mut(t) {
+        if t < self.n_tets
+            && let Some(slot) = self.tets.get_mut(t)
+        {
             *slot = tet;
         }
     }
@@ -261,7 +293,11 @@ impl<'a, T: Real> Mesh<'a, T> {
     pub(crate) fn push_tet(&mut self, tet: [u32; 4]) -> Result<u32, Error> {
         check_capacity(Resource::Tetrahedra, self.n_tets + 1, self.capacity.tets)?;
         let t = self.n_tets;
-        self.tets[t] = tet;
+        let slot =
+            self.tets
+                .get_mut(t)
+                .ok_or(full(Resource::Tetrahedra, t + 1, self.capacity.tets))?;
+        *slot = tet;
         self.n_tets += 1;
         Ok(t as u32)
     }
@@ -276,7 +312,7 @@ impl<'a, T: Real> Mesh<'a, T> {
     pub(crate) fn finish_edit(&mut self, work: &mut [u32]) -> Result<(), Error> {
         ensure_len(work, self.capacity.work_len(), Resource::Workspace)?;
         let mut n_free = 0u32;
-        for f in self.free_index[..self.n_nodes].iter_mut() {
+        for f in self.free_index.iter_mut().take(self.n_nodes) {
             if *f != NONE {
                 *f = n_free;
                 n_free += 1;
@@ -293,87 +329,116 @@ impl<'a, T: Real> Mesh<'a, T> {
     }
 
     fn update_element_rest(&mut self, t: usize) -> Result<(), Error> {
-        let x = self.tets[t].map(|v| self.rest[v as usize]);
-        let e = ElementRest::new(&x, t)?;
-        let slot = &mut self.element_rest[t];
-        slot[..9].copy_from_slice(e.dm_inv.as_slice());
-        slot[9] = e.volume;
+        let tet = self.tets().get(t).ok_or(Error::IndexOutOfRange {
+            resource: Resource::Tetrahedra,
+            position: t,
+            index: t,
+            bound: self.n_tets,
+        })?;
+        let e = ElementRest::new(&corners(self.rest(), tet)?, t)?;
+        let slot = self.element_rest.get_mut(t).ok_or(full(
+            Resource::Tetrahedra,
+            t + 1,
+            self.capacity.tets,
+        ))?;
+        let [dm @ .., volume] = slot;
+        dm.copy_from_slice(e.dm_inv.as_slice());
+        *volume = e.volume;
         Ok(())
     }
 
     /// Finds the faces that belong to one tetrahedron only, orients them outward and checks
     /// that they close up.
     fn extract_surface(&mut self, work: &mut [u32]) -> Result<(), Error> {
-        let faces = work[..16 * self.n_tets].as_chunks_mut::<4>().0;
-        for (t, tet) in self.tets[..self.n_tets].iter().enumerate() {
-            for l in 0..4 {
-                let mut f = [tet[(l + 1) % 4], tet[(l + 2) % 4], tet[(l + 3) % 4]];
+        let n_tets = self.n_tets;
+        let work_len = work.len();
+        let faces = work
+            .get_mut(..16 * n_tets)
+            .ok_or(full(Resource::Workspace, 16 * n_tets, work_len))?
+            .as_chunks_mut::<4>()
+            .0;
+        for ((t, tet), four) in self
+            .tets()
+            .iter()
+            .enumerate()
+            .zip(faces.chunks_exact_mut(4))
+        {
+            for (l, face) in four.iter_mut().enumerate() {
+                let [a, b, c] = opposite(tet, l);
+                let mut f = [a, b, c];
                 f.sort_unstable();
-                faces[4 * t + l] = [f[0], f[1], f[2], (4 * t + l) as u32];
+                *face = [f[0], f[1], f[2], (4 * t + l) as u32];
             }
         }
         faces.sort_unstable();
         let mut n_surface = 0usize;
-        let mut k = 0;
-        while k < faces.len() {
-            let mut run = 1;
-            while k + run < faces.len() && faces[k + run][..3] == faces[k][..3] {
-                run += 1;
-            }
+        for run in faces.chunk_by(|a, b| a[..3] == b[..3]) {
             match run {
-                1 => {
-                    let code = faces[k][3] as usize;
+                [one] => {
+                    let code = one[3] as usize;
                     let (t, l) = (code / 4, code % 4);
-                    if n_surface >= self.capacity.surface_triangles {
-                        return Err(Error::Capacity {
-                            resource: Resource::SurfaceTriangles,
-                            needed: n_surface + 1,
-                            available: self.capacity.surface_triangles,
-                        });
-                    }
-                    let tet = self.tets[t];
-                    let mut tri = [tet[(l + 1) % 4], tet[(l + 2) % 4], tet[(l + 3) % 4]];
+                    let tet = *self
+                        .tets()
+                        .get(t)
+                        .ok_or(full(Resource::Tetrahedra, t, n_tets))?;
+                    let mut tri = opposite(&tet, l);
                     // Outward: the opposite node lies on the negative side of the normal.
-                    let p = |v: u32| self.rest[v as usize];
-                    if orientation(p(tri[0]), p(tri[1]), p(tri[2]), p(tet[l])) > T::zero() {
+                    let [p0, p1, p2] = corners(self.rest(), &tri)?;
+                    let [far] = corners(self.rest(), &[opposite(&tet, l + 3)[0]])?;
+                    if orientation(p0, p1, p2, far) > T::zero() {
                         tri.swap(1, 2);
                     }
-                    self.surface[n_surface] = tri;
-                    self.surface_tet[n_surface] = t as u32;
+                    match (
+                        self.surface.get_mut(n_surface),
+                        self.surface_tet.get_mut(n_surface),
+                    ) {
+                        (Some(s), Some(st)) if n_surface < self.capacity.surface_triangles => {
+                            *s = tri;
+                            *st = t as u32;
+                        }
+                        _ => {
+                            return Err(full(
+                                Resource::SurfaceTriangles,
+                                n_surface + 1,
+                                self.capacity.surface_triangles,
+                            ));
+                        }
+                    }
                     n_surface += 1;
                 }
-                2 => {}
-                _ => {
+                [_, _] => {}
+                [first, ..] => {
                     return Err(Error::NonManifold {
-                        a: faces[k][0] as usize,
-                        b: faces[k][1] as usize,
+                        a: first[0] as usize,
+                        b: first[1] as usize,
                     });
                 }
+                [] => {}
             }
-            k += run;
         }
         // Every boundary edge must be shared by exactly two boundary triangles.
-        let edges = work[..6 * n_surface].as_chunks_mut::<2>().0;
-        for (s, tri) in self.surface[..n_surface].iter().enumerate() {
-            for e in 0..3 {
-                let (a, b) = (tri[e], tri[(e + 1) % 3]);
-                edges[3 * s + e] = [a.min(b), a.max(b)];
+        let edges = work
+            .get_mut(..6 * n_surface)
+            .ok_or(full(Resource::Workspace, 6 * n_surface, work_len))?
+            .as_chunks_mut::<2>()
+            .0;
+        let surface = self.surface.iter().take(n_surface);
+        for (tri, three) in surface.zip(edges.chunks_exact_mut(3)) {
+            let [t0, t1, t2] = *tri;
+            for (edge, (a, b)) in three.iter_mut().zip([(t0, t1), (t1, t2), (t2, t0)]) {
+                *edge = [a.min(b), a.max(b)];
             }
         }
         edges.sort_unstable();
-        let mut k = 0;
-        while k < edges.len() {
-            let mut run = 1;
-            while k + run < edges.len() && edges[k + run] == edges[k] {
-                run += 1;
-            }
-            if run != 2 {
+        for run in edges.chunk_by(|a, b| a == b) {
+            if let [first, ..] = run
+                && run.len() != 2
+            {
                 return Err(Error::NonManifold {
-                    a: edges[k][0] as usize,
-                    b: edges[k][1] as usize,
+                    a: first[0] as usize,
+                    b: first[1] as usize,
                 });
             }
-            k += run;
         }
         self.n_surface = n_surface;
         Ok(())
@@ -397,23 +462,23 @@ impl<'a, T: Real> Mesh<'a, T> {
     }
     /// Rest positions, metres.
     pub fn rest(&self) -> &[[T; 3]] {
-        &self.rest[..self.n_nodes]
+        self.rest.get(..self.n_nodes).unwrap_or_default()
     }
     /// Tetrahedra.
     pub fn tets(&self) -> &[[u32; 4]] {
-        &self.tets[..self.n_tets]
+        self.tets.get(..self.n_tets).unwrap_or_default()
     }
     /// Compact index of each node among the free nodes, [`NONE`] for a fixed node.
     pub fn free_index(&self) -> &[u32] {
-        &self.free_index[..self.n_nodes]
+        self.free_index.get(..self.n_nodes).unwrap_or_default()
     }
     /// Boundary triangles, oriented outward.
     pub fn surface(&self) -> &[[u32; 3]] {
-        &self.surface[..self.n_surface]
+        self.surface.get(..self.n_surface).unwrap_or_default()
     }
     /// The tetrahedron each boundary triangle belongs to.
     pub fn surface_tet(&self) -> &[u32] {
-        &self.surface_tet[..self.n_surface]
+        self.surface_tet.get(..self.n_surface).unwrap_or_default()
     }
     /// Whether node `v` is held at rest (`false` out of range).
     pub fn is_fixed(&self, v: usize) -> bool {
@@ -422,16 +487,65 @@ impl<'a, T: Real> Mesh<'a, T> {
     /// Shape quality of tetrahedron `t` at rest ([`shape_quality`]; `None` out of range).
     pub fn quality(&self, t: usize) -> Option<T> {
         let tet = self.tets().get(t)?;
-        Some(shape_quality(&tet.map(|v| self.rest[v as usize])))
+        Some(shape_quality(&corners(self.rest(), tet).ok()?))
     }
     /// Rest geometry of tetrahedron `t` (`None` if out of range).
     pub fn element_rest(&self, t: usize) -> Option<ElementRest<T>> {
-        let e = self.element_rest[..self.n_tets].get(t)?;
+        if t >= self.n_tets {
+            return None;
+        }
+        let [dm @ .., volume] = self.element_rest.get(t)?;
         Some(ElementRest {
-            dm_inv: nalgebra::Matrix3::from_column_slice(&e[..9]),
-            volume: e[9],
+            dm_inv: nalgebra::Matrix3::from_column_slice(dm),
+            volume: *volume,
         })
     }
+}
+
+/// The capacity error for `resource`.
+fn full(resource: Resource, needed: usize, available: usize) -> Error {
+    Error::Capacity {
+        resource,
+        needed,
+        available,
+    }
+}
+
+/// The positions of nodes `nodes` (an error for a node out of range).
+fn corners<T: Real, const N: usize>(
+    rest: &[[T; 3]],
+    nodes: &[u32; N],
+) -> Result<[[T; 3]; N], Error> {
+    let mut x = [[T::zero(); 3]; N];
+    for (k, (xk, &v)) in x.iter_mut().zip(nodes).enumerate() {
+        *xk = *rest.get(v as usize).ok_or(Error::IndexOutOfRange {
+            resource: Resource::Nodes,
+            position: k,
+            index: v as usize,
+            bound: rest.len(),
+        })?;
+    }
+    Ok(x)
+}
+
+/// The face of `tet` opposite its node `l`, in the order that keeps the orientation rule.
+fn opposite(tet: &[u32; 4], l: usize) -> [u32; 3] {
+    let at = |k: usize| match k % 4 {
+        0 => tet[0],
+        1 => tet[1],
+        2 => tet[2],
+        _ => tet[3],
+    };
+    [at(l + 1), at(l + 2), at(l + 3)]
+}
+
+/// Copies `from` into the start of `to` (a capacity error if it does not fit).
+fn copy_prefix<X: Copy>(to: &mut [X], from: &[X], resource: Resource) -> Result<(), Error> {
+    let available = to.len();
+    to.get_mut(..from.len())
+        .ok_or(full(resource, from.len(), available))?
+        .copy_from_slice(from);
+    Ok(())
 }
 
 fn check_capacity(resource: Resource, needed: usize, available: usize) -> Result<(), Error> {
@@ -453,9 +567,9 @@ fn check_capacity(resource: Resource, needed: usize, available: usize) -> Result
 /// above a floor of this measure ([`crate::cut::QUALITY_FLOOR`]).
 pub fn shape_quality<T: Real>(x: &[[T; 3]; 4]) -> T {
     let mut sum_sq = T::zero();
-    for a in 0..4 {
-        for b in (a + 1)..4 {
-            let d = [x[b][0] - x[a][0], x[b][1] - x[a][1], x[b][2] - x[a][2]];
+    for (a, xa) in x.iter().enumerate() {
+        for xb in x.iter().skip(a + 1) {
+            let d = [xb[0] - xa[0], xb[1] - xa[1], xb[2] - xa[2]];
             sum_sq += d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
         }
     }
