@@ -51,6 +51,7 @@
 pub mod ldl;
 pub mod order;
 pub mod pattern;
+pub mod supernodal;
 pub mod symbolic;
 
 pub use ldl::{LdlFactor, relative_residual, sym_matvec};
