@@ -110,7 +110,9 @@ fn measure(cells: [usize; 3], budget: f64) -> Row {
             *wk = b[p as usize];
         }
         factor.solve_lower_in_place(&sym, &mut y).expect("lower");
-        factor.solve_diagonal_in_place(&sym, &mut y).expect("diagonal");
+        factor
+            .solve_diagonal_in_place(&sym, &mut y)
+            .expect("diagonal");
         factor.solve_upper_in_place(&sym, &mut y).expect("upper");
         for (&wk, &p) in y.iter().zip(sym.perm()) {
             x[p as usize] = wk;
