@@ -168,10 +168,16 @@ fn apply_update<T: Real>(
                     let col = kb + k;
                     let base = pan.at(u.src_f, col, u.p0 + rb);
                     let vals = &l[base..base + mc];
-                    for (ic, sliver) in ap.chunks_exact_mut(kc * MR).enumerate() {
+                    let (full, rest) = vals.as_chunks::<MR>();
+                    let mut slivers = ap.chunks_exact_mut(kc * MR);
+                    // `full` leads the zip, so a sliver is taken only for a full chunk.
+                    for (src, sliver) in full.iter().zip(&mut slivers) {
+                        sliver[k * MR..(k + 1) * MR].copy_from_slice(src);
+                    }
+                    if let Some(sliver) = slivers.next() {
                         let dst = &mut sliver[k * MR..(k + 1) * MR];
                         for (ii, x) in dst.iter_mut().enumerate() {
-                            *x = vals.get(ic * MR + ii).copied().unwrap_or(T::zero());
+                            *x = rest.get(ii).copied().unwrap_or(T::zero());
                         }
                     }
                 }
@@ -208,6 +214,22 @@ fn scatter<T: Real>(
     t0: usize,
 ) {
     let mrows = u.rows.len();
+    // Fast path: a tile wholly below the targets' diagonals whose rows lie consecutively in
+    // the target (always so within a supernode, often across): four contiguous entries per
+    // target column.
+    if i0 >= t0 + NR && i0 + MR <= mrows && t0 + NR <= u.targets {
+        let r0 = ux(u.rel[i0]);
+        if ux(u.rel[i0 + MR - 1]) == r0 + MR - 1 {
+            for (jj, accj) in acc.iter().enumerate() {
+                let c = ux(u.rows[t0 + jj]) - u.tgt_f;
+                let at = ux(pan.l_ptr[u.tgt_f + c]) + r0 - c - 1;
+                for (x, &v) in l[at..at + MR].iter_mut().zip(accj) {
+                    *x -= v;
+                }
+            }
+            return;
+        }
+    }
     for (jj, accj) in acc.iter().enumerate() {
         let t = t0 + jj;
         if t >= u.targets {
