@@ -459,6 +459,28 @@ fn dot<T: Real>(x: &[T], y: &[T]) -> T {
     (s[0] + s[1]) + (s[2] + s[3]) + tail
 }
 
+/// `[x_q · y]` for four columns `x_q` of `y`'s length, in one pass over `y` (two partial sums
+/// each, so the loop vectorises).
+#[inline(always)]
+fn dot4<T: Real>(x: [&[T]; 4], y: &[T]) -> [T; 4] {
+    let mut s = [[T::zero(); 2]; 4];
+    let (yc, yr) = y.as_chunks::<2>();
+    let [x0, x1, x2, x3] = x.map(|xq| xq.as_chunks::<2>().0);
+    for ((((yi, a0), a1), a2), a3) in yc.iter().zip(x0).zip(x1).zip(x2).zip(x3) {
+        for (sq, a) in s.iter_mut().zip([a0, a1, a2, a3]) {
+            sq[0] += a[0] * yi[0];
+            sq[1] += a[1] * yi[1];
+        }
+    }
+    let mut out = s.map(|sq| sq[0] + sq[1]);
+    if let Some(&last) = yr.first() {
+        for (o, xq) in out.iter_mut().zip(x) {
+            *o += xq.last().copied().unwrap_or(T::zero()) * last;
+        }
+    }
+    out
+}
+
 /// Solves `L D Lᵀ w = w` in place (permuted order) over the supernodal panels; `tmp` needs as
 /// many scalars as the tallest supernode has rows below its diagonal block (`n` always do).
 pub(crate) fn solve<T: Real>(sym: &Symbolic<'_>, l: &[T], d: &[T], w: &mut [T], tmp: &mut [T]) {
@@ -504,11 +526,25 @@ pub(crate) fn solve<T: Real>(sym: &Symbolic<'_>, l: &[T], d: &[T], w: &mut [T], 
         for (tv, &r) in t.iter_mut().zip(&below[wd - 1..]) {
             *tv = w[ux(r)];
         }
-        for c in (0..wd).rev() {
-            let col = &l[pan.column(f + c)];
-            let (inner, outer) = col.split_at(wd - c - 1);
-            let acc = dot(outer, t) + dot(inner, &w[f + c + 1..f + wd]);
-            w[f + c] -= acc;
+        let mut c_end = wd;
+        while c_end > 0 {
+            // Columns c0..c_end: their products with the rows below the diagonal block first
+            // (four at once share the loads of `t`), then the diagonal block, last column first.
+            let c0 = c_end.saturating_sub(4);
+            let mut outer = [T::zero(); 4];
+            if c_end - c0 == 4 {
+                let x = [0, 1, 2, 3].map(|q| &l[pan.column(f + c0 + q)][wd - c0 - q - 1..]);
+                outer = dot4(x, t);
+            } else {
+                for (q, o) in outer.iter_mut().enumerate().take(c_end - c0) {
+                    *o = dot(&l[pan.column(f + c0 + q)][wd - c0 - q - 1..], t);
+                }
+            }
+            for c in (c0..c_end).rev() {
+                let inner = &l[pan.column(f + c)][..wd - c - 1];
+                w[f + c] -= outer[c - c0] + dot(inner, &w[f + c + 1..f + wd]);
+            }
+            c_end = c0;
         }
     }
 }
