@@ -115,11 +115,37 @@ pub struct Solved<T> {
     pub size: SymbolicSize,
     /// Multiply-adds of the numeric factorization.
     pub factor_flops: u64,
+    /// Strictly lower values of `L` (column layout of the symbolic analysis).
+    pub l: Vec<T>,
+    /// Diagonal `D`.
+    pub d: Vec<T>,
+    /// Supernodes of the analysis.
+    pub supernodes: usize,
 }
 
-/// Analyses `a` under `perm`, factorizes `values` and solves for `b`, all in `Vec` storage sized
-/// by the core's own `*_len` functions.
+/// Which numeric factorization of the core to run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Method {
+    /// Up-looking, column by column ([`LdlFactor::factorize`]).
+    Simplicial,
+    /// Left-looking over supernodes ([`LdlFactor::factorize_supernodal`]).
+    Supernodal,
+}
+
+/// Analyses `a` under `perm`, factorizes `values` (simplicial) and solves for `b`, all in `Vec`
+/// storage sized by the core's own `*_len` functions.
 pub fn factor_and_solve<T: Real>(
+    a: &UpperCsc<'_>,
+    perm: &[u32],
+    values: &[T],
+    b: &[T],
+) -> Result<Solved<T>, Error> {
+    factor_and_solve_with(Method::Simplicial, a, perm, values, b)
+}
+
+/// [`factor_and_solve`] with the numeric factorization `method`.
+pub fn factor_and_solve_with<T: Real>(
+    method: Method,
     a: &UpperCsc<'_>,
     perm: &[u32],
     values: &[T],
@@ -132,14 +158,27 @@ pub fn factor_and_solve<T: Real>(
     let sym = Symbolic::new(a, perm, &mut sstore, &mut awork)?;
     let mut fstore = vec![T::zero(); LdlFactor::<T>::storage_len(&size)];
     let mut factor = LdlFactor::new(&size, &mut fstore)?;
-    let (mut y, mut cursor) = (vec![T::zero(); n], vec![0u32; n]);
-    factor.factorize(&sym, values, &mut y, &mut cursor)?;
+    let mut y = vec![T::zero(); n];
+    match method {
+        Method::Simplicial => {
+            let mut cursor = vec![0u32; n];
+            factor.factorize(&sym, values, &mut y, &mut cursor)?;
+        }
+        Method::Supernodal => {
+            let mut work = vec![T::zero(); LdlFactor::<T>::SUPERNODAL_WORK_LEN];
+            let mut iwork = vec![0u32; LdlFactor::<T>::supernodal_index_work_len(n)];
+            factor.factorize_supernodal(&sym, values, &mut work, &mut iwork)?;
+        }
+    }
     let mut x = b.to_vec();
     factor.solve_in_place(&sym, &mut x, &mut y)?;
     Ok(Solved {
         x,
         size,
         factor_flops: sym.factor_flops(),
+        l: factor.l_values().unwrap_or_default().to_vec(),
+        d: factor.d_values().unwrap_or_default().to_vec(),
+        supernodes: sym.supernodes(),
     })
 }
 

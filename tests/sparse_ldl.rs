@@ -7,7 +7,9 @@ use incise_core::sparse::{
 use incise_core::{Error, Resource};
 use incise_validation::oracle::{faer_amd_nnz_l, faer_solve};
 use incise_validation::rng::Rng;
-use incise_validation::system::{StiffnessPattern, factor_and_solve, order_pattern};
+use incise_validation::system::{
+    Method, StiffnessPattern, factor_and_solve, factor_and_solve_with, order_pattern,
+};
 use incise_validation::testmesh::{TetMesh, box_mesh, shuffle_nodes};
 
 /// Box meshes of 144, 700 and 1859 nodes, node numbering shuffled; the nodes of the face
@@ -287,4 +289,243 @@ fn capacity_overflow_is_an_error_not_a_panic() {
         Symbolic::size(&a, &bad, &mut awork),
         Err(Error::NotAPermutation { position: 1 })
     );
+}
+
+/// Largest entry-wise difference relative to the largest entry of `b`.
+fn max_rel(a: &[f64], b: &[f64]) -> f64 {
+    let scale = b
+        .iter()
+        .fold(0.0f64, |m, v| m.max(v.abs()))
+        .max(f64::MIN_POSITIVE);
+    a.iter()
+        .zip(b)
+        .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()))
+        / scale
+}
+
+/// Checks the supernodal factor of `values` against the simplicial one (same `L` and `D` to
+/// rounding) and its solution against faer's (and its residual).
+fn check_supernodal(a: &UpperCsc<'_>, perm: &[u32], values: &[f64], b: &[f64], what: &str) {
+    let simp = factor_and_solve_with(Method::Simplicial, a, perm, values, b).unwrap();
+    let sup = factor_and_solve_with(Method::Supernodal, a, perm, values, b).unwrap();
+    let (dl, dd) = (max_rel(&sup.l, &simp.l), max_rel(&sup.d, &simp.d));
+    let reference = faer_solve(a, values, b);
+    let err = rel_diff(&sup.x, &reference);
+    let mut work = vec![0.0; a.n()];
+    let res = relative_residual(a, values, &sup.x, b, &mut work).unwrap();
+    eprintln!(
+        "{what}: n {:5}, {:5} supernodes, L {dl:.1e}, D {dd:.1e} from simplicial; \
+         error {err:.1e} against faer, residual {res:.1e}",
+        a.n(),
+        sup.supernodes
+    );
+    assert!(dl <= 1e-12 && dd <= 1e-12, "{what}: L {dl:e}, D {dd:e}");
+    assert!(err <= 1e-10, "{what}: relative error {err:e}");
+    assert!(res <= 1e-12, "{what}: relative residual {res:e}");
+}
+
+#[test]
+fn supernodal_factor_matches_simplicial_and_faer_on_meshes() {
+    let mut rng = Rng::new(21);
+    for (mesh, fixed) in meshes() {
+        let pat = StiffnessPattern::new(&mesh, &fixed).unwrap();
+        let a = pat.upper();
+        let values: Vec<f64> = pat.random_spd(&mesh, &mut rng, 0.05);
+        let b: Vec<f64> = (0..a.n()).map(|_| rng.range(-1.0, 1.0)).collect();
+        check_supernodal(&a, &pat.perm, &values, &b, "box mesh");
+
+        // f32 as well.
+        let values32: Vec<f32> = values.iter().map(|&v| v as f32).collect();
+        let b32: Vec<f32> = b.iter().map(|&v| v as f32).collect();
+        let ours32 =
+            factor_and_solve_with(Method::Supernodal, &a, &pat.perm, &values32, &b32).unwrap();
+        let x32: Vec<f64> = ours32.x.iter().map(|&v| f64::from(v)).collect();
+        let err32 = rel_diff(&x32, &faer_solve(&a, &values, &b));
+        assert!(err32 <= 1e-4, "f32 relative error {err32:e}");
+    }
+}
+
+/// A random symmetric pattern of dimension `n` with about `per_col` off-diagonal entries per
+/// column, and diagonally dominant values (so positive definite).
+fn random_spd_pattern(n: usize, per_col: usize, rng: &mut Rng) -> (Vec<u32>, Vec<u32>, Vec<f64>) {
+    let mut cols: Vec<Vec<(u32, f64)>> = vec![vec![]; n];
+    let mut diag = vec![1.0f64; n];
+    for j in 0..n {
+        for _ in 0..per_col {
+            let i = (rng.uniform() * j as f64) as usize;
+            if i >= j || cols[j].iter().any(|&(r, _)| r as usize == i) {
+                continue;
+            }
+            let v = rng.range(-1.0, 1.0);
+            cols[j].push((i as u32, v));
+            diag[i] += v.abs();
+            diag[j] += v.abs();
+        }
+    }
+    let (mut col_ptr, mut row_idx, mut values) = (vec![0u32], vec![], vec![]);
+    for (j, col) in cols.iter_mut().enumerate() {
+        col.push((j as u32, diag[j]));
+        col.sort_by_key(|&(r, _)| r);
+        for &(r, v) in col.iter() {
+            row_idx.push(r);
+            values.push(v);
+        }
+        col_ptr.push(row_idx.len() as u32);
+    }
+    (col_ptr, row_idx, values)
+}
+
+#[test]
+fn supernodal_factor_matches_on_dense_and_random_patterns() {
+    let mut rng = Rng::new(5);
+    // Dense: one supernode wider than the column blocks and the packed depth, so every blocked
+    // path of the kernels runs.
+    for n in [1, 2, 5, 33, 150] {
+        let dense = Dense::new(n);
+        let a = dense.upper();
+        let g: Vec<f64> = (0..n * n).map(|_| rng.range(-1.0, 1.0)).collect();
+        let mut values = vec![];
+        for j in 0..n {
+            for i in 0..=j {
+                let e: f64 = (0..n).map(|k| g[k * n + i] * g[k * n + j]).sum();
+                values.push(e + if i == j { 0.1 * n as f64 } else { 0.0 });
+            }
+        }
+        let b: Vec<f64> = (0..n).map(|_| rng.range(-1.0, 1.0)).collect();
+        let perm: Vec<u32> = (0..n as u32).collect();
+        check_supernodal(&a, &perm, &values, &b, "dense");
+    }
+    // Random patterns, natural order and minimum degree.
+    for (n, per_col) in [(40, 2), (300, 3), (600, 6)] {
+        let (col_ptr, row_idx, values) = random_spd_pattern(n, per_col, &mut rng);
+        let a = UpperCsc::new(n, &col_ptr, &row_idx).unwrap();
+        let b: Vec<f64> = (0..n).map(|_| rng.range(-1.0, 1.0)).collect();
+        let natural: Vec<u32> = (0..n as u32).collect();
+        check_supernodal(&a, &natural, &values, &b, "random, natural order");
+        let md = order_pattern(&a).unwrap();
+        check_supernodal(&a, &md, &values, &b, "random, minimum degree");
+    }
+}
+
+#[test]
+fn supernodal_failure_names_the_column_and_leaves_the_factor_bit_for_bit() {
+    let mut rng = Rng::new(9);
+    let (mesh, fixed) = meshes().swap_remove(1);
+    let pat = StiffnessPattern::new(&mesh, &fixed).unwrap();
+    let a = pat.upper();
+    let n = a.n();
+    let good: Vec<f64> = pat.random_spd(&mesh, &mut rng, 0.05);
+    let mut awork = vec![0u32; analyse_work_len(n, a.nnz())];
+    let size = Symbolic::size(&a, &pat.perm, &mut awork).unwrap();
+    let mut sstore = vec![0u32; size.index_len()];
+    let sym = Symbolic::new(&a, &pat.perm, &mut sstore, &mut awork).unwrap();
+    let mut fstore = vec![0.0f64; LdlFactor::<f64>::storage_len(&size)];
+    let mut factor = LdlFactor::new(&size, &mut fstore).unwrap();
+    let mut simp_store = vec![0.0f64; LdlFactor::<f64>::storage_len(&size)];
+    let mut simp = LdlFactor::new(&size, &mut simp_store).unwrap();
+    let (mut y, mut cursor) = (vec![0.0; n], vec![0u32; n]);
+    let mut work = vec![0.0; LdlFactor::<f64>::SUPERNODAL_WORK_LEN];
+    let mut iwork = vec![0u32; LdlFactor::<f64>::supernodal_index_work_len(n)];
+    factor
+        .factorize_supernodal(&sym, &good, &mut work, &mut iwork)
+        .unwrap();
+    let bits = |f: &LdlFactor<'_, f64>| -> Vec<u64> {
+        let l = f.l_values().unwrap().iter();
+        l.chain(f.d_values().unwrap())
+            .map(|v| v.to_bits())
+            .collect()
+    };
+    let before = bits(&factor);
+    let b: Vec<f64> = (0..n).map(|_| rng.range(-1.0, 1.0)).collect();
+    let mut x_before = b.clone();
+    factor.solve_in_place(&sym, &mut x_before, &mut y).unwrap();
+
+    // Broken matrices: a negative diagonal entry at a column in the middle of the permuted
+    // order, and a NaN off the diagonal; the supernodal factorization must name the column the
+    // simplicial one names.
+    // A column in the middle of the permuted order with an entry above its diagonal.
+    let k = (n / 2..n)
+        .find(|&k| a.column_range(pat.perm[k] as usize).len() > 1)
+        .unwrap();
+    let col = pat.perm[k] as usize;
+    let mut negative = good.clone();
+    negative[a.find(col, col).unwrap()] = -1.0;
+    let mut nan = good.clone();
+    let off = a
+        .column_range(col)
+        .find(|&p| a.row_idx()[p] as usize != col)
+        .unwrap();
+    nan[off] = f64::NAN;
+    let mut infinite = good.clone();
+    infinite[a.find(col, col).unwrap()] = f64::INFINITY;
+    for (what, broken) in [
+        ("negative", &negative),
+        ("NaN", &nan),
+        ("infinite", &infinite),
+    ] {
+        let expected = simp
+            .factorize(&sym, broken, &mut y, &mut cursor)
+            .unwrap_err();
+        let got = factor
+            .factorize_supernodal(&sym, broken, &mut work, &mut iwork)
+            .unwrap_err();
+        eprintln!("{what}: {got}");
+        assert_eq!(got, expected, "{what}");
+        assert!(matches!(
+            got,
+            Error::NotPositiveDefinite { .. } | Error::NotFinite { .. }
+        ));
+        assert_eq!(bits(&factor), before, "{what}: factor changed");
+        let mut x = b.clone();
+        factor.solve_in_place(&sym, &mut x, &mut y).unwrap();
+        assert!(
+            x.iter()
+                .zip(&x_before)
+                .all(|(p, q)| p.to_bits() == q.to_bits()),
+            "{what}: solution changed"
+        );
+    }
+    // A negative pivot shows at its own column or (through the updates it feeds) later.
+    let Error::NotPositiveDefinite { column } = simp
+        .factorize(&sym, &negative, &mut y, &mut cursor)
+        .unwrap_err()
+    else {
+        panic!("a negative diagonal is not a non-finite pivot");
+    };
+    assert!(column >= k && column < n, "column {column}, broken {k}");
+}
+
+#[test]
+fn supernodal_workspace_too_short_is_an_error() {
+    let dense = Dense::new(4);
+    let a = dense.upper();
+    let perm = [0u32, 1, 2, 3];
+    let values = [4.0, 1.0, 4.0, 0.0, 1.0, 4.0, 0.0, 0.0, 1.0, 4.0];
+    let mut awork = vec![0u32; analyse_work_len(4, a.nnz())];
+    let size = Symbolic::size(&a, &perm, &mut awork).unwrap();
+    let mut sstore = vec![0u32; size.index_len()];
+    let sym = Symbolic::new(&a, &perm, &mut sstore, &mut awork).unwrap();
+    let mut fstore = vec![0.0f64; LdlFactor::<f64>::storage_len(&size)];
+    let mut factor = LdlFactor::new(&size, &mut fstore).unwrap();
+    let mut work = vec![0.0; LdlFactor::<f64>::SUPERNODAL_WORK_LEN];
+    let mut iwork = vec![0u32; LdlFactor::<f64>::supernodal_index_work_len(4)];
+    assert!(matches!(
+        factor.factorize_supernodal(&sym, &values, &mut work[..10], &mut iwork),
+        Err(Error::Capacity {
+            resource: Resource::Workspace,
+            ..
+        })
+    ));
+    assert!(matches!(
+        factor.factorize_supernodal(&sym, &values, &mut work, &mut iwork[..3]),
+        Err(Error::Capacity {
+            resource: Resource::Workspace,
+            ..
+        })
+    ));
+    assert!(!factor.is_factored());
+    factor
+        .factorize_supernodal(&sym, &values, &mut work, &mut iwork)
+        .unwrap();
+    assert_eq!(sym.supernodes(), 1);
 }

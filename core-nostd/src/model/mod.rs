@@ -131,8 +131,11 @@ struct SolveVectors<'a, T> {
     solve_work: &'a mut [T],
     /// Positions tried by the line search.
     trial: &'a mut [[T; 3]],
-    /// Column cursors of the factorization.
-    cursor: &'a mut [u32],
+    /// Packed blocks of the supernodal factorization ([`LdlFactor::SUPERNODAL_WORK_LEN`]).
+    factor_work: &'a mut [T],
+    /// Index workspace of the supernodal factorization
+    /// ([`LdlFactor::supernodal_index_work_len`] of the unknowns).
+    factor_indices: &'a mut [u32],
 }
 
 /// The organ model.
@@ -226,7 +229,8 @@ impl<'a, T: Real> Model<'a, T> {
             product: rs.take(dofs)?,
             solve_work: rs.take(dofs)?,
             trial: rs.take(3 * caps.mesh.nodes)?.as_chunks_mut::<3>().0,
-            cursor: is.take(dofs)?,
+            factor_work: rs.take(LdlFactor::<T>::SUPERNODAL_WORK_LEN)?,
+            factor_indices: is.take(LdlFactor::<T>::supernodal_index_work_len(dofs))?,
         };
         let features = Features::new(caps.features, &mut rs, &mut is)?;
         let saved = Saved {
@@ -1360,11 +1364,11 @@ fn factorize_on<T: Real>(
     work: &mut WorkCount,
 ) -> Result<(), Error> {
     let n = d.n_unknowns();
-    factor.factorize(
+    factor.factorize_supernodal(
         &d.symbolic,
         &hessian[..d.nnz_a],
-        &mut vectors.solve_work[..n],
-        &mut vectors.cursor[..n],
+        vectors.factor_work,
+        &mut vectors.factor_indices[..LdlFactor::<T>::supernodal_index_work_len(n)],
     )?;
     work.factorizations += 1;
     work.factor_flops += d.symbolic.factor_flops();

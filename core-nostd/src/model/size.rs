@@ -135,6 +135,7 @@ impl ModelSize {
             + self.nnz_a // Hessian values
             + LdlFactor::<f64>::storage_len(&self.symbolic_capacity())
             + 7 * self.unknowns // gradient, step, the PCG vectors, solve work
+            + LdlFactor::<f64>::SUPERNODAL_WORK_LEN // packed blocks of the factorization
             + 3 * c.mesh.nodes // trial positions of the line search
             + Features::<f64>::real_len(c.features)
             + Self::saved_real_len(c)
@@ -145,7 +146,7 @@ impl ModelSize {
     pub const fn index_len(&self) -> usize {
         let c = &self.capacities;
         HALVES * self.half_index_len()
-            + self.unknowns // factorization cursor
+            + LdlFactor::<f64>::supernodal_index_work_len(self.unknowns) // factorization
             + Features::<f64>::index_len(c.features)
             + Features::<f64>::index_len(c.features) // saved copy
             + Embedding::<f64>::index_len(c.features) // saved copy

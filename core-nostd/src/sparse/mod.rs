@@ -8,11 +8,14 @@
 //!    of the matrix in compressed-column form ([`UpperCsc`]) with `3 × 3` blocks per node pair.
 //! 2. **Ordering** ([`order`]): a fill-reducing minimum-degree permutation computed on the
 //!    quotient graph, inside a fixed workspace.
-//! 3. **Symbolic** ([`symbolic`]): the permuted pattern, the elimination tree, the column counts
-//!    and the full row and column patterns of `L`, stored so that the numeric phase is a straight
-//!    pass.
-//! 4. **Numeric** ([`ldl`]): the up-looking LDLᵀ factorization into fixed buffers, with forward,
-//!    diagonal and backward solves. A failed factorization names its column and leaves the
+//! 3. **Symbolic** ([`symbolic`]): the permuted pattern, the elimination tree, the column counts,
+//!    the full row and column patterns of `L` and its supernodes, stored so that the numeric
+//!    phase is a straight pass.
+//! 4. **Numeric** ([`ldl`], [`supernodal`]): the LDLᵀ factorization into fixed buffers, either
+//!    up-looking column by column or left-looking supernode by supernode with dense
+//!    register-blocked kernels (same storage, same layout; the model uses the supernodal one,
+//!    faster at every size measured, 2× at 250 nodes), with forward, diagonal and backward
+//!    solves over the supernodes. A failed factorization names its column and leaves the
 //!    previous factor in service.
 //!
 //! All indices are `u32` ([`NONE`] marks "no index"); dimensions and entry counts must fit.
@@ -51,6 +54,7 @@
 pub mod ldl;
 pub mod order;
 pub mod pattern;
+pub mod supernodal;
 pub mod symbolic;
 
 pub use ldl::{LdlFactor, relative_residual, sym_matvec};

@@ -21,7 +21,7 @@ pub struct SymbolicSize {
 impl SymbolicSize {
     /// Length of the `u32` storage [`Symbolic::new`] needs.
     pub const fn index_len(&self) -> usize {
-        3 * self.n + 3 * (self.n + 1) + 2 * self.nnz_a + 2 * self.nnz_l
+        4 * self.n + 4 * (self.n + 1) + 3 * self.nnz_a + 2 * self.nnz_l
     }
 }
 
@@ -36,6 +36,18 @@ pub const fn analyse_work_len(n: usize, nnz_a: usize) -> usize {
 /// entries, the position of the value in `A`'s value array (so the numeric phase reads `A`'s
 /// values directly), the elimination tree, the column pattern of `L` (strictly lower, rows
 /// increasing) and its row pattern (columns increasing).
+///
+/// It also partitions the columns into *supernodes*: maximal runs of consecutive columns `f,
+/// f+1, …, f+w−1`, each the parent of the one before in the elimination tree, whose patterns
+/// nest, `struct(L(:, j)) = {j+1} ∪ struct(L(:, j+1))` (Liu, Ng and Peyton's supernodes,
+/// without the one-child condition of fundamental ones, which a left-looking factorization does
+/// not need). A supernode's row list is its first column's, `f` and then
+/// [`Symbolic::l_row`] of column `f`; its columns are stored one after the other in `L`'s
+/// column layout, so the supernodal factorization ([`crate::sparse::LdlFactor::
+/// factorize_supernodal`]) writes exactly the values the column-by-column one does, and needs
+/// no storage beyond `nnz(L) + n`. (Relaxed supernodes, which admit explicit zeros, would need
+/// more and are not built.) For each entry of `C` the analysis also stores where it lands in
+/// `L` ([`Symbolic::c_dst`]), so the numeric phase loads `C` into `L` in one pass.
 ///
 /// The storage is sized once for a *capacity* ([`Symbolic::with_capacity`]) and the analysis
 /// can be rebuilt in it for any pattern that fits ([`Symbolic::analyse`]), which is what a mesh
@@ -55,6 +67,10 @@ pub struct Symbolic<'a> {
     l_row: &'a mut [u32],
     lt_ptr: &'a mut [u32],
     lt_col: &'a mut [u32],
+    c_dst: &'a mut [u32],
+    sn_ptr: &'a mut [u32],
+    col_sn: &'a mut [u32],
+    supernodes: usize,
     factor_flops: u64,
 }
 
@@ -122,9 +138,18 @@ impl<'a> Symbolic<'a> {
             l_row: slab.take(capacity.nnz_l)?,
             lt_ptr: slab.take(n + 1)?,
             lt_col: slab.take(capacity.nnz_l)?,
+            c_dst: slab.take(capacity.nnz_a)?,
+            sn_ptr: slab.take(n + 1)?,
+            col_sn: slab.take(n)?,
+            supernodes: 0,
             factor_flops: 0,
         };
-        for ptr in [&mut sym.c_ptr, &mut sym.l_ptr, &mut sym.lt_ptr] {
+        for ptr in [
+            &mut sym.c_ptr,
+            &mut sym.l_ptr,
+            &mut sym.lt_ptr,
+            &mut sym.sn_ptr,
+        ] {
             ptr[0] = 0;
         }
         Ok(sym)
@@ -196,6 +221,11 @@ impl<'a> Symbolic<'a> {
             &mut self.lt_ptr[..n + 1],
             &mut self.lt_col[..size.nnz_l],
         );
+        let (c_dst, sn_ptr, col_sn) = (
+            &mut self.c_dst[..size.nnz_a],
+            &mut self.sn_ptr[..n + 1],
+            &mut self.col_sn[..n],
+        );
         perm_s.copy_from_slice(perm);
         invert_permutation(perm, iperm)?;
 
@@ -232,15 +262,25 @@ impl<'a> Symbolic<'a> {
             }
             lt_col[ux(lt_ptr[k])..at].sort_unstable();
         }
+        let supernodes = find_supernodes(etree, l_ptr, sn_ptr, col_sn);
+        // Column patterns; on the way, where each entry C(j, k) (j < k, that is L(k, j)) lands
+        // in L's values: row k's entries are placed in increasing column order, `mark[j]` keeps
+        // the place of L(k, j) while row k is open.
         col_count.copy_from_slice(&l_ptr[..n]);
         for k in 0..n {
             for &j in &lt_col[ux(lt_ptr[k])..ux(lt_ptr[k + 1])] {
                 let j = ux(j);
+                mark[j] = col_count[j];
                 l_row[ux(col_count[j])] = k as u32;
                 col_count[j] += 1;
             }
+            for q in ux(c_ptr[k])..ux(c_ptr[k + 1]) {
+                let j = c_row[q];
+                c_dst[q] = if ux(j) == k { NONE } else { mark[ux(j)] };
+            }
         }
         self.size = size;
+        self.supernodes = supernodes;
         self.factor_flops = flops;
         Ok(())
     }
@@ -301,6 +341,23 @@ impl<'a> Symbolic<'a> {
     pub fn c_src(&self) -> &[u32] {
         &self.c_src[..self.size.nnz_a]
     }
+    /// For each entry of `C` (in [`Symbolic::c_row`] order), the position of its value in
+    /// `L`'s values ([`Symbolic::l_row`] order), or [`NONE`] for a diagonal entry.
+    pub fn c_dst(&self) -> &[u32] {
+        &self.c_dst[..self.size.nnz_a]
+    }
+    /// Number of supernodes.
+    pub fn supernodes(&self) -> usize {
+        self.supernodes
+    }
+    /// First column of each supernode, then `n` (`supernodes() + 1` entries, increasing).
+    pub fn sn_ptr(&self) -> &[u32] {
+        &self.sn_ptr[..self.supernodes + 1]
+    }
+    /// The supernode each column belongs to.
+    pub fn col_sn(&self) -> &[u32] {
+        &self.col_sn[..self.size.n]
+    }
     /// Multiply-adds (and divisions) of one numeric factorization: a data-independent count.
     pub fn factor_flops(&self) -> u64 {
         self.factor_flops
@@ -309,6 +366,26 @@ impl<'a> Symbolic<'a> {
     pub fn solve_flops(&self) -> u64 {
         2 * self.size.nnz_l as u64 + self.size.n as u64
     }
+}
+
+/// Supernodes from the elimination tree and the column pointers of `L`: column `j` continues
+/// the supernode of `j − 1` when `j` is the parent of `j − 1` and `|L(:, j−1)| = |L(:, j)| + 1`
+/// (then `struct(L(:, j−1)) = {j} ∪ struct(L(:, j))`). Writes the first column of each
+/// supernode (then `n`) into `sn_ptr` (`n + 1`) and the supernode of each column into `col_sn`
+/// (`n`); returns their number.
+fn find_supernodes(etree: &[u32], l_ptr: &[u32], sn_ptr: &mut [u32], col_sn: &mut [u32]) -> usize {
+    let count = |j: usize| l_ptr[j + 1] - l_ptr[j];
+    let mut s = 0usize;
+    for j in 0..etree.len() {
+        let continues = j > 0 && ux(etree[j - 1]) == j && count(j - 1) == count(j) + 1;
+        if !continues {
+            sn_ptr[s] = j as u32;
+            s += 1;
+        }
+        col_sn[j] = (s - 1) as u32;
+    }
+    sn_ptr[s] = etree.len() as u32;
+    s
 }
 
 /// Writes the inverse of `perm` into `iperm` (same length), checking that `perm` is one.
