@@ -1,12 +1,11 @@
-//! A small model on caller-owned `Vec` storage for the state tests (`tests/state.rs`) and the
-//! fuzzing of the core (`tests/fuzz_core.rs`): a box held at `x = 0`, seen from above, with
-//! features on its top face. Built with the core's API alone (no host limits), so a test can
+//! A small model for the state tests (`tests/state.rs`) and the fuzzing of the core
+//! (`tests/fuzz_core.rs`): a box held at `x = 0`, seen from above, with features on its top
+//! face. Its storage is the host's `OwnedStorage`, which applies no host limits, so a test can
 //! set every capacity, down to one too small.
 
 use incise_core::{
-    Camera, Capacities, DetectionConfig, Error, Material, MeshCapacity, MeshInput, Model,
-    ModelBuffers, ModelConfig, ModelSize, Observation, SolverConfig, Strategy, analyse_mesh,
-    analyse_mesh_work_len,
+    Camera, Capacities, DetectionConfig, Material, MeshCapacity, MeshInput, Model, ModelConfig,
+    Observation, SolverConfig, Strategy, analyse_mesh, analyse_mesh_work_len,
 };
 
 use crate::scene::{camera, observe};
@@ -129,40 +128,6 @@ impl Bench {
             pairs,
             cut_vertices: 32,
         }
-    }
-}
-
-/// Storage of one model, owned.
-#[derive(Debug)]
-pub struct Storage {
-    /// The sizes.
-    pub size: ModelSize,
-    reals: Vec<f64>,
-    indices: Vec<u32>,
-}
-
-impl Storage {
-    /// Storage for `capacities`.
-    pub fn new(capacities: &Capacities) -> Self {
-        let size = ModelSize::new(capacities);
-        Storage {
-            size,
-            reals: vec![0.0; size.real_len()],
-            indices: vec![0; size.index_len()],
-        }
-    }
-
-    /// Builds a model in this storage.
-    ///
-    /// # Errors
-    /// As [`Model::new`].
-    pub fn model<'a>(
-        &'a mut self,
-        input: &MeshInput<'_, f64>,
-        config: &ModelConfig<f64>,
-    ) -> Result<Model<'a, f64>, Error> {
-        let buffers = ModelBuffers::new(&self.size, &mut self.reals, &mut self.indices)?;
-        Model::new(input, config, &self.size, buffers)
     }
 }
 

@@ -22,9 +22,10 @@
 
 use std::sync::atomic::{AtomicU64, Ordering};
 
+use incise::run::OwnedStorage;
 use incise_core::solve::{MAX_LINE_SEARCH_STEPS, MAX_NEWTON_ITERATIONS, MAX_PCG_ITERATIONS};
 use incise_core::{Capacities, Error, Model, Observation, Strategy as Linear};
-use incise_validation::bench_model::{Bench, SIZE, Snapshot, Storage};
+use incise_validation::bench_model::{Bench, SIZE, Snapshot};
 use incise_validation::rng::Rng;
 use proptest::prelude::*;
 
@@ -228,7 +229,7 @@ fn run_sequence(
         }
         s => s,
     };
-    let mut storage = Storage::new(&b.capacities(32, 2000));
+    let mut storage = OwnedStorage::<f64>::new(&b.capacities(32, 2000));
     let mut model = storage
         .model(&b.input(), &b.config(strategy))
         .map_err(|e| TestCaseError::fail(format!("bench refused: {e}")))?;
@@ -482,7 +483,7 @@ fn run_mesh(cells: [usize; 3], fault: MeshFault, seed: u64) -> Result<(), TestCa
             }
         }
     }
-    let mut storage = Storage::new(&caps);
+    let mut storage = OwnedStorage::<f64>::new(&caps);
     let (mut inputs, mut errors) = (1u64, 0u64);
     let built = storage.model(&b.input(), &config);
     let mut model = match built {

@@ -12,8 +12,9 @@
 //! Invariants of a [`CalibrationFile`]: `fx, fy > 0`, no skew, last row `0 0 1`, every number
 //! finite; 0, 4, 5, 8, 12 or 14 distortion coefficients.
 
-use std::fmt;
-use std::path::{Path, PathBuf};
+use std::path::Path;
+
+use crate::scene::SceneError;
 
 /// A calibration as read: the pinhole matrix, the distortion coefficients and the picture size.
 #[derive(Clone, Debug, PartialEq)]
@@ -26,30 +27,6 @@ pub struct CalibrationFile {
     pub image_size: Option<(u32, u32)>,
 }
 
-/// A calibration file that cannot be used: the file, the line (0 when the file as a whole is
-/// at fault) and what is wrong.
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub struct CalibrationError {
-    /// The file.
-    pub path: PathBuf,
-    /// 1-based line, 0 for the whole file.
-    pub line: usize,
-    /// What is wrong.
-    pub message: String,
-}
-
-impl fmt::Display for CalibrationError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        if self.line > 0 {
-            write!(f, "{}:{}: {}", self.path.display(), self.line, self.message)
-        } else {
-            write!(f, "{}: {}", self.path.display(), self.message)
-        }
-    }
-}
-
-impl std::error::Error for CalibrationError {}
-
 /// Largest calibration file read, bytes: real ones are a few kilobytes.
 pub const MAX_BYTES: u64 = 1 << 20;
 
@@ -60,15 +37,11 @@ const MAX_ENTRIES: usize = 16;
 /// with `<?xml`).
 ///
 /// # Errors
-/// A [`CalibrationError`] naming the file and line: missing or unreadable, too large, neither
+/// A [`SceneError`] naming the file and line (0 for the whole file): missing or unreadable, too large, neither
 /// format, a key absent, a matrix of the wrong shape or with a non-finite number, intrinsics
 /// the core cannot represent (skew, non-positive focal length).
-pub fn read_calibration(path: &Path) -> Result<CalibrationFile, CalibrationError> {
-    let fail = |line: usize, message: String| CalibrationError {
-        path: path.to_path_buf(),
-        line,
-        message,
-    };
+pub fn read_calibration(path: &Path) -> Result<CalibrationFile, SceneError> {
+    let fail = |line: usize, message: String| SceneError::new(path, line, message);
     let meta = std::fs::metadata(path).map_err(|e| match e.kind() {
         std::io::ErrorKind::NotFound => fail(0, "no such file".into()),
         _ => fail(0, e.to_string()),
@@ -443,11 +416,9 @@ fn xml_entries(text: &str) -> Result<Vec<Entry>, (usize, String)> {
     Ok(entries)
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    const YAML: &str = "%YAML:1.0
+/// A calibration as OpenCV's calibration sample writes it in YAML (with keys the reader skips),
+/// the same camera as [`EXAMPLE_XML`].
+pub const EXAMPLE_YAML: &str = "%YAML:1.0
 ---
 calibration_time: \"Mon Nov 23\"
 image_width: 640
@@ -471,7 +442,8 @@ dist_coeffs: !!opencv-matrix
    data: [ -0.2, 0.05, 0.001, -0.002, 0.01 ]
 ";
 
-    const XML: &str = "<?xml version=\"1.0\"?>
+/// The calibration of [`EXAMPLE_YAML`] in OpenCV's XML.
+pub const EXAMPLE_XML: &str = "<?xml version=\"1.0\"?>
 <opencv_storage>
 <image_width>640</image_width>
 <image_height>400</image_height>
@@ -490,10 +462,14 @@ dist_coeffs: !!opencv-matrix
 </opencv_storage>
 ";
 
+#[cfg(test)]
+mod tests {
+    use super::*;
+
     #[test]
     fn reads_opencv_yaml_and_xml_alike() {
-        let a = parse_calibration(YAML).unwrap();
-        let b = parse_calibration(XML).unwrap();
+        let a = parse_calibration(EXAMPLE_YAML).unwrap();
+        let b = parse_calibration(EXAMPLE_XML).unwrap();
         assert_eq!(a, b);
         assert_eq!(a.camera_matrix[1], [0.0, 510.0, 200.0]);
         assert_eq!(a.dist_coeffs, [-0.2, 0.05, 0.001, -0.002, 0.01]);
@@ -502,18 +478,21 @@ dist_coeffs: !!opencv-matrix
 
     #[test]
     fn errors_name_the_line() {
-        let bad = YAML.replace("510.,", "x,");
+        let bad = EXAMPLE_YAML.replace("510.,", "x,");
         assert_eq!(parse_calibration(&bad).unwrap_err().0, 6);
-        let skew = YAML.replace("500., 0., 320.", "500., 3., 320.");
+        let skew = EXAMPLE_YAML.replace("500., 0., 320.", "500., 3., 320.");
         let (line, m) = parse_calibration(&skew).unwrap_err();
         assert_eq!(line, 6, "{m}");
         assert!(m.contains("skew"), "{m}");
-        let short = YAML.replace("cols: 5", "cols: 4");
+        let short = EXAMPLE_YAML.replace("cols: 5", "cols: 4");
         let (line, m) = parse_calibration(&short).unwrap_err();
         assert_eq!(line, 18, "{m}");
-        let cut = &XML[..XML.find("<distortion_coefficients type_id=").unwrap() + 20];
+        let cut = &EXAMPLE_XML[..EXAMPLE_XML
+            .find("<distortion_coefficients type_id=")
+            .unwrap()
+            + 20];
         assert!(parse_calibration(cut).is_err());
-        let nan = XML.replace("-0.2", "nan");
+        let nan = EXAMPLE_XML.replace("-0.2", "nan");
         assert!(
             parse_calibration(&nan)
                 .unwrap_err()

@@ -133,6 +133,15 @@ pub fn within(
     }
 }
 
+/// A `[camera]` picture size: width and height each within 1 ..= [`MAX_IMAGE_SIDE`].
+///
+/// # Errors
+/// A [`Refusal`] naming `camera.width` or `camera.height`.
+pub fn image_size(width: u32, height: u32) -> Result<(), Refusal> {
+    within("camera", "width", width.into(), 1, MAX_IMAGE_SIDE)?;
+    within("camera", "height", height.into(), 1, MAX_IMAGE_SIDE)
+}
+
 /// Refuses `value` of `section.key` unless finite and within `lo..=hi`.
 pub fn within_f64(
     section: &'static str,

@@ -101,14 +101,53 @@ impl StorageError {
     }
 }
 
-/// The storage of one model, owned: what a host does with the core's caller-sized API.
-pub struct ModelStorage<T> {
+/// A model's storage as owned vectors of the lengths [`ModelSize`] gives for a set of
+/// capacities: what a host does with the core's caller-sized API. Checks nothing beyond what
+/// the core checks (the tests that set every capacity, down to one too small, build on it);
+/// [`ModelStorage`] checks a scene's capacities and memory first.
+pub struct OwnedStorage<T> {
     /// The sizes.
     pub size: ModelSize,
-    /// What the uncut mesh needs of the linear algebra.
-    pub analysis: MeshAnalysis,
     reals: Vec<T>,
     indices: Vec<u32>,
+}
+
+impl<T: Real> OwnedStorage<T> {
+    /// Storage for `capacities`.
+    pub fn new(capacities: &Capacities) -> Self {
+        let size = ModelSize::new(capacities);
+        OwnedStorage {
+            size,
+            reals: vec![T::zero(); size.real_len()],
+            indices: vec![0; size.index_len()],
+        }
+    }
+
+    /// Builds a model in this storage.
+    ///
+    /// # Errors
+    /// The core's error.
+    pub fn model<'a>(
+        &'a mut self,
+        mesh: &MeshInput<'_, T>,
+        config: &ModelConfig<T>,
+    ) -> Result<Model<'a, T>, CoreError> {
+        let buffers = ModelBuffers::new(&self.size, &mut self.reals, &mut self.indices)?;
+        Model::new(mesh, config, &self.size, buffers)
+    }
+
+    /// Bytes of the storage (scalars and indices), what a firmware build would hold.
+    pub fn bytes(&self) -> usize {
+        self.reals.len() * std::mem::size_of::<T>() + self.indices.len() * 4
+    }
+}
+
+/// The storage of one scene's model: its capacities checked against the host's bounds and
+/// memory budget, then [`OwnedStorage`].
+pub struct ModelStorage<T> {
+    /// What the uncut mesh needs of the linear algebra.
+    pub analysis: MeshAnalysis,
+    storage: OwnedStorage<T>,
 }
 
 impl<T: Real> ModelStorage<T> {
@@ -122,10 +161,8 @@ impl<T: Real> ModelStorage<T> {
     pub fn new(mesh: &MeshInput<'_, T>, c: &CapacitySection) -> Result<Self, StorageError> {
         let (size, analysis) = Self::plan(mesh, c)?;
         Ok(ModelStorage {
-            size,
             analysis,
-            reals: vec![T::zero(); size.real_len()],
-            indices: vec![0; size.index_len()],
+            storage: OwnedStorage::new(&size.capacities),
         })
     }
 
@@ -200,13 +237,17 @@ impl<T: Real> ModelStorage<T> {
         mesh: &MeshInput<'_, T>,
         config: &ModelConfig<T>,
     ) -> Result<Model<'a, T>, CoreError> {
-        let buffers = ModelBuffers::new(&self.size, &mut self.reals, &mut self.indices)?;
-        Model::new(mesh, config, &self.size, buffers)
+        self.storage.model(mesh, config)
     }
 
     /// Bytes of the model's storage (scalars and indices), what a firmware build would hold.
     pub fn bytes(&self) -> usize {
-        self.reals.len() * std::mem::size_of::<T>() + self.indices.len() * 4
+        self.storage.bytes()
+    }
+
+    /// The sizes.
+    pub fn size(&self) -> &ModelSize {
+        &self.storage.size
     }
 }
 

@@ -434,14 +434,7 @@ impl SceneFile {
     pub fn check(&self) -> Result<(), Refusal> {
         self.capacities.check(self.detection.enabled)?;
         let c = &self.camera;
-        limits::within("camera", "width", c.width.into(), 1, limits::MAX_IMAGE_SIDE)?;
-        limits::within(
-            "camera",
-            "height",
-            c.height.into(),
-            1,
-            limits::MAX_IMAGE_SIDE,
-        )?;
+        limits::image_size(c.width, c.height)?;
         let m = &self.model;
         limits::positive("model", "scale", m.scale)?;
         limits::positive("model", "young", m.young)?;
@@ -876,11 +869,10 @@ impl Scene {
         // after the model is built.
         let room = scene.file.capacities.features;
         if frames[0].len() > room {
-            let toml = dir.join("scene.toml");
-            let text = read_text(&toml)?;
-            return Err(SceneError::new(
-                &toml,
-                limits::key_line(&text, "capacities", "features"),
+            return Err(at_key(
+                dir,
+                "capacities",
+                "features",
                 format!(
                     "[capacities] features: {room}, but {} tracks {} features at frame 0",
                     tracks_path.display(),
@@ -894,11 +886,10 @@ impl Scene {
         let stated = scene.file.ground_truth.frames as usize;
         if stated > 0 {
             if scene.frames.len() > stated {
-                let toml = dir.join("scene.toml");
-                let text = read_text(&toml)?;
-                return Err(SceneError::new(
-                    &toml,
-                    limits::key_line(&text, "ground_truth", "frames"),
+                return Err(at_key(
+                    dir,
+                    "ground_truth",
+                    "frames",
                     format!(
                         "[ground_truth] frames: {stated}, but {} holds {} frames",
                         tracks_path.display(),
@@ -985,6 +976,14 @@ pub fn silhouette_path(dir: &Path, frame: usize) -> PathBuf {
     dir.join("gt")
         .join("silhouettes")
         .join(format!("{frame:04}.png"))
+}
+
+/// An error at `[section] key` of the scene's `scene.toml` in `dir`, with its line (0 when the
+/// file cannot be read again).
+fn at_key(dir: &Path, section: &str, key: &str, message: String) -> SceneError {
+    let toml = dir.join("scene.toml");
+    let line = read_text(&toml).map_or(0, |text| limits::key_line(&text, section, key));
+    SceneError::new(&toml, line, message)
 }
 
 #[cfg(test)]

@@ -502,7 +502,7 @@ impl Calibration {
     /// non-positive focal length).
     pub fn load(path: &Path) -> Result<Self, TrackError> {
         let file = read_calibration(path).map_err(|e| TrackError::Calibration {
-            path: e.path,
+            path: e.file,
             message: if e.line > 0 {
                 format!("line {}: {}", e.line, e.message)
             } else {

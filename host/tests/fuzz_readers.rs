@@ -329,42 +329,7 @@ proptest! {
 /// calibration whose invariants hold or an error naming the file and a line within it.
 mod calibration {
     use super::*;
-    use incise::calibration::read_calibration;
-
-    const YAML: &str = "%YAML:1.0
----
-image_width: 640
-image_height: 400
-camera_matrix: !!opencv-matrix
-   rows: 3
-   cols: 3
-   dt: d
-   data: [ 500., 0., 320., 0., 510., 200., 0., 0., 1. ]
-dist_coeffs: !!opencv-matrix
-   rows: 1
-   cols: 5
-   dt: d
-   data: [ -0.2, 0.05, 0.001, -0.002, 0.01 ]
-";
-
-    const XML: &str = "<?xml version=\"1.0\"?>
-<opencv_storage>
-<image_width>640</image_width>
-<image_height>400</image_height>
-<camera_matrix type_id=\"opencv-matrix\">
-  <rows>3</rows>
-  <cols>3</cols>
-  <dt>d</dt>
-  <data>
-    500. 0. 320. 0. 510. 200. 0. 0. 1.</data></camera_matrix>
-<distortion_coefficients type_id=\"opencv-matrix\">
-  <rows>5</rows>
-  <cols>1</cols>
-  <dt>d</dt>
-  <data>
-    -0.2 0.05 0.001 -0.002 0.01</data></distortion_coefficients>
-</opencv_storage>
-";
+    use incise::calibration::{EXAMPLE_XML as XML, EXAMPLE_YAML as YAML, read_calibration};
 
     fn check(text: &str, ext: &str) {
         let tmp = tempfile::tempdir().unwrap();
@@ -378,11 +343,7 @@ dist_coeffs: !!opencv-matrix
                 assert!([0, 4, 5, 8, 12, 14].contains(&c.dist_coeffs.len()));
                 assert!(c.dist_coeffs.iter().all(|x| x.is_finite()));
             }
-            Err(e) => {
-                assert_eq!(e.path, path, "{e}");
-                assert!(e.line <= text.lines().count() + 1, "{e}");
-                assert!(!e.message.is_empty());
-            }
+            Err(e) => names_file_and_line(&e, &path, text),
         }
     }
 

@@ -132,18 +132,7 @@ impl<'a, T: Real> LdlFactor<'a, T> {
             &mut work[..n],
             &mut cursor[..n],
         );
-        match outcome {
-            Ok(()) => {
-                self.active = Some((target, size));
-                Ok(())
-            }
-            Err(e) => {
-                if let Some(active) = self.checkpoint {
-                    self.active = active;
-                }
-                Err(e)
-            }
-        }
+        self.settle(outcome, target, size)
     }
 
     /// Factorizes `A` as [`LdlFactor::factorize`] does, supernode by supernode (left-looking,
@@ -175,18 +164,7 @@ impl<'a, T: Real> LdlFactor<'a, T> {
             work,
             iwork,
         );
-        match outcome {
-            Ok(()) => {
-                self.active = Some((target, size));
-                Ok(())
-            }
-            Err(e) => {
-                if let Some(active) = self.checkpoint {
-                    self.active = active;
-                }
-                Err(e)
-            }
-        }
+        self.settle(outcome, target, size)
     }
 
     /// Checks `sym` against the capacity and `a_values` against `sym`.
@@ -209,6 +187,28 @@ impl<'a, T: Real> LdlFactor<'a, T> {
     }
 
     /// The value set not in service, which a factorization writes.
+    /// Ends a factorization into value set `target`: on success its factor goes into service;
+    /// on failure the one in service stays (inside a checkpoint: the checkpoint's).
+    fn settle(
+        &mut self,
+        outcome: Result<(), Error>,
+        target: usize,
+        size: SymbolicSize,
+    ) -> Result<(), Error> {
+        match outcome {
+            Ok(()) => {
+                self.active = Some((target, size));
+                Ok(())
+            }
+            Err(e) => {
+                if let Some(active) = self.checkpoint {
+                    self.active = active;
+                }
+                Err(e)
+            }
+        }
+    }
+
     /// The value set a factorization writes: not the one in service, and never a
     /// checkpoint's.
     fn spare_set(&self) -> usize {

@@ -378,14 +378,7 @@ impl Scenario {
             limits::MAX_JUMP_PX,
         )?;
         let c = &self.camera;
-        limits::within("camera", "width", c.width.into(), 1, limits::MAX_IMAGE_SIDE)?;
-        limits::within(
-            "camera",
-            "height",
-            c.height.into(),
-            1,
-            limits::MAX_IMAGE_SIDE,
-        )?;
+        limits::image_size(c.width, c.height)?;
         limits::positive("camera", "focal", c.focal)?;
         limits::positive("model", "young", self.model.young)?;
         limits::poisson("model", "poisson", self.model.poisson)?;
