@@ -221,7 +221,11 @@ pub fn read_vtu(path: &Path) -> Result<VtuMesh, VtuError> {
             "{bytes} bytes; a model mesh file is at most {MAX_VTU_BYTES} bytes"
         )));
     }
-    let vtk = vtkio::Vtk::import(path).map_err(|e| fail(format!("cannot read: {e}")))?;
+    // vtkio panics on some damaged files (an `unwrap` in its XML reader, found by
+    // `tests/fuzz_readers.rs`): a panic there is an unreadable file, not a crash.
+    let vtk = std::panic::catch_unwind(|| vtkio::Vtk::import(path))
+        .map_err(|_| fail("cannot read: the VTK reader failed on the file's XML".into()))?
+        .map_err(|e| fail(format!("cannot read: {e}")))?;
     let DataSet::UnstructuredGrid { pieces, .. } = vtk.data else {
         return Err(fail(
             "not an unstructured grid (VTK_UNSTRUCTURED_GRID)".into(),
