@@ -175,9 +175,12 @@ fn call() -> impl proptest::strategy::Strategy<Value = Call> {
 }
 
 fn strategy_from(rng: &mut Rng) -> Linear {
-    match rng.next_u64() % 3 {
+    match rng.next_u64() % 4 {
         0 => Linear::Refactor,
         1 => Linear::Frozen {
+            pcg_iterations: 1 + (rng.next_u64() % 12) as u32,
+        },
+        2 => Linear::FactorOnce {
             pcg_iterations: 1 + (rng.next_u64() % 12) as u32,
         },
         _ => Linear::Frozen {

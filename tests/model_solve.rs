@@ -313,6 +313,7 @@ fn registration(strategy: Strategy) {
     let mut model = storage.model(&input, &cfg).unwrap();
     let report = model.embed_features(&observe(&cam, &at(0.0))).unwrap();
     assert_eq!(report.missed, 0);
+    let bound = model.worst_case_work();
     for frame in 1..=20 {
         let s = (frame as f64 / 10.0).min(1.0);
         let r = model.step(&observe(&cam, &at(s))).unwrap();
@@ -321,6 +322,36 @@ fn registration(strategy: Strategy) {
             "{strategy:?} frame {frame}: gradient {:e} -> {:e}",
             r.gradient_norm_before,
             r.gradient_norm_after
+        );
+        // The counted work is the formula's: exactly, but for PCG, which stops early only on
+        // a residual that vanishes exactly.
+        let w = r.work;
+        let exact = |name: &str, counted: u64, formula: u64| {
+            assert_eq!(counted, formula, "{strategy:?} frame {frame}: {name}");
+        };
+        exact("assemblies", w.assemblies.into(), bound.assemblies.into());
+        exact(
+            "element tangents",
+            w.element_tangents,
+            bound.element_tangents,
+        );
+        exact(
+            "factorizations",
+            w.factorizations.into(),
+            bound.factorizations.into(),
+        );
+        exact("factor flops", w.factor_flops, bound.factor_flops);
+        assert!(w.solves <= bound.solves && w.matvecs <= bound.matvecs);
+        assert!(w.solve_flops <= bound.solve_flops && w.matvec_flops <= bound.matvec_flops);
+        let factorizations = match strategy {
+            Strategy::Refactor => 4,
+            Strategy::Frozen { .. } => 0,
+            Strategy::FactorOnce { .. } => 1,
+        };
+        exact(
+            "factorizations per frame",
+            w.factorizations.into(),
+            factorizations,
         );
     }
     // Surface RMS error over all boundary nodes.
@@ -363,6 +394,11 @@ fn registration_follows_a_deformation_with_refactor() {
 #[test]
 fn registration_follows_a_deformation_with_frozen() {
     registration(Strategy::Frozen { pcg_iterations: 20 });
+}
+
+#[test]
+fn registration_follows_a_deformation_with_one_factorization_per_frame() {
+    registration(Strategy::FactorOnce { pcg_iterations: 3 });
 }
 
 /// The whole model in single precision: the box of the registration test, a few frames, every

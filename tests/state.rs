@@ -235,7 +235,11 @@ fn model_new_names_the_parameter_resource_and_index_at_fault() {
 
 #[test]
 fn a_bad_frame_leaves_the_model_as_it_was() {
-    for strategy in [Strategy::Refactor, Strategy::Frozen { pcg_iterations: 8 }] {
+    for strategy in [
+        Strategy::Refactor,
+        Strategy::Frozen { pcg_iterations: 8 },
+        Strategy::FactorOnce { pcg_iterations: 3 },
+    ] {
         with_model(strategy, default_caps, |b, model| {
             let good = b.frame(5, 3.0);
             let [u, v] = good[0].uv;
@@ -281,7 +285,11 @@ fn a_bad_frame_leaves_the_model_as_it_was() {
 
 #[test]
 fn a_solve_that_fails_leaves_observations_damping_reference_and_factor_as_they_were() {
-    for strategy in [Strategy::Refactor, Strategy::Frozen { pcg_iterations: 8 }] {
+    for strategy in [
+        Strategy::Refactor,
+        Strategy::Frozen { pcg_iterations: 8 },
+        Strategy::FactorOnce { pcg_iterations: 3 },
+    ] {
         with_model(strategy, default_caps, |b, model| {
             let good = b.frame(5, 3.0);
             let lifted: Vec<[f64; 3]> = model

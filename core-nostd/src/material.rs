@@ -240,7 +240,8 @@ pub enum TangentProjection {
     /// - The geometric term `(g_aᵀ S g_b) I` uses `S⁺ = Q max(Λ, 0) Qᵀ` in place of `S`, from a
     ///   fixed-cost Jacobi eigen-decomposition `S = Q Λ Qᵀ`. As a quadratic form it is
     ///   `Σ_i v_iᵀ S⁺ v_i` over the rows `v_i` of `δF`, hence PSD. When no eigenvalue of `S` is
-    ///   negative, `S` itself is used, so the tangent is then the exact one.
+    ///   negative, `S` itself is used, so the tangent is then the exact one; a positive
+    ///   definite `S` (Sylvester's criterion, three leading minors) skips the eigen-solve.
     /// - The material term is `V (λ (tr δE)² + 2μ |δE|²)`, `δE = sym(Fᵀ δF)`, which splits into
     ///   `V (2μ |dev δE|² + (λ + 2μ/3)(tr δE)²)`: PSD whenever `μ ≥ 0` and `3λ + 2μ ≥ 0`, which
     ///   every [`Lame::from_young_poisson`] pair satisfies, including `λ < 0` for `ν < 0`. So
@@ -305,8 +306,9 @@ fn gradient_from_stress<T: Real>(
 ///
 /// With `f_a = F g_a`, the tangent blocks are
 /// `K_ab = V [(g_aᵀ S g_b) I + λ f_a f_bᵀ + μ f_b f_aᵀ + μ (g_a · g_b) F Fᵀ]`
-/// (the first term geometric, the rest material), modified per `projection`. The cost is fixed
-/// and independent of the data (the projection always runs the same number of Jacobi sweeps).
+/// (the first term geometric, the rest material), modified per `projection`. The cost is
+/// bounded independently of the data: the projection runs a fixed number of Jacobi sweeps, and
+/// is skipped (cheaper, never dearer) when the stress is positive definite.
 pub fn element_energy_gradient_tangent<T: Real>(
     lame: &Lame<T>,
     rest: &ElementRest<T>,
@@ -418,6 +420,13 @@ fn jacobi<T: Real>(a: &Matrix3<T>, sweeps: usize) -> (Vector3<T>, Matrix3<T>) {
 /// `S⁺ = Q max(Λ, 0) Qᵀ`, or `s` itself when no eigenvalue is negative (so the projected
 /// tangent equals the exact one for a positive semidefinite stress).
 fn positive_part<T: Real>(s: &Matrix3<T>) -> Matrix3<T> {
+    // Positive definite by Sylvester's criterion (leading principal minors positive): the
+    // eigen-solve would keep `s` as it is, so skip it. A tensile stress, the common case of a
+    // pulled organ, takes this branch; the worst case (the eigen-solve) is unchanged.
+    let minor2 = s[(0, 0)] * s[(1, 1)] - s[(0, 1)] * s[(1, 0)];
+    if s[(0, 0)] > T::zero() && minor2 > T::zero() && s.determinant() > T::zero() {
+        return *s;
+    }
     let (lam, q) = symmetric_eigen3(s);
     if lam.iter().all(|&l| l >= T::zero()) {
         return *s;

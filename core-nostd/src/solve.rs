@@ -48,7 +48,7 @@ pub const DEFAULT_DEPTH_PRIOR: f64 = 0.1;
 pub const MAX_NEWTON_ITERATIONS: u32 = 64;
 /// Upper bound on [`SolverConfig::line_search_steps`].
 pub const MAX_LINE_SEARCH_STEPS: u32 = 16;
-/// Upper bound on the PCG iterations of [`Strategy::Frozen`].
+/// Upper bound on the PCG iterations of [`Strategy::Frozen`] and [`Strategy::FactorOnce`].
 pub const MAX_PCG_ITERATIONS: u32 = 1000;
 
 /// How each Newton step solves its linear system.
@@ -63,6 +63,27 @@ pub enum Strategy {
         /// PCG iterations per Newton step.
         pcg_iterations: u32,
     },
+    /// Refactor the positive definite Hessian at the first Newton step of each frame and solve
+    /// exactly; the later Newton steps of the frame run a fixed number of preconditioned
+    /// conjugate gradient steps on their own Hessian, preconditioned with that factor. One
+    /// factorization per frame: the factor is at most a frame's Newton steps old, where the
+    /// frozen one can be a whole deformation away.
+    FactorOnce {
+        /// PCG iterations per Newton step after the first.
+        pcg_iterations: u32,
+    },
+}
+
+impl Strategy {
+    /// PCG iterations per Newton step, if the strategy runs any.
+    pub const fn pcg_iterations(&self) -> Option<u32> {
+        match *self {
+            Strategy::Refactor => None,
+            Strategy::Frozen { pcg_iterations } | Strategy::FactorOnce { pcg_iterations } => {
+                Some(pcg_iterations)
+            }
+        }
+    }
 }
 
 /// Parameters of the per-frame solve.
@@ -92,12 +113,10 @@ impl<T: Real> SolverConfig<T> {
     /// # Errors
     /// [`Error::InvalidParameter`] naming the first parameter out of range.
     pub fn validate(&self) -> Result<(), Error> {
-        let pcg_ok = match self.strategy {
-            Strategy::Refactor => true,
-            Strategy::Frozen { pcg_iterations } => {
-                (1..=MAX_PCG_ITERATIONS).contains(&pcg_iterations)
-            }
-        };
+        let pcg_ok = self
+            .strategy
+            .pcg_iterations()
+            .is_none_or(|k| (1..=MAX_PCG_ITERATIONS).contains(&k));
         for (parameter, ok) in [
             (
                 Parameter::NewtonIterations,

@@ -245,11 +245,11 @@ pub fn plot_dice(trace: &Trace, summary: &Summary, out: &Path) -> Result<(), Str
 /// One solver setting of an error-against-run-time sweep.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SweepSetting {
-    /// `"refactor"` or `"frozen"`.
+    /// `"refactor"`, `"frozen"` or `"factor-once"`.
     pub strategy: &'static str,
     /// Newton steps per frame.
     pub newton: u32,
-    /// PCG steps per Newton step (`"frozen"` only).
+    /// PCG steps per Newton step (`"frozen"`; per later Newton step for `"factor-once"`).
     pub pcg: u32,
 }
 
@@ -265,13 +265,15 @@ impl SweepSetting {
     pub fn label(&self) -> String {
         match self.strategy {
             "frozen" => format!("frozen, {} Newton × {} PCG", self.newton, self.pcg),
+            "factor-once" => format!("factor once, {} Newton, {} PCG", self.newton, self.pcg),
             _ => format!("refactor, {} Newton", self.newton),
         }
     }
 }
 
 /// The settings a sweep tries: `Refactor` with 1 to 4 Newton steps, `Frozen` with 1 to 3
-/// Newton steps of 3, 10 or 30 PCG steps.
+/// Newton steps of 3, 10 or 30 PCG steps, `FactorOnce` with 2 or 3 Newton steps of 3 or 10 PCG
+/// steps after the first.
 pub fn sweep_settings() -> Vec<SweepSetting> {
     let mut v: Vec<SweepSetting> = (1..=4)
         .map(|newton| SweepSetting {
@@ -284,6 +286,15 @@ pub fn sweep_settings() -> Vec<SweepSetting> {
         for pcg in [3, 10, 30] {
             v.push(SweepSetting {
                 strategy: "frozen",
+                newton,
+                pcg,
+            });
+        }
+    }
+    for newton in 2..=3 {
+        for pcg in [3, 10] {
+            v.push(SweepSetting {
+                strategy: "factor-once",
                 newton,
                 pcg,
             });
@@ -362,10 +373,10 @@ pub fn plot_sweep(scene: &str, rows: &[(SweepSetting, Summary)], out: &Path) -> 
             .draw()
             .map_err(|e| e.to_string())?;
         for (setting, s) in rows {
-            let colour = if setting.strategy == "frozen" {
-                RED
-            } else {
-                BLUE
+            let colour = match setting.strategy {
+                "frozen" => RED,
+                "factor-once" => GREEN,
+                _ => BLUE,
             };
             let v = metric(s);
             if v.is_finite() {

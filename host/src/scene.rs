@@ -139,9 +139,10 @@ fn default_near() -> f64 {
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct SolverSection {
-    /// `"refactor"` or `"frozen"`.
+    /// `"refactor"`, `"frozen"` or `"factor-once"`.
     pub strategy: String,
-    /// PCG iterations per Newton step for `"frozen"`.
+    /// PCG iterations per Newton step for `"frozen"` (and per later Newton step for
+    /// `"factor-once"`).
     #[serde(default = "default_pcg")]
     pub pcg_iterations: u32,
     /// Newton steps per frame.
@@ -506,11 +507,14 @@ impl SolverSection {
             "frozen" => Strategy::Frozen {
                 pcg_iterations: s.pcg_iterations,
             },
+            "factor-once" => Strategy::FactorOnce {
+                pcg_iterations: s.pcg_iterations,
+            },
             other => {
                 return Err(Refusal::new(
                     "solver",
                     "strategy",
-                    format!("must be \"refactor\" or \"frozen\", not {other:?}"),
+                    format!("must be \"refactor\", \"frozen\" or \"factor-once\", not {other:?}"),
                 ));
             }
         };

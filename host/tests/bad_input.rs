@@ -270,7 +270,7 @@ fn scenarios_that_would_write_an_unusable_scene_are_refused() {
         &["[tracking] outlier_fraction"],
     );
     gen_refuses(
-        "strategy = \"refactor\"",
+        "strategy = \"factor-once\"",
         "strategy = \"fast\"",
         &["[solver] strategy"],
     );

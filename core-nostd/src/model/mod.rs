@@ -621,22 +621,9 @@ impl<'a, T: Real> Model<'a, T> {
                 gradient_norm_before = dot(&v.gradient[..n], &v.gradient[..n]).sqrt();
             }
             match self.config.solver.strategy {
-                Strategy::Refactor => {
-                    self.factorize(&mut work)?;
-                    self.holds = FactorHolds::Step;
-                    let v = &mut self.vectors;
-                    for (s, &g) in v.step[..n].iter_mut().zip(&v.gradient[..n]) {
-                        *s = -g;
-                    }
-                    self.factor.solve_in_place(
-                        &self.live.symbolic,
-                        &mut v.step[..n],
-                        &mut v.solve_work[..n],
-                    )?;
-                    work.solves += 1;
-                    work.solve_flops += self.live.symbolic.solve_flops();
-                }
-                Strategy::Frozen { pcg_iterations } => {
+                Strategy::Refactor => self.refactor_and_solve(&mut work)?,
+                Strategy::FactorOnce { .. } if it == 0 => self.refactor_and_solve(&mut work)?,
+                Strategy::Frozen { pcg_iterations } | Strategy::FactorOnce { pcg_iterations } => {
                     self.pcg(pcg_iterations, &mut work)?;
                 }
             }
@@ -694,6 +681,25 @@ impl<'a, T: Real> Model<'a, T> {
         )
     }
 
+    /// Factors the Hessian just assembled and solves the Newton system exactly.
+    fn refactor_and_solve(&mut self, work: &mut WorkCount) -> Result<(), Error> {
+        let n = self.n_unknowns();
+        self.factorize(work)?;
+        self.holds = FactorHolds::Step;
+        let v = &mut self.vectors;
+        for (s, &g) in v.step[..n].iter_mut().zip(&v.gradient[..n]) {
+            *s = -g;
+        }
+        self.factor.solve_in_place(
+            &self.live.symbolic,
+            &mut v.step[..n],
+            &mut v.solve_work[..n],
+        )?;
+        work.solves += 1;
+        work.solve_flops += self.live.symbolic.solve_flops();
+        Ok(())
+    }
+
     /// Factors the frozen matrix: the positive definite Hessian at the current state.
     fn prepare_frozen(&mut self, work: &mut WorkCount) -> Result<(), Error> {
         self.assemble(true, work)?;
@@ -712,7 +718,8 @@ impl<'a, T: Real> Model<'a, T> {
         )
     }
 
-    /// Preconditioned conjugate gradients on `H step = −grad` with the frozen factor, a fixed
+    /// Preconditioned conjugate gradients on `H step = −grad` with the factor in service (the
+    /// frozen one, or this frame's first Newton step's), a fixed
     /// number of iterations (fewer only if the residual vanishes exactly).
     fn pcg(&mut self, iterations: u32, work: &mut WorkCount) -> Result<(), Error> {
         let n = self.n_unknowns();
@@ -857,6 +864,15 @@ impl<'a, T: Real> Model<'a, T> {
                 w.solves = newton * (pcg_iterations + 1);
                 w.solve_flops = u64::from(w.solves) * sym.solve_flops();
                 w.matvecs = newton * pcg_iterations;
+                w.matvec_flops = u64::from(w.matvecs) * 2 * nnz;
+            }
+            Strategy::FactorOnce { pcg_iterations } => {
+                let later = newton.saturating_sub(1);
+                w.factorizations = 1;
+                w.factor_flops = sym.factor_flops();
+                w.solves = 1 + later * (pcg_iterations + 1);
+                w.solve_flops = u64::from(w.solves) * sym.solve_flops();
+                w.matvecs = later * pcg_iterations;
                 w.matvec_flops = u64::from(w.matvecs) * 2 * nnz;
             }
         }
@@ -1152,7 +1168,7 @@ impl<'a, T: Real> Model<'a, T> {
         core::mem::swap(&mut self.live, &mut self.spare);
         self.holds = match self.config.solver.strategy {
             Strategy::Frozen { .. } => FactorHolds::Frozen,
-            Strategy::Refactor => FactorHolds::Step,
+            Strategy::Refactor | Strategy::FactorOnce { .. } => FactorHolds::Step,
         };
         report.applied = true;
         report.work = work;
@@ -1292,6 +1308,7 @@ impl<'a, T: Real> Model<'a, T> {
         let strategy = match self.config.solver.strategy {
             Strategy::Refactor => [0, 0],
             Strategy::Frozen { pcg_iterations } => [1, pcg_iterations],
+            Strategy::FactorOnce { pcg_iterations } => [2, pcg_iterations],
         };
         h.words(strategy.iter());
         h.words(core::iter::once(&(self.holds as u32)));
