@@ -10,9 +10,15 @@
 //! - instructions counted by callgrind (deterministic): the steady frame (median) and each
 //!   frame that cuts, and the cut event alone (the frame minus the steady median).
 //!
-//! `cargo bench --bench cut_event` runs both (the second only if valgrind is installed);
-//! `-- --no-callgrind` skips it. The binary re-runs itself under callgrind with
-//! `--instructions <scene>` to count one scene.
+//!
+//! A third table (callgrind too) splits a steady frame's instructions by stage: assembly,
+//! factorization, triangular solves, PCG products, line search, detection and the cut line,
+//! averaged over the run with the cut events taken out, for each scene's own setting and, on
+//! `liver-lobe`, for `Refactor` (a factorization at every Newton step) as a comparison.
+//!
+//! `cargo bench --bench cut_event` runs all (the callgrind ones only if valgrind is installed);
+//! `-- --no-callgrind` skips them, `-- --split-only` runs only the split. The binary re-runs itself under callgrind with
+//! `--instructions <scene>` to count one scene, and `--stages <scene> <strategy>` to split one.
 
 use std::hint::black_box;
 use std::path::{Path, PathBuf};
@@ -27,7 +33,7 @@ use faer::sparse::linalg::cholesky::{
 };
 use incise::run::ModelStorage;
 use incise::scene::{Scene, read_points_csv};
-use incise_core::{Material, MeshInput, Model, ModelConfig, Observation, StepReport};
+use incise_core::{Material, MeshInput, Model, ModelConfig, Observation, StepReport, Strategy};
 use incise_validation::oracle::to_faer;
 
 const SCENES: [&str; 3] = ["band-side-cut", "band-middle-cut", "liver-lobe"];
@@ -261,14 +267,159 @@ fn instructions() {
     println!();
 }
 
+/// The stages of a frame, each with the function whose inclusive instructions callgrind gives
+/// for it (`Model::step` calls each of them; the rest of the frame is "other": observing,
+/// the Newton loop's vector updates, copies for the all-or-nothing step).
+const STAGES: [(&str, &str); 7] = [
+    ("assembly", "solve::Problem<T>::assemble"),
+    ("factorization", "LdlFactor<T>::factorize_supernodal"),
+    ("solves", "LdlFactor<T>::solve_in_place"),
+    ("PCG products", "sym_matvec"),
+    ("line search", "solve::Problem<T>::energy"),
+    ("detection", "Detector<T>::update"),
+    ("cut line", "CutLine<T>::update"),
+];
+
+/// The settings the split runs: each scene's own, and `Refactor` on the liver.
+const SPLITS: [(&str, &str); 4] = [
+    ("band-side-cut", "own"),
+    ("band-middle-cut", "own"),
+    ("liver-lobe", "own"),
+    ("liver-lobe", "refactor"),
+];
+
+/// Runs one scene's frames (with `strategy` unless it is "own") for callgrind.
+fn stages_child(name: &str, strategy: &str) {
+    let s = scene(name);
+    with_model(&s, |model| {
+        if strategy == "refactor" {
+            model.set_strategy(Strategy::Refactor).expect("strategy");
+        }
+        for frame in s.frames.iter().skip(1) {
+            let obs = known(model, frame);
+            black_box(bench_frame_step(model, &obs));
+        }
+    });
+}
+
+/// Instructions callgrind counted inside the functions that `toggle` names, in total and per
+/// stage (the largest inclusive count of an entry naming the stage's function: callgrind
+/// lists a function once per source file its inlined code comes from, the whole function
+/// being the largest).
+fn counted(exe: &Path, out: &Path, toggle: &str, args: &[&str]) -> (f64, Vec<f64>) {
+    let output = Command::new("valgrind")
+        .arg("--tool=callgrind")
+        .arg(format!("--toggle-collect={toggle}"))
+        .arg(format!("--callgrind-out-file={}", out.display()))
+        .arg(exe)
+        .args(args)
+        .output()
+        .expect("valgrind runs");
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let annotated = Command::new("callgrind_annotate")
+        .args(["--inclusive=yes", "--threshold=100"])
+        .arg(out)
+        .output()
+        .expect("callgrind_annotate runs");
+    let text = String::from_utf8_lossy(&annotated.stdout);
+    let entries: Vec<(f64, &str)> = text
+        .lines()
+        .filter_map(|l| {
+            let l = l.trim_start();
+            let (n, rest) = l.split_once(' ')?;
+            let n: f64 = n.replace(',', "").parse().ok()?;
+            Some((n, rest))
+        })
+        .collect();
+    let total = entries
+        .iter()
+        .find(|e| e.1.contains("PROGRAM TOTALS"))
+        .map_or(0.0, |e| e.0);
+    let stages = STAGES
+        .iter()
+        .map(|(_, f)| {
+            entries
+                .iter()
+                .filter(|e| e.1.contains(f))
+                .map(|e| e.0)
+                .fold(0.0, f64::max)
+        })
+        .collect();
+    (total, stages)
+}
+
+fn stage_split() {
+    if Command::new("callgrind_annotate")
+        .arg("--version")
+        .output()
+        .is_err()
+    {
+        println!("callgrind_annotate not found: stage split skipped\n");
+        return;
+    }
+    let exe = std::env::current_exe().expect("exe");
+    let dir = std::env::temp_dir().join(format!("incise-stages-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("tmp dir");
+    println!(
+        "## Where a steady frame's instructions go (callgrind, mean over the run, cut events taken out)\n"
+    );
+    let names: Vec<&str> = STAGES.iter().map(|s| s.0).collect();
+    println!(
+        "| scene | setting | instructions / frame | {} | other |",
+        names.join(" | ")
+    );
+    println!("| --- | --- | ---: |{}", " ---: |".repeat(STAGES.len() + 1));
+    for (name, strategy) in SPLITS {
+        let s = scene(name);
+        let frames = (s.frames.len() - 1) as f64;
+        let setting = if strategy == "own" {
+            s.file.solver.strategy.clone()
+        } else {
+            strategy.to_string()
+        };
+        let args = ["--stages", name, strategy];
+        let out = dir.join("cg");
+        let (all, in_steps) = counted(&exe, &out, "*bench_frame_step*", &args);
+        let (cut, in_cuts) = counted(&exe, &out, "*Model*apply_cut*", &args);
+        let per_frame = (all - cut) / frames;
+        let mut cells = vec![];
+        let mut staged = 0.0;
+        for (a, c) in in_steps.iter().zip(&in_cuts) {
+            let v = (a - c) / frames;
+            staged += v;
+            cells.push(format!("{:.0}%", 100.0 * v / per_frame));
+        }
+        cells.push(format!("{:.0}%", 100.0 * (per_frame - staged) / per_frame));
+        println!(
+            "| {name} | {setting} | {per_frame:.3e} | {} |",
+            cells.join(" | ")
+        );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+    println!();
+}
+
 fn main() {
     let args: Vec<String> = std::env::args().collect();
     if let Some(i) = args.iter().position(|a| a == "--instructions") {
         instructions_child(&args[i + 1]);
         return;
     }
+    if let Some(i) = args.iter().position(|a| a == "--stages") {
+        stages_child(&args[i + 1], &args[i + 2]);
+        return;
+    }
+    if args.iter().any(|a| a == "--split-only") {
+        stage_split();
+        return;
+    }
     timing();
     if !args.iter().any(|a| a == "--no-callgrind") {
         instructions();
+        stage_split();
     }
 }

@@ -357,6 +357,9 @@ fn up_looking<T: Real>(
 ///
 /// # Errors
 /// [`Error::Length`] if a slice does not match the pattern.
+// Kept out of line (it is called a few times per frame at most) so that profilers can tell
+// the PCG products from the rest of the Newton loop.
+#[inline(never)]
 pub fn sym_matvec<T: Real>(
     a: &UpperCsc<'_>,
     values: &[T],
