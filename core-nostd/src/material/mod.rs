@@ -1,18 +1,21 @@
 //! Saint Venant–Kirchhoff elasticity on linear tetrahedra.
 //!
-//! Kept in three layers, as fenris does, so that each can be read and tested on its own:
+//! Kept in layers, as fenris keeps element, material and assembly apart, so that each can be
+//! read and tested on its own:
 //!
-//! 1. **Material** ([`Lame`], [`green_strain`], [`energy_density`], [`second_piola_kirchhoff`],
-//!    [`first_piola_kirchhoff`]): the law as a function of the deformation gradient `F` only,
-//!    `E = ½(FᵀF − I)`, `S = λ tr(E) I + 2μ E`, `P = F S`, `Ψ = μ tr(E²) + ½ λ (tr E)²`.
-//! 2. **Element geometry** ([`ElementRest`], [`deformation_gradient`]): the rest shape of one
-//!    tetrahedron, `Dm = [X1 − X0, X2 − X0, X3 − X0]`, its inverse, its volume and the constant
-//!    shape gradients `g_a` with `F = Σ_a x_a g_aᵀ`.
-//! 3. **Element quantities** ([`element_energy`], [`element_gradient`],
+//! 1. **Material** (`law`: [`Lame`], [`green_strain`], [`energy_density`],
+//!    [`second_piola_kirchhoff`], [`first_piola_kirchhoff`]): the law as a function of the
+//!    deformation gradient `F` only, `E = ½(FᵀF − I)`, `S = λ tr(E) I + 2μ E`, `P = F S`,
+//!    `Ψ = μ tr(E²) + ½ λ (tr E)²`.
+//! 2. **Element geometry** (`element`: [`ElementRest`], [`deformation_gradient`]): the rest
+//!    shape of one tetrahedron, `Dm = [X1 − X0, X2 − X0, X3 − X0]`, its inverse, its volume and
+//!    the constant shape gradients `g_a` with `F = Σ_a x_a g_aᵀ`.
+//! 3. **Element quantities** (here: [`element_energy`], [`element_gradient`],
 //!    [`element_energy_gradient_tangent`]): `W = V Ψ(F)`, its gradient `∂W/∂x_a = V P g_a` and
 //!    its 12 × 12 tangent, the latter optionally made positive semidefinite
 //!    ([`TangentProjection`]) so that the assembled stiffness can be handed to a Cholesky /
-//!    LDLᵀ factorization.
+//!    LDLᵀ factorization; the projection's small dense kernel, a fixed-cost 3 × 3 Jacobi
+//!    eigen-solve, is `eigen3`.
 //!
 //! Units: positions in metres, Lamé parameters and stresses in pascals, energy density in J/m³,
 //! element energy in joules, gradient (force) in newtons, tangent in N/m.
@@ -22,212 +25,18 @@
 //! a quantity of the current configuration. The one place that divides, the Jacobi rotation of
 //! the positive semidefinite projection, guards its divisor.
 
+mod eigen3;
+mod element;
+mod law;
+
 use nalgebra::{Matrix3, Vector3};
 
-use crate::error::{Error, Parameter, Resource};
 use crate::real::Real;
+use eigen3::symmetric_eigen3;
+use law::{energy_density_of_strain, green_strain_of_displacement, stress_from_strain};
 
-/// Lamé parameters of an isotropic material, in pascals.
-///
-/// Built by [`Lame::from_young_poisson`], they satisfy `μ > 0` and `3λ + 2μ > 0` (the bulk
-/// modulus `K = λ + 2μ/3` is positive), which makes the material part of the SVK tangent
-/// positive semidefinite even when `λ < 0` (Poisson ratio below zero). The fields are public
-/// for callers that know their Lamé pair directly; values outside that range are accepted by
-/// the element functions, and [`TangentProjection::PositiveDefinite`] clamps them (see there).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Lame<T> {
-    /// Shear modulus `μ` (Pa).
-    pub mu: T,
-    /// First Lamé parameter `λ` (Pa); negative for a negative Poisson ratio.
-    pub lambda: T,
-}
-
-impl<T: Real> Lame<T> {
-    /// Converts Young's modulus `young` (Pa) and the Poisson ratio `poisson` (dimensionless)
-    /// into `μ = E / (2(1 + ν))` and `λ = E ν / ((1 + ν)(1 − 2ν))`.
-    ///
-    /// # Errors
-    /// [`Error::InvalidParameter`] naming [`Parameter::YoungModulus`] unless `young` is positive
-    /// and finite (or `μ` overflows), naming [`Parameter::PoissonRatio`] unless
-    /// `-1 < poisson < 0.5` (or `λ` overflows because `ν` is too close to `0.5`).
-    pub fn from_young_poisson(young: T, poisson: T) -> Result<Self, Error> {
-        let young_bad = Error::InvalidParameter {
-            parameter: Parameter::YoungModulus,
-        };
-        let poisson_bad = Error::InvalidParameter {
-            parameter: Parameter::PoissonRatio,
-        };
-        // Written so that NaN fails every test.
-        if !(young.finite() && young > T::zero()) {
-            return Err(young_bad);
-        }
-        if !(poisson.finite() && poisson > -T::one() && poisson < T::of(0.5)) {
-            return Err(poisson_bad);
-        }
-        let one = T::one();
-        let mu = young / (T::of(2.0) * (one + poisson));
-        if !(mu.finite() && mu > T::zero()) {
-            return Err(young_bad);
-        }
-        let lambda = young * poisson / ((one + poisson) * (one - T::of(2.0) * poisson));
-        if !lambda.finite() {
-            return Err(poisson_bad);
-        }
-        Ok(Lame { mu, lambda })
-    }
-}
-
-/// Green–Lagrange strain `E = ½(FᵀF − I)` (dimensionless, symmetric).
-pub fn green_strain<T: Real>(f: &Matrix3<T>) -> Matrix3<T> {
-    (f.transpose() * f - Matrix3::identity()) * T::of(0.5)
-}
-
-/// SVK strain energy density `Ψ = μ tr(E²) + ½ λ (tr E)²` (J/m³) at deformation gradient `f`.
-///
-/// `tr(E²) = E : E` because `E` is symmetric. Zero for every rotation.
-pub fn energy_density<T: Real>(lame: &Lame<T>, f: &Matrix3<T>) -> T {
-    let e = green_strain(f);
-    let tr = e.trace();
-    lame.mu * e.norm_squared() + T::of(0.5) * lame.lambda * tr * tr
-}
-
-/// Second Piola–Kirchhoff stress `S = λ tr(E) I + 2μ E` (Pa, symmetric) at `f`.
-pub fn second_piola_kirchhoff<T: Real>(lame: &Lame<T>, f: &Matrix3<T>) -> Matrix3<T> {
-    stress_from_strain(lame, &green_strain(f))
-}
-
-/// First Piola–Kirchhoff stress `P = F S = ∂Ψ/∂F` (Pa) at `f`.
-pub fn first_piola_kirchhoff<T: Real>(lame: &Lame<T>, f: &Matrix3<T>) -> Matrix3<T> {
-    f * second_piola_kirchhoff(lame, f)
-}
-
-fn stress_from_strain<T: Real>(lame: &Lame<T>, e: &Matrix3<T>) -> Matrix3<T> {
-    Matrix3::from_diagonal_element(lame.lambda * e.trace()) + e * (T::of(2.0) * lame.mu)
-}
-
-/// Rest geometry of one linear tetrahedron, checked once so that the per-frame element
-/// functions cannot fail.
-///
-/// Invariants after [`ElementRest::new`]: every entry is finite, `volume > 0`, and the rest
-/// tetrahedron is positively oriented and not degenerate in the sense documented there.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ElementRest<T> {
-    /// `Dm⁻¹` (1/m), where `Dm = [X1 − X0, X2 − X0, X3 − X0]` holds the rest edge vectors from
-    /// node 0 as columns.
-    pub dm_inv: Matrix3<T>,
-    /// Rest volume `det(Dm) / 6` (m³), positive.
-    pub volume: T,
-}
-
-/// Relative degeneracy tolerance in units of machine epsilon: a rest tetrahedron with
-/// `|det Dm| ≤ DEGENERACY_EPS · EPS · ℓ³` (`ℓ` its longest edge) is rejected. `4096 · EPS` is
-/// `9.1e-13` for `f64` (the `1e-12` of common practice) and `4.9e-4` for `f32`: below it `Dm⁻¹`
-/// carries a condition number that leaves no correct digit in the strain of the working type.
-const DEGENERACY_EPS: f64 = 4096.0;
-
-impl<T: Real> ElementRest<T> {
-    /// Builds the rest geometry of the tetrahedron with node positions `x` (metres, local node
-    /// order 0..3), `tet_index` being its index in the mesh (used only in errors).
-    ///
-    /// # Errors
-    /// Checked in this order:
-    /// - [`Error::NonFiniteInput`] with [`Resource::Nodes`] if a coordinate is NaN or infinite;
-    ///   `position` is the slot of that node in the flattened connectivity,
-    ///   `4 · tet_index + a` for local node `a` (saturating). Finite coordinates so large that
-    ///   the edge vectors, `det Dm` or `Dm⁻¹` overflow are reported the same way at local node 0.
-    /// - [`Error::DegenerateElement`] if `|det Dm| ≤ 4096 · EPS · ℓ³`, `ℓ` the longest of the six
-    ///   edges (this includes coincident and coplanar nodes).
-    /// - [`Error::InvertedElement`] if `det Dm < 0` (node 3 lies on the wrong side of the face
-    ///   `0, 1, 2` for the right-hand rule).
-    pub fn new(x: &[[T; 3]; 4], tet_index: usize) -> Result<Self, Error> {
-        let slot = |a: usize| tet_index.saturating_mul(4).saturating_add(a);
-        for (a, node) in x.iter().enumerate() {
-            if !node.iter().all(|c| c.finite()) {
-                return Err(Error::NonFiniteInput {
-                    resource: Resource::Nodes,
-                    position: slot(a),
-                });
-            }
-        }
-        let overflow = Error::NonFiniteInput {
-            resource: Resource::Nodes,
-            position: slot(0),
-        };
-        let p = nodes(x);
-        let dm = Matrix3::from_columns(&[p[1] - p[0], p[2] - p[0], p[3] - p[0]]);
-        let mut longest_sq = T::zero();
-        for a in 0..4 {
-            for b in (a + 1)..4 {
-                longest_sq = longest_sq.max((p[b] - p[a]).norm_squared());
-            }
-        }
-        let scale = longest_sq * longest_sq.sqrt();
-        let det = dm.determinant();
-        if !(scale.finite() && det.finite()) {
-            return Err(overflow);
-        }
-        if det.abs() <= T::of(DEGENERACY_EPS) * T::EPS * scale {
-            return Err(Error::DegenerateElement { tet: tet_index });
-        }
-        if det < T::zero() {
-            return Err(Error::InvertedElement { tet: tet_index });
-        }
-        // `det` is well away from zero here, so the inverse exists; `None` or an overflowing
-        // entry can only come from extreme magnitudes.
-        let dm_inv = dm.try_inverse().ok_or(overflow)?;
-        let volume = det / T::of(6.0);
-        if !(dm_inv.iter().all(|v| v.finite()) && volume > T::zero()) {
-            return Err(overflow);
-        }
-        Ok(ElementRest { dm_inv, volume })
-    }
-
-    /// Constant shape-function gradients `g_a` (1/m) of the four nodes with respect to the rest
-    /// coordinates: `g_k = (row k−1 of Dm⁻¹)ᵀ` for `k = 1, 2, 3` and `g_0 = −(g_1 + g_2 + g_3)`,
-    /// so that `F = Σ_a x_a g_aᵀ` and `Σ_a g_a = 0`.
-    pub fn shape_gradients(&self) -> [Vector3<T>; 4] {
-        let r = |k: usize| self.dm_inv.row(k).transpose();
-        let (g1, g2, g3) = (r(0), r(1), r(2));
-        [-(g1 + g2 + g3), g1, g2, g3]
-    }
-}
-
-fn nodes<T: Real>(x: &[[T; 3]; 4]) -> [Vector3<T>; 4] {
-    x.map(|c| Vector3::new(c[0], c[1], c[2]))
-}
-
-/// Displacement gradient `H = ∂u/∂X = Σ_a u_a g_aᵀ` (dimensionless) of the tetrahedron whose
-/// nodes are displaced by `u` (metres) from rest, with shape gradients `g` from
-/// [`ElementRest::shape_gradients`]; the deformation gradient is `F = I + H`.
-///
-/// The element functions work from displacements rather than positions so that strain is
-/// computed without cancellation: with positions, `F` carries an absolute rounding error of
-/// `ε·|x|/h` and `E = ½(FᵀF − I)` loses the digits a small strain needs, which makes energy
-/// differences (the line search) and near-converged gradients noisy. Evaluated as
-/// `Σ_{k=1..3} (u_k − u_0) g_kᵀ` (equal because `Σ_a g_a = 0`), so a common translation
-/// cancels first.
-pub fn displacement_gradient<T: Real>(u: &[[T; 3]; 4], g: &[Vector3<T>; 4]) -> Matrix3<T> {
-    let p = nodes(u);
-    (p[1] - p[0]) * g[1].transpose()
-        + (p[2] - p[0]) * g[2].transpose()
-        + (p[3] - p[0]) * g[3].transpose()
-}
-
-/// Deformation gradient `F = I + H` for displacements `u`, see [`displacement_gradient`].
-pub fn deformation_gradient<T: Real>(u: &[[T; 3]; 4], g: &[Vector3<T>; 4]) -> Matrix3<T> {
-    Matrix3::identity() + displacement_gradient(u, g)
-}
-
-/// Green strain from the displacement gradient, `E = ½(H + Hᵀ + HᵀH)`: the same as
-/// [`green_strain`] of `I + H`, without subtracting `I` from a number near it.
-fn green_strain_of_displacement<T: Real>(h: &Matrix3<T>) -> Matrix3<T> {
-    (h + h.transpose() + h.transpose() * h) * T::of(0.5)
-}
-
-fn energy_density_of_strain<T: Real>(lame: &Lame<T>, e: &Matrix3<T>) -> T {
-    let tr = e.trace();
-    lame.mu * e.norm_squared() + T::of(0.5) * lame.lambda * tr * tr
-}
+pub use element::{ElementRest, deformation_gradient, displacement_gradient};
+pub use law::{Lame, energy_density, first_piola_kirchhoff, green_strain, second_piola_kirchhoff};
 
 /// Which tangent [`element_energy_gradient_tangent`] returns.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -355,68 +164,6 @@ pub fn element_energy_gradient_tangent<T: Real>(
     }
 }
 
-/// Cyclic Jacobi sweeps of [`symmetric_eigen3`]. Cyclic Jacobi converges quadratically once
-/// the off-diagonal part is small relative to the eigenvalue gaps, and also for repeated
-/// eigenvalues; on 3 × 3 matrices the off-diagonal norm falls below `4 EPS ‖S‖` in at most
-/// four sweeps in the tests (random, clustered and repeated spectra), so five leaves a sweep of
-/// margin. Fewer sweeps never break positive semidefiniteness of the projection (that holds
-/// for any orthogonal `Q`), they only make `S⁺` a slightly less accurate projection.
-const JACOBI_SWEEPS: usize = 5;
-
-/// Eigen-decomposition `A ≈ Q diag(λ) Qᵀ` of `a` by cyclic Jacobi with a fixed
-/// number of sweeps ([`JACOBI_SWEEPS`]); `a` must be symmetric.
-/// Returns the eigenvalues (unsorted) and `Q` (orthogonal up to rounding, eigenvectors as
-/// columns). Finite input gives finite output: the one division is skipped for a zero
-/// off-diagonal entry, and an overflowing ratio leads to the identity rotation, not NaN.
-fn symmetric_eigen3<T: Real>(a: &Matrix3<T>) -> (Vector3<T>, Matrix3<T>) {
-    jacobi(a, JACOBI_SWEEPS)
-}
-
-/// [`symmetric_eigen3`] with `sweeps` cyclic sweeps.
-fn jacobi<T: Real>(a: &Matrix3<T>, sweeps: usize) -> (Vector3<T>, Matrix3<T>) {
-    let mut m = *a;
-    let mut q = Matrix3::<T>::identity();
-    let one = T::one();
-    for _ in 0..sweeps {
-        for (p, r) in [(0, 1), (0, 2), (1, 2)] {
-            let apr = m[(p, r)];
-            if apr == T::zero() {
-                continue;
-            }
-            // Golub & Van Loan, Algorithm 8.5.1 (sym.schur2): the rotation J with
-            // J_pp = J_rr = c, J_pr = s, J_rp = −s zeroes (JᵀMJ)_pr. The smaller root `t`
-            // keeps the rotation angle within ±π/4. τ may overflow to ±∞, giving t = 0.
-            let tau = (m[(r, r)] - m[(p, p)]) / (T::of(2.0) * apr);
-            let root = (one + tau * tau).sqrt();
-            let t = if tau >= T::zero() {
-                one / (tau + root)
-            } else {
-                -one / (root - tau)
-            };
-            let c = one / (one + t * t).sqrt();
-            let s = t * c;
-            for k in 0..3 {
-                // M ← M J (columns p, r), Q ← Q J.
-                let (mkp, mkr) = (m[(k, p)], m[(k, r)]);
-                m[(k, p)] = c * mkp - s * mkr;
-                m[(k, r)] = s * mkp + c * mkr;
-                let (qkp, qkr) = (q[(k, p)], q[(k, r)]);
-                q[(k, p)] = c * qkp - s * qkr;
-                q[(k, r)] = s * qkp + c * qkr;
-            }
-            for k in 0..3 {
-                // M ← Jᵀ M (rows p, r).
-                let (mpk, mrk) = (m[(p, k)], m[(r, k)]);
-                m[(p, k)] = c * mpk - s * mrk;
-                m[(r, k)] = s * mpk + c * mrk;
-            }
-            m[(p, r)] = T::zero();
-            m[(r, p)] = T::zero();
-        }
-    }
-    (m.diagonal(), q)
-}
-
 /// `S⁺ = Q max(Λ, 0) Qᵀ`, or `s` itself when no eigenvalue is negative (so the projected
 /// tangent equals the exact one for a positive semidefinite stress).
 fn positive_part<T: Real>(s: &Matrix3<T>) -> Matrix3<T> {
@@ -442,7 +189,10 @@ fn positive_part<T: Real>(s: &Matrix3<T>) -> Matrix3<T> {
 #[cfg(test)]
 mod tests {
 
+    use super::eigen3::{JACOBI_SWEEPS, jacobi};
+    use super::element::nodes;
     use super::*;
+    use crate::error::{Error, Parameter, Resource};
     use nalgebra::{SMatrix, SymmetricEigen, UnitQuaternion};
 
     type K12 = SMatrix<f64, 12, 12>;
