@@ -67,7 +67,7 @@ fn f64_and_f32_solutions_agree_with_faer() {
 }
 
 #[test]
-fn fill_is_within_30_percent_of_faer_amd() {
+fn fill_is_within_10_percent_of_faer_amd() {
     for (mesh, fixed) in meshes() {
         let pat = StiffnessPattern::new(&mesh, &fixed).unwrap();
         let a = pat.upper();
@@ -79,7 +79,10 @@ fn fill_is_within_30_percent_of_faer_amd() {
             "nodes {:5}: nnz(L) strictly lower, ours {ours:8}, faer AMD {faer:8}, ratio {ratio:.3}",
             mesh.nodes.len()
         );
-        assert!(ratio <= 1.3, "fill ratio {ratio}");
+        // Plain minimum degree (true degrees, no supervariables) gave 1.07 to 1.16 at 1000 nodes
+        // and more; with supervariables and external degrees it is within a few percent, and
+        // which of the two orderings wins varies with the mesh.
+        assert!(ratio <= 1.1, "fill ratio {ratio}");
     }
 }
 
