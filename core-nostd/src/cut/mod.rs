@@ -49,7 +49,7 @@ use crate::error::{Error, Resource};
 use crate::mesh::Mesh;
 use crate::real::Real;
 use crate::solve::WorkCount;
-use crate::storage::Slab;
+use crate::storage::{Slab, sum, times};
 
 use separate::{Incidence, StarScratch, cut_faces, duplicate_nodes};
 use split::Sign;
@@ -71,13 +71,24 @@ pub const QUALITY_FLOOR: f64 = 0.02;
 pub const fn work_len(nodes: usize, tets: usize) -> usize {
     // Marks per node, incidence, a word and the former nodes per tetrahedron, crossed edges,
     // the face sort (reused for the stars), the cut faces.
-    nodes + (nodes + 1) + 4 * tets + tets + 4 * tets + 12 * tets + 16 * tets + 6 * tets + 8
+    sum(&[
+        nodes,
+        nodes,
+        1,
+        times(4, tets),
+        tets,
+        times(4, tets),
+        times(12, tets),
+        times(16, tets),
+        times(6, tets),
+        8,
+    ])
 }
 
 /// Scalars of scratch a cut needs: `φ` and the two ends' `ψ` per node, and a plane per
 /// polyline segment.
 pub const fn real_len(nodes: usize, cut_vertices: usize) -> usize {
-    3 * nodes + REALS_PER_VERTEX * cut_vertices
+    sum(&[times(3, nodes), times(REALS_PER_VERTEX, cut_vertices)])
 }
 
 /// The separation surface as the model hands it to [`apply`].
@@ -120,7 +131,7 @@ impl<'a> Lips<'a> {
         indices: &mut Slab<'a, u32>,
     ) -> Result<Self, Error> {
         Ok(Lips {
-            pairs: indices.take(2 * capacity)?.as_chunks_mut::<2>().0,
+            pairs: indices.take(times(2, capacity))?.as_chunks_mut::<2>().0,
             len: 0,
         })
     }
