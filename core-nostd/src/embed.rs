@@ -147,6 +147,15 @@ pub(crate) fn interpolate<T: Real>(x: &[[T; 3]], tet: &[u32; 4], w: &[T; 4]) -> 
     Some(p)
 }
 
+/// The points `x[nodes[a]]` of an element (`None` for a node out of range).
+pub(crate) fn gather<P: Copy, const N: usize>(x: &[P], nodes: &[u32; N]) -> Option<[P; N]> {
+    let mut out = [*x.first()?; N];
+    for (o, &v) in out.iter_mut().zip(nodes) {
+        *o = *x.get(v as usize)?;
+    }
+    Some(out)
+}
+
 /// Barycentric coordinates of `p` in the tetrahedron with corners `x` (they sum to one; all
 /// non-negative inside). `None` for a flat tetrahedron.
 pub(crate) fn barycentric<T: Real>(x: &[[T; 3]; 4], p: [T; 3]) -> Option<[T; 4]> {
