@@ -148,6 +148,7 @@ pub(crate) fn interpolate<T: Real>(x: &[[T; 3]], tet: &[u32; 4], w: &[T; 4]) -> 
 }
 
 /// The points `x[nodes[a]]` of an element (`None` for a node out of range).
+#[cfg(feature = "cut")]
 pub(crate) fn gather<P: Copy, const N: usize>(x: &[P], nodes: &[u32; N]) -> Option<[P; N]> {
     let mut out = [*x.first()?; N];
     for (o, &v) in out.iter_mut().zip(nodes) {
