@@ -232,7 +232,7 @@ fn run_sequence(
         }
         s => s,
     };
-    let mut storage = OwnedStorage::<f64>::new(&b.capacities(32, 2000));
+    let mut storage = OwnedStorage::<f64>::new(&b.capacities(32, 2000)).unwrap();
     let mut model = storage
         .model(&b.input(), &b.config(strategy))
         .map_err(|e| TestCaseError::fail(format!("bench refused: {e}")))?;
@@ -486,7 +486,7 @@ fn run_mesh(cells: [usize; 3], fault: MeshFault, seed: u64) -> Result<(), TestCa
             }
         }
     }
-    let mut storage = OwnedStorage::<f64>::new(&caps);
+    let mut storage = OwnedStorage::<f64>::new(&caps).unwrap();
     let (mut inputs, mut errors) = (1u64, 0u64);
     let built = storage.model(&b.input(), &config);
     let mut model = match built {

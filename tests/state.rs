@@ -24,7 +24,7 @@ fn with_model(
     f: impl FnOnce(&Bench, &mut Model<'_, f64>),
 ) {
     let b = bench();
-    let mut storage = OwnedStorage::<f64>::new(&capacities(&b));
+    let mut storage = OwnedStorage::<f64>::new(&capacities(&b)).unwrap();
     let mut model = storage.model(&b.input(), &b.config(strategy)).unwrap();
     model.embed_features(&b.frame0()).unwrap();
     model
@@ -87,7 +87,7 @@ fn model_new_names_the_parameter_resource_and_index_at_fault() {
                  tets: &[[u32; 4]],
                  fixed: &[u32],
                  caps: &Capacities| {
-        let mut storage = OwnedStorage::<f64>::new(caps);
+        let mut storage = OwnedStorage::<f64>::new(caps).unwrap();
         let input = incise_core::MeshInput { rest, tets, fixed };
         storage.model(&input, config).map(|_| ())
     };
@@ -220,7 +220,7 @@ fn model_new_names_the_parameter_resource_and_index_at_fault() {
         Err(Error::NoFixedNodes)
     );
     // Storage one short.
-    let size = incise_core::ModelSize::new(&caps);
+    let size = incise_core::ModelSize::new(&caps).unwrap();
     let mut reals = vec![0.0f64; size.real_len() - 1];
     let mut indices = vec![0u32; size.index_len()];
     assert_eq!(
@@ -477,7 +477,7 @@ fn embed_features_refuses_without_a_trace() {
 fn embed_features_with_more_pairs_than_the_capacity_keeps_the_features_and_detector() {
     // Room for the pairs of 4 features (at most 6) but not for those of 36.
     let b = bench();
-    let mut storage = OwnedStorage::<f64>::new(&b.capacities(64, 6));
+    let mut storage = OwnedStorage::<f64>::new(&b.capacities(64, 6)).unwrap();
     let mut model = storage
         .model(
             &b.input(),
@@ -517,7 +517,7 @@ fn embed_features_with_more_pairs_than_the_capacity_keeps_the_features_and_detec
 #[test]
 fn step_before_any_feature_is_refused_without_a_trace() {
     let b = bench();
-    let mut storage = OwnedStorage::<f64>::new(&default_caps(&b));
+    let mut storage = OwnedStorage::<f64>::new(&default_caps(&b)).unwrap();
     let mut model = storage
         .model(&b.input(), &b.config(Strategy::Refactor))
         .unwrap();
@@ -703,7 +703,7 @@ fn duplicated_and_disconnected_elements_get_the_answer_the_readme_gives() {
     // A tetrahedron listed twice: its faces are shared by too many tetrahedra.
     let mut tets = b.tets.clone();
     tets.push(tets[0]);
-    let mut storage = OwnedStorage::<f64>::new(&caps);
+    let mut storage = OwnedStorage::<f64>::new(&caps).unwrap();
     let input = incise_core::MeshInput {
         rest: &b.rest,
         tets: &tets,
@@ -724,7 +724,7 @@ fn duplicated_and_disconnected_elements_get_the_answer_the_readme_gives() {
     ]);
     let mut tets = b.tets.clone();
     tets.push([base, base + 1, base + 2, base + 3]);
-    let mut storage = OwnedStorage::<f64>::new(&caps);
+    let mut storage = OwnedStorage::<f64>::new(&caps).unwrap();
     let input = incise_core::MeshInput {
         rest: &rest,
         tets: &tets,

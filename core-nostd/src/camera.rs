@@ -6,6 +6,8 @@
 //! pixel is `u = fx·x_c/z_c + cx`, `v = fy·y_c/z_c + cy`. Lens distortion is the host's concern
 //! (it undistorts tracked points before they reach the core).
 
+#![cfg_attr(not(test), deny(clippy::indexing_slicing))]
+
 use nalgebra::{Matrix2x3, Matrix3, Vector2, Vector3};
 
 use crate::error::{Error, Parameter};

@@ -20,7 +20,7 @@ use crate::error::Error;
 use crate::features::first_hit;
 use crate::mesh::Mesh;
 use crate::real::Real;
-use crate::storage::Slab;
+use crate::storage::{Slab, times};
 
 /// What the cut line did in one frame.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -169,12 +169,12 @@ fn cross<T: Real>(a: [T; 2], b: [T; 2]) -> T {
 impl<'a, T: Real> CutLine<'a, T> {
     /// Scalars of storage for `capacity` vertices.
     pub const fn real_len(capacity: usize) -> usize {
-        ANCHORS * capacity
+        times(ANCHORS, capacity)
     }
 
     /// Indices of storage for `capacity` vertices.
     pub const fn index_len(capacity: usize) -> usize {
-        ANCHORS * capacity
+        times(ANCHORS, capacity)
     }
 
     /// An empty line with room for `capacity` vertices.
@@ -188,10 +188,13 @@ impl<'a, T: Real> CutLine<'a, T> {
     ) -> Result<Self, Error> {
         Ok(CutLine {
             anchors: indices
-                .take(ANCHORS * capacity)?
+                .take(times(ANCHORS, capacity))?
                 .as_chunks_mut::<ANCHORS>()
                 .0,
-            weights: reals.take(ANCHORS * capacity)?.as_chunks_mut::<ANCHORS>().0,
+            weights: reals
+                .take(times(ANCHORS, capacity))?
+                .as_chunks_mut::<ANCHORS>()
+                .0,
             n: 0,
             direction: [[T::zero(); 2]; 2],
             moved: [0; 2],

@@ -250,7 +250,7 @@ mod detector {
     use crate::error::{Error, Resource};
     use crate::real::Real;
     use crate::robust::{MAD_TO_SIGMA, median_mad, quantile_sorted, sort};
-    use crate::storage::Slab;
+    use crate::storage::{Slab, sum, times};
 
     const STREAK: u32 = 0xff;
     const SPLIT: u32 = 1 << 8;
@@ -311,12 +311,21 @@ mod detector {
     impl<'a, T: Real> Detector<'a, T> {
         /// Scalars of storage for `features` features and `pairs` pairs.
         pub const fn real_len(features: usize, pairs: usize) -> usize {
-            5 * features + 4 * pairs + if pairs > features { pairs } else { features }
+            let larger = if pairs > features { pairs } else { features };
+            sum(&[times(5, features), times(4, pairs), larger])
         }
 
         /// Indices of storage.
         pub const fn index_len(features: usize, pairs: usize) -> usize {
-            5 * pairs + 3 * features + GRID_CELLS + 1 + features + (features + 1) + 2 * pairs
+            sum(&[
+                times(5, pairs),
+                times(3, features),
+                GRID_CELLS + 1,
+                features,
+                features,
+                1,
+                times(2, pairs),
+            ])
         }
 
         /// Empty detector storage.
@@ -330,21 +339,21 @@ mod detector {
             indices: &mut Slab<'a, u32>,
         ) -> Result<Self, Error> {
             Ok(Detector {
-                pairs: indices.take(2 * pairs)?.as_chunks_mut::<2>().0,
+                pairs: indices.take(times(2, pairs))?.as_chunks_mut::<2>().0,
                 pair_state: indices.take(pairs)?,
                 n_pairs: 0,
                 feature_state: indices.take(features)?,
-                pair_counts: indices.take(2 * features)?.as_chunks_mut::<2>().0,
-                grid: indices.take(GRID_CELLS + 1 + features)?,
-                incident_start: indices.take(features + 1)?,
-                incident: indices.take(2 * pairs)?,
-                previous: reals.take(2 * features)?.as_chunks_mut::<2>().0,
-                current: reals.take(2 * features)?.as_chunks_mut::<2>().0,
+                pair_counts: indices.take(times(2, features))?.as_chunks_mut::<2>().0,
+                grid: indices.take(sum(&[GRID_CELLS + 1, features]))?,
+                incident_start: indices.take(sum(&[features, 1]))?,
+                incident: indices.take(times(2, pairs))?,
+                previous: reals.take(times(2, features))?.as_chunks_mut::<2>().0,
+                current: reals.take(times(2, features))?.as_chunks_mut::<2>().0,
                 difference: reals.take(pairs)?,
                 slope: reals.take(features)?,
                 length: reals.take(pairs)?,
                 scratch: reals.take(pairs.max(features))?,
-                points: reals.take(2 * pairs)?.as_chunks_mut::<2>().0,
+                points: reals.take(times(2, pairs))?.as_chunks_mut::<2>().0,
                 point_since: indices.take(pairs)?,
                 split_since: indices.take(pairs)?,
                 n_points: 0,

@@ -10,7 +10,7 @@
 use crate::error::{Error, Resource};
 use crate::mesh::Mesh;
 use crate::real::Real;
-use crate::storage::Slab;
+use crate::storage::{Slab, times};
 
 /// Fixed-capacity storage of embedded points.
 ///
@@ -26,7 +26,7 @@ pub struct Embedding<'a, T> {
 impl<'a, T: Real> Embedding<'a, T> {
     /// Scalars of storage for `capacity` points.
     pub const fn real_len(capacity: usize) -> usize {
-        4 * capacity
+        times(4, capacity)
     }
 
     /// Indices of storage for `capacity` points.
@@ -46,7 +46,7 @@ impl<'a, T: Real> Embedding<'a, T> {
         Ok(Embedding {
             len: 0,
             tet: indices.take(capacity)?,
-            weights: reals.take(4 * capacity)?.as_chunks_mut::<4>().0,
+            weights: reals.take(times(4, capacity))?.as_chunks_mut::<4>().0,
         })
     }
 
@@ -145,6 +145,16 @@ pub(crate) fn interpolate<T: Real>(x: &[[T; 3]], tet: &[u32; 4], w: &[T; 4]) -> 
         }
     }
     Some(p)
+}
+
+/// The points `x[nodes[a]]` of an element (`None` for a node out of range).
+#[cfg(feature = "cut")]
+pub(crate) fn gather<P: Copy, const N: usize>(x: &[P], nodes: &[u32; N]) -> Option<[P; N]> {
+    let mut out = [*x.first()?; N];
+    for (o, &v) in out.iter_mut().zip(nodes) {
+        *o = *x.get(v as usize)?;
+    }
+    Some(out)
 }
 
 /// Barycentric coordinates of `p` in the tetrahedron with corners `x` (they sum to one; all

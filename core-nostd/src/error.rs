@@ -3,6 +3,8 @@
 //! Every fallible entry point returns [`Error`]. A call that fails leaves the structure it was
 //! called on as it was before the call, unless its documentation says otherwise.
 
+#![cfg_attr(not(test), deny(clippy::indexing_slicing))]
+
 use core::fmt;
 
 /// Names a buffer or fixed capacity, so that a [`Error::Capacity`] or [`Error::Length`] says
@@ -219,6 +221,19 @@ pub enum Error {
         /// Entries available.
         available: usize,
     },
+    /// A capacity asks for more than the core can hold: `requested` of `resource` (or of what
+    /// follows from it, such as the unknowns `3 n` of `n` nodes) where at most `limit` fit,
+    /// because indices are `u32` ([`crate::sparse::pattern::MAX_INDEX`]) or because storage lengths must
+    /// fit a slice ([`crate::model::MAX_STORAGE_LEN`]). A request too large to count is given as
+    /// `usize::MAX`. Raised by [`crate::ModelSize::new`].
+    TooLarge {
+        /// What was asked for.
+        resource: Resource,
+        /// How many (saturated at `usize::MAX`).
+        requested: usize,
+        /// The most the core holds.
+        limit: usize,
+    },
     /// An input slice has the wrong length.
     Length {
         /// Which input.
@@ -348,6 +363,14 @@ impl fmt::Display for Error {
             } => write!(
                 f,
                 "capacity exceeded: {resource} needs {needed} entries, {available} available"
+            ),
+            Error::TooLarge {
+                resource,
+                requested,
+                limit,
+            } => write!(
+                f,
+                "too large: {requested} {resource} requested, the core holds at most {limit}"
             ),
             Error::Length {
                 resource,

@@ -14,7 +14,7 @@ use crate::embed::{Embedding, barycentric, clamp_weights};
 use crate::error::{Error, Resource};
 use crate::mesh::Mesh;
 use crate::real::Real;
-use crate::storage::Slab;
+use crate::storage::{Slab, times};
 
 /// One observation of a tracked feature in a frame: its id and its pixel position.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -53,12 +53,12 @@ pub struct Features<'a, T> {
 impl<'a, T: Real> Features<'a, T> {
     /// Scalars of storage for `capacity` features.
     pub const fn real_len(capacity: usize) -> usize {
-        2 * capacity
+        times(2, capacity)
     }
 
     /// Indices of storage for `capacity` features.
     pub const fn index_len(capacity: usize) -> usize {
-        4 * capacity
+        times(4, capacity)
     }
 
     /// Empty storage for `capacity` features, taken from the slabs.
@@ -72,10 +72,10 @@ impl<'a, T: Real> Features<'a, T> {
     ) -> Result<Self, Error> {
         Ok(Features {
             len: 0,
-            lookup: indices.take(2 * capacity)?.as_chunks_mut::<2>().0,
+            lookup: indices.take(times(2, capacity))?.as_chunks_mut::<2>().0,
             active: indices.take(capacity)?,
             stamp: indices.take(capacity)?,
-            target: reals.take(2 * capacity)?.as_chunks_mut::<2>().0,
+            target: reals.take(times(2, capacity))?.as_chunks_mut::<2>().0,
             stamp_value: 0,
         })
     }

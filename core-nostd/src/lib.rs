@@ -88,7 +88,7 @@ pub use detect::{DetectionConfig, DetectionWork};
 pub use features::{EmbedReport, Observation};
 pub use mesh::{MeshCapacity, MeshInput};
 pub use model::{
-    Capacities, Linearization, Material, MeshAnalysis, Model, ModelBuffers, ModelConfig, ModelSize,
-    StepReport, analyse_mesh, analyse_mesh_work_len,
+    Capacities, Linearization, MAX_STORAGE_LEN, Material, MeshAnalysis, Model, ModelBuffers,
+    ModelConfig, ModelSize, StepReport, analyse_mesh, analyse_mesh_work_len,
 };
 pub use solve::{Energies, SolverConfig, Strategy, WorkCount};

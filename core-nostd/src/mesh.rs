@@ -9,7 +9,7 @@ use crate::error::{Error, Resource};
 use crate::material::ElementRest;
 use crate::real::Real;
 use crate::sparse::NONE;
-use crate::storage::{Slab, ensure_len};
+use crate::storage::{Slab, ensure_len, sum, times};
 
 /// A mesh as the caller hands it over: rest positions (metres), tetrahedra (node indices,
 /// positively oriented: `(X1 − X0) · ((X2 − X0) × (X3 − X0)) > 0`) and the fixed nodes.
@@ -46,18 +46,22 @@ impl MeshCapacity {
 
     /// Scalars of storage [`Mesh::new`] takes from its scalar slab.
     pub const fn real_len(&self) -> usize {
-        3 * self.nodes + ELEMENT_REST_LEN * self.tets
+        sum(&[times(3, self.nodes), times(ELEMENT_REST_LEN, self.tets)])
     }
 
     /// Indices of storage [`Mesh::new`] takes from its index slab.
     pub const fn index_len(&self) -> usize {
-        4 * self.tets + self.nodes + 4 * self.surface_triangles
+        sum(&[
+            times(4, self.tets),
+            self.nodes,
+            times(4, self.surface_triangles),
+        ])
     }
 
     /// Length of the `u32` workspace [`Mesh::new`] needs.
     pub const fn work_len(&self) -> usize {
-        let faces = 16 * self.tets;
-        let edges = 6 * self.surface_triangles;
+        let faces = times(16, self.tets);
+        let edges = times(6, self.surface_triangles);
         if faces > edges { faces } else { edges }
     }
 }
@@ -105,15 +109,18 @@ impl<'a, T: Real> Mesh<'a, T> {
             n_tets: 0,
             n_surface: 0,
             n_free: 0,
-            rest: reals.take(3 * capacity.nodes)?.as_chunks_mut::<3>().0,
+            rest: reals.take(times(3, capacity.nodes))?.as_chunks_mut::<3>().0,
             element_rest: reals
-                .take(ELEMENT_REST_LEN * capacity.tets)?
+                .take(times(ELEMENT_REST_LEN, capacity.tets))?
                 .as_chunks_mut::<ELEMENT_REST_LEN>()
                 .0,
-            tets: indices.take(4 * capacity.tets)?.as_chunks_mut::<4>().0,
+            tets: indices
+                .take(times(4, capacity.tets))?
+                .as_chunks_mut::<4>()
+                .0,
             free_index: indices.take(capacity.nodes)?,
             surface: indices
-                .take(3 * capacity.surface_triangles)?
+                .take(times(3, capacity.surface_triangles))?
                 .as_chunks_mut::<3>()
                 .0,
             surface_tet: indices.take(capacity.surface_triangles)?,

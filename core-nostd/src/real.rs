@@ -1,5 +1,7 @@
 //! The scalar type of the core: `f32` or `f64`.
 
+#![cfg_attr(not(test), deny(clippy::indexing_slicing))]
+
 /// A real scalar the core computes in. Implemented for `f32` and `f64`.
 ///
 /// It is nalgebra's [`RealField`](nalgebra::RealField) (so small fixed-size matrices work) plus

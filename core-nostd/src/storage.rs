@@ -4,6 +4,8 @@
 //! indices, `&mut [T]` for scalars) whose required length a sibling `*_len` function reports
 //! before anything is built, and splits it with a [`Slab`].
 
+#![cfg_attr(not(test), deny(clippy::indexing_slicing))]
+
 use crate::error::{Error, Resource};
 
 /// Hands out consecutive, disjoint pieces of one caller-owned slice.
@@ -42,7 +44,8 @@ impl<'a, X> Slab<'a, X> {
         let rest = core::mem::take(&mut self.rest);
         let (head, tail) = rest.split_at_mut(n);
         self.rest = tail;
-        self.needed += n;
+        // At most the slab's length: `needed` counts entries handed out of it.
+        self.needed = self.needed.saturating_add(n);
         Ok(head)
     }
 
@@ -55,6 +58,30 @@ impl<'a, X> Slab<'a, X> {
     pub fn used(&self) -> usize {
         self.needed
     }
+}
+
+/// `k · x`, saturated at `usize::MAX`.
+///
+/// Storage lengths are sums of products of the caller's capacities, and every `*_len` function
+/// of the core computes them with [`times`] and [`sum`]. Both saturate, and saturating `+` and
+/// `·` never give less than the true value (or less than `usize::MAX` when the true value does
+/// not fit), so a length that overflows becomes `usize::MAX`, which no slice of a sized type
+/// can have: the [`ensure_len`] or [`Slab::take`] that follows refuses it with
+/// [`Error::Capacity`] instead of panicking or wrapping to a short length. A length that does
+/// not saturate is exact, and so is every term of it.
+pub const fn times(k: usize, x: usize) -> usize {
+    k.saturating_mul(x)
+}
+
+/// The sum of `terms`, saturated at `usize::MAX` (see [`times`]).
+pub const fn sum(terms: &[usize]) -> usize {
+    let mut total = 0usize;
+    let mut rest = terms;
+    while let [first, tail @ ..] = rest {
+        total = total.saturating_add(*first);
+        rest = tail;
+    }
+    total
 }
 
 /// Checks that `slice` has at least `needed` entries.

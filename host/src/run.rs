@@ -114,13 +114,17 @@ pub struct OwnedStorage<T> {
 
 impl<T: Real> OwnedStorage<T> {
     /// Storage for `capacities`.
-    pub fn new(capacities: &Capacities) -> Self {
-        let size = ModelSize::new(capacities);
-        OwnedStorage {
+    ///
+    /// # Errors
+    /// The core's [`CoreError::TooLarge`] for capacities it cannot hold ([`ModelSize::new`]),
+    /// before anything is allocated.
+    pub fn new(capacities: &Capacities) -> Result<Self, CoreError> {
+        let size = ModelSize::new(capacities)?;
+        Ok(OwnedStorage {
             size,
             reals: vec![T::zero(); size.real_len()],
             indices: vec![0; size.index_len()],
-        }
+        })
     }
 
     /// Builds a model in this storage.
@@ -162,7 +166,7 @@ impl<T: Real> ModelStorage<T> {
         let (size, analysis) = Self::plan(mesh, c)?;
         Ok(ModelStorage {
             analysis,
-            storage: OwnedStorage::new(&size.capacities),
+            storage: OwnedStorage::new(size.capacities()).map_err(StorageError::Core)?,
         })
     }
 
@@ -173,8 +177,8 @@ impl<T: Real> ModelStorage<T> {
     ///
     /// # Errors
     /// [`StorageError::Refused`] naming the capacity at fault, or the whole `[capacities]`
-    /// section when only their sum is too much; [`StorageError::Core`] for a mesh the core
-    /// refuses.
+    /// section when only their sum is too much; [`StorageError::Core`] for a mesh or capacities
+    /// the core refuses.
     pub fn plan(
         mesh: &MeshInput<'_, T>,
         c: &CapacitySection,
@@ -196,7 +200,7 @@ impl<T: Real> ModelStorage<T> {
             pairs: c.pairs,
             cut_vertices: c.cut_vertices,
         };
-        let size = ModelSize::new(&caps);
+        let size = ModelSize::new(&caps).map_err(StorageError::Core)?;
         let bytes = size.real_len() as u128 * std::mem::size_of::<T>() as u128
             + size.index_len() as u128 * 4;
         limits::budget(

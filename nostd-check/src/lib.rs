@@ -93,7 +93,8 @@ fn step() -> Result<bool, incise_core::Error> {
         detection: incise_core::DetectionConfig::paper(),
     };
     // Every length is a `const fn` of the capacities: the buffers are sized at compile time.
-    const SIZE: ModelSize = ModelSize::new(&Capacities {
+    // A capacity the core cannot hold stops the build.
+    const SIZE: ModelSize = match ModelSize::new(&Capacities {
         mesh: MeshCapacity {
             nodes: NN,
             tets: NT,
@@ -104,7 +105,10 @@ fn step() -> Result<bool, incise_core::Error> {
         factor_entries: 4096,
         pairs: 256,
         cut_vertices: 16,
-    });
+    }) {
+        Ok(size) => size,
+        Err(_) => panic!("capacities too large for the core"),
+    };
     let mut reals = [0.0f64; SIZE.real_len()];
     let mut indices = [0u32; SIZE.index_len()];
     let buffers = ModelBuffers::new(&SIZE, &mut reals, &mut indices)?;
@@ -157,7 +161,8 @@ mod static_storage {
     pub const CELLS: [usize; 3] = [4, 2, 2];
     pub const NODES: usize = (CELLS[0] + 1) * (CELLS[1] + 1) * (CELLS[2] + 1);
     pub const TETS: usize = 6 * CELLS[0] * CELLS[1] * CELLS[2];
-    pub const SIZE: ModelSize = ModelSize::new(&Capacities {
+    /// Checked at compile time: a capacity the core cannot hold stops the build.
+    pub const SIZE: ModelSize = match ModelSize::new(&Capacities {
         mesh: MeshCapacity {
             nodes: NODES + 64,
             tets: TETS + 256,
@@ -168,7 +173,10 @@ mod static_storage {
         factor_entries: 8192,
         pairs: 256,
         cut_vertices: 16,
-    });
+    }) {
+        Ok(size) => size,
+        Err(_) => panic!("capacities too large for the core"),
+    };
 
     struct Buffers {
         reals: UnsafeCell<[f64; SIZE.real_len()]>,

@@ -37,6 +37,8 @@
 //! and split, a sort of the `4 t` faces, and the stars of the nodes on the cut; it is counted in
 //! [`CutWork`] and bounded by [`CutWork::bound`].
 
+#![cfg_attr(not(test), deny(clippy::indexing_slicing))]
+
 mod place;
 mod reembed;
 pub(crate) mod separate;
@@ -44,12 +46,12 @@ pub(crate) mod split;
 pub(crate) mod surface;
 
 use crate::camera::Camera;
-use crate::embed::Embedding;
+use crate::embed::{Embedding, gather};
 use crate::error::{Error, Resource};
 use crate::mesh::Mesh;
 use crate::real::Real;
 use crate::solve::WorkCount;
-use crate::storage::Slab;
+use crate::storage::{Slab, sum, times};
 
 use separate::{Incidence, StarScratch, cut_faces, duplicate_nodes};
 use split::Sign;
@@ -71,13 +73,24 @@ pub const QUALITY_FLOOR: f64 = 0.02;
 pub const fn work_len(nodes: usize, tets: usize) -> usize {
     // Marks per node, incidence, a word and the former nodes per tetrahedron, crossed edges,
     // the face sort (reused for the stars), the cut faces.
-    nodes + (nodes + 1) + 4 * tets + tets + 4 * tets + 12 * tets + 16 * tets + 6 * tets + 8
+    sum(&[
+        nodes,
+        nodes,
+        1,
+        times(4, tets),
+        tets,
+        times(4, tets),
+        times(12, tets),
+        times(16, tets),
+        times(6, tets),
+        8,
+    ])
 }
 
 /// Scalars of scratch a cut needs: `φ` and the two ends' `ψ` per node, and a plane per
 /// polyline segment.
 pub const fn real_len(nodes: usize, cut_vertices: usize) -> usize {
-    3 * nodes + REALS_PER_VERTEX * cut_vertices
+    sum(&[times(3, nodes), times(REALS_PER_VERTEX, cut_vertices)])
 }
 
 /// The separation surface as the model hands it to [`apply`].
@@ -120,14 +133,14 @@ impl<'a> Lips<'a> {
         indices: &mut Slab<'a, u32>,
     ) -> Result<Self, Error> {
         Ok(Lips {
-            pairs: indices.take(2 * capacity)?.as_chunks_mut::<2>().0,
+            pairs: indices.take(times(2, capacity))?.as_chunks_mut::<2>().0,
             len: 0,
         })
     }
 
     /// The pairs `(node, copy)`.
     pub fn pairs(&self) -> &[[u32; 2]] {
-        &self.pairs[..self.len]
+        self.pairs.get(..self.len).unwrap_or_default()
     }
 
     pub(crate) fn clear(&mut self) {
@@ -136,7 +149,9 @@ impl<'a> Lips<'a> {
 
     pub(crate) fn copy_from(&mut self, other: &Lips<'_>) {
         let n = other.len.min(self.pairs.len());
-        self.pairs[..n].copy_from_slice(&other.pairs[..n]);
+        if let (Some(to), Some(from)) = (self.pairs.get_mut(..n), other.pairs.get(..n)) {
+            to.copy_from_slice(from);
+        }
         self.len = n;
     }
 
@@ -305,7 +320,28 @@ pub(crate) fn sign<T: Real>(phi: T) -> Sign {
 }
 
 pub(crate) fn lerp<T: Real>(a: [T; 3], b: [T; 3], t: T) -> [T; 3] {
-    [0, 1, 2].map(|c| a[c] + (b[c] - a[c]) * t)
+    [
+        a[0] + (b[0] - a[0]) * t,
+        a[1] + (b[1] - a[1]) * t,
+        a[2] + (b[2] - a[2]) * t,
+    ]
+}
+
+/// Copies entry `from` of `s` to entry `to` (the data of a node to its copy).
+fn copy_entry<P: Copy>(s: &mut [P], from: usize, to: usize) -> Result<(), Error> {
+    let value = *s.get(from).ok_or(Error::IndexOutOfRange {
+        resource: Resource::Nodes,
+        position: to,
+        index: from,
+        bound: s.len(),
+    })?;
+    let available = s.len();
+    *s.get_mut(to).ok_or(Error::Capacity {
+        resource: Resource::Nodes,
+        needed: to.saturating_add(1),
+        available,
+    })? = value;
+    Ok(())
 }
 
 /// Side of a tetrahedron: the sign its nodes share (0 if all are on the surface or one is
@@ -313,7 +349,9 @@ pub(crate) fn lerp<T: Real>(a: [T; 3], b: [T; 3], t: T) -> [T; 3] {
 pub(crate) fn side_of<T: Real>(phi: &[T], tet: &[u32; 4]) -> Sign {
     let mut s: Sign = 0;
     for &v in tet {
-        let p = phi[v as usize];
+        let Some(&p) = phi.get(v as usize) else {
+            return 0;
+        };
         if !p.finite() {
             return 0;
         }
@@ -328,10 +366,12 @@ pub(crate) fn side_of<T: Real>(phi: &[T], tet: &[u32; 4]) -> Sign {
     s
 }
 
-/// Where the cut crosses edge `(a, b)`: the fraction from `a`.
+/// Where the cut crosses edge `(a, b)`: the fraction from `a` (0 for a node out of range).
 pub(crate) fn crossing<T: Real>(phi: &[T], a: u32, b: u32) -> T {
-    let (pa, pb) = (phi[a as usize], phi[b as usize]);
-    pa / (pa - pb)
+    match (phi.get(a as usize), phi.get(b as usize)) {
+        (Some(&pa), Some(&pb)) => pa / (pa - pb),
+        _ => T::zero(),
+    }
 }
 
 /// Cuts `pieces` (the mesh, its positions and embeddings) along `surface`; `observed` are the
@@ -399,7 +439,19 @@ pub(crate) fn apply<T: Real>(
     let (n0, t0) = (mesh.n_nodes(), mesh.n_tets());
 
     // 1. The level set, with the lips of earlier cuts on the surface.
-    level_set(&sep, &x[..n0], lips, &mut phi[..n0], &mut event.work);
+    let short = |available: usize, needed: usize| Error::Capacity {
+        resource: Resource::Nodes,
+        needed,
+        available,
+    };
+    let (x_len, phi_len) = (x.len(), phi.len());
+    level_set(
+        &sep,
+        x.get(..n0).ok_or(short(x_len, n0))?,
+        lips,
+        phi.get_mut(..n0).ok_or(short(phi_len, n0))?,
+        &mut event.work,
+    );
     let incidence = Incidence::build(mesh.tets(), n0, inc_ptr, inc_list)?;
     // 2–4. Nodes onto the surface, the tetrahedra to split, and where the split stops.
     place::snap_nodes(mesh, x, previous, phi, &sep, &incidence, mark, &mut event);
@@ -437,7 +489,7 @@ pub(crate) fn apply<T: Real>(
         };
         event.ends_inside += 1;
         let n = mesh.n_nodes();
-        for (p, xv) in psi_k.iter_mut().zip(&x[..n]) {
+        for (p, xv) in psi_k.iter_mut().zip(x.get(..n).ok_or(short(x_len, n))?) {
             *p = plane[0] * xv[0] + plane[1] * xv[1] + plane[2] * xv[2] - plane[3];
         }
         let t_before = mesh.n_tets();
@@ -473,35 +525,52 @@ pub(crate) fn apply<T: Real>(
         event.tets_split_at_ends += event.tets_split - split_before;
         let points = [&mut *features, &mut *targets];
         reembed::into_pieces(mesh, points, status, parents, t_before, &mut event);
-        psi[k] = Some(psi_k);
+        if let Some(slot) = psi.get_mut(k) {
+            *slot = Some(psi_k);
+        }
     }
     let before_tips = |key: &[u32; 3]| {
-        psi.iter()
-            .flatten()
-            .all(|p| key.iter().all(|&v| p[v as usize] <= T::zero()))
+        psi.iter().flatten().all(|p| {
+            key.iter()
+                .all(|&v| p.get(v as usize).is_some_and(|&pv| pv <= T::zero()))
+        })
     };
 
     // 7. Separate along the cut faces. A piece with all four nodes on the surface (possible
     // where nodes were declared on it) takes the side of its centroid.
+    let on_surface = |v: u32| phi.get(v as usize).is_some_and(|&p| p == T::zero());
     let side = |t: usize| {
-        let tet = mesh.tets()[t];
-        let s = side_of(phi, &tet);
-        if s != 0 || !tet.iter().all(|&v| phi[v as usize] == T::zero()) {
+        let Some(tet) = mesh.tets().get(t) else {
+            return 0;
+        };
+        let s = side_of(phi, tet);
+        if s != 0 || !tet.iter().all(|&v| on_surface(v)) {
             return s;
         }
-        let c = [0, 1, 2]
-            .map(|k| tet.iter().fold(T::zero(), |a, &v| a + x[v as usize][k]) / T::of(4.0));
+        let Some(corners) = gather(x, tet) else {
+            return 0;
+        };
+        let sum = corners.iter().fold([T::zero(); 3], |a, p| {
+            [a[0] + p[0], a[1] + p[1], a[2] + p[2]]
+        });
+        let c = sum.map(|a| a / T::of(4.0));
         sep.classify(&c).map_or(0, |(_, p)| sign(p))
     };
     let n_cut = cut_faces(
         mesh,
-        |v| phi[v as usize] == T::zero(),
+        on_surface,
         side,
         |key| {
-            let c = [0, 1, 2].map(|k| {
-                (x[key[0] as usize][k] + x[key[1] as usize][k] + x[key[2] as usize][k]) / T::of(3.0)
-            });
-            sep.in_extent(&c) && before_tips(key)
+            let Some([a, b, c]) = gather(x, key) else {
+                return false;
+            };
+            let third = T::of(3.0);
+            let centre = [
+                (a[0] + b[0] + c[0]) / third,
+                (a[1] + b[1] + c[1]) / third,
+                (a[2] + b[2] + c[2]) / third,
+            ];
+            sep.in_extent(&centre) && before_tips(key)
         },
         faces,
         cut_store,
@@ -514,7 +583,12 @@ pub(crate) fn apply<T: Real>(
         }
         return Ok(event);
     }
-    let cut = &cut_store[..n_cut];
+    let available = cut_store.len();
+    let cut = cut_store.get(..n_cut).ok_or(Error::Capacity {
+        resource: Resource::Workspace,
+        needed: n_cut,
+        available,
+    })?;
     let on_cut = nodes_on(cut, mesh.n_nodes(), mark);
     let incidence = Incidence::build(mesh.tets(), mesh.n_nodes(), inc_ptr, inc_list)?;
     // The face sort is done with: its room holds the stars.
@@ -531,10 +605,18 @@ pub(crate) fn apply<T: Real>(
         &mut stars,
         |mesh, v| {
             let vi = v as usize;
-            let copy = mesh.push_node(mesh.rest()[vi], mesh.is_fixed(vi))? as usize;
-            x[copy] = x[vi];
-            previous[copy] = previous[vi];
-            phi[copy] = T::zero();
+            let rest = *mesh.rest().get(vi).ok_or(Error::IndexOutOfRange {
+                resource: Resource::Nodes,
+                position: 0,
+                index: vi,
+                bound: mesh.n_nodes(),
+            })?;
+            let copy = mesh.push_node(rest, mesh.is_fixed(vi))? as usize;
+            copy_entry(x, vi, copy)?;
+            copy_entry(previous, vi, copy)?;
+            if let Some(p) = phi.get_mut(copy) {
+                *p = T::zero();
+            }
             lips.push([v, copy as u32])?;
             Ok(copy as u32)
         },
@@ -586,31 +668,41 @@ fn level_set<T: Real>(
 /// The nodes of the cut faces, each once, in increasing order, written to the front of `mark`
 /// (at least `n_nodes` entries).
 fn nodes_on<'m>(cut: &[[u32; 3]], n_nodes: usize, mark: &'m mut [u32]) -> &'m [u32] {
-    mark[..n_nodes].fill(0);
+    let n = n_nodes.min(mark.len());
+    let Some(mark) = mark.get_mut(..n) else {
+        return &[];
+    };
+    mark.fill(0);
     for key in cut {
         for &v in key {
-            mark[v as usize] = 1;
+            if let Some(m) = mark.get_mut(v as usize) {
+                *m = 1;
+            }
         }
     }
+    // Compacted in place: entry `len` lies at or before `v`, already read.
     let mut len = 0;
-    for v in 0..n_nodes {
-        if mark[v] == 1 {
-            mark[len] = v as u32;
+    for v in 0..n {
+        if mark.get(v) == Some(&1) {
+            if let Some(m) = mark.get_mut(len) {
+                *m = v as u32;
+            }
             len += 1;
         }
     }
-    &mark[..len]
+    let mark: &'m [u32] = mark;
+    mark.get(..len).unwrap_or_default()
 }
 
 /// Signs of the nodes of `tet` (`None` if one is unknown).
 pub(crate) fn signs_of<T: Real>(phi: &[T], tet: &[u32; 4]) -> Option<[Sign; 4]> {
     let mut s = [0; 4];
-    for (k, &v) in tet.iter().enumerate() {
-        let p = phi[v as usize];
+    for (sk, &v) in s.iter_mut().zip(tet) {
+        let p = *phi.get(v as usize)?;
         if !p.finite() {
             return None;
         }
-        s[k] = sign(p);
+        *sk = sign(p);
     }
     Some(s)
 }

@@ -10,7 +10,7 @@ use crate::mesh::{Mesh, orientation, shape_quality};
 use crate::real::Real;
 
 use super::separate::Incidence;
-use super::split::{Vertex, crosses, split};
+use super::split::{Sign, Vertex, crosses, split};
 use super::surface::SeparationSurface;
 use super::{CutEvent, CutWork, QUALITY_FLOOR, SNAP_TOLERANCE, crossing, lerp, sign, signs_of};
 
@@ -36,11 +36,15 @@ pub(super) fn snap_nodes<T: Real>(
 ) {
     let (floor, tau) = (T::of(QUALITY_FLOOR), T::of(SNAP_TOLERANCE));
     let n0 = mesh.n_nodes();
-    let on_boundary = &mut mark[..n0];
+    let Some(on_boundary) = mark.get_mut(..n0) else {
+        return;
+    };
     on_boundary.fill(0);
     for tri in mesh.surface() {
         for &v in tri {
-            on_boundary[v as usize] = 1;
+            if let Some(b) = on_boundary.get_mut(v as usize) {
+                *b = 1;
+            }
         }
     }
     let boundary_edge = |mesh: &Mesh<'_, T>, a: u32, b: u32| {
@@ -49,7 +53,9 @@ pub(super) fn snap_nodes<T: Real>(
             .any(|tri| tri.contains(&a) && tri.contains(&b))
     };
     for v in 0..n0 {
-        let pv = phi[v];
+        let Some(&pv) = phi.get(v) else {
+            continue;
+        };
         if !(pv.finite() && pv != T::zero()) {
             continue;
         }
@@ -58,8 +64,13 @@ pub(super) fn snap_nodes<T: Real>(
         let mut nearest: Option<(T, u32)> = None;
         let mut along: Option<(T, u32)> = None;
         for &t in incidence.of(v) {
-            for &w in &mesh.tets()[t as usize] {
-                let pw = phi[w as usize];
+            let Some(tet) = mesh.tets().get(t as usize) else {
+                continue;
+            };
+            for &w in tet {
+                let Some(&pw) = phi.get(w as usize) else {
+                    continue;
+                };
                 if !(pw.finite() && sign(pw) == -sign(pv)) {
                     continue;
                 }
@@ -67,8 +78,9 @@ pub(super) fn snap_nodes<T: Real>(
                 if nearest.is_none_or(|(b, _)| t_cross < b) {
                     nearest = Some((t_cross, w));
                 }
-                let allowed = on_boundary[v] == 0
-                    || (on_boundary[w as usize] == 1 && boundary_edge(mesh, v as u32, w));
+                let allowed = on_boundary.get(v) == Some(&0)
+                    || (on_boundary.get(w as usize) == Some(&1)
+                        && boundary_edge(mesh, v as u32, w));
                 if allowed && along.is_none_or(|(b, _)| t_cross < b) {
                     along = Some((t_cross, w));
                 }
@@ -77,7 +89,10 @@ pub(super) fn snap_nodes<T: Real>(
         let Some((t_near, w_near)) = nearest else {
             continue;
         };
-        if !(t_near < tau && sep.in_extent(&lerp(x[v], x[w_near as usize], t_near))) {
+        let (Some(&xv), Some(&xw)) = (x.get(v), x.get(w_near as usize)) else {
+            continue;
+        };
+        if !(t_near < tau && sep.in_extent(&lerp(xv, xw, t_near))) {
             continue;
         }
         let movable = |(t_cross, w): (T, u32)| -> bool {
@@ -85,16 +100,38 @@ pub(super) fn snap_nodes<T: Real>(
             if !(t_cross < tau) || mesh.is_fixed(v) {
                 return false;
             }
-            let moved_rest = lerp(mesh.rest()[v], mesh.rest()[wi], t_cross);
-            let moved_x = lerp(x[v], x[wi], t_cross);
+            let rest = mesh.rest();
+            let (Some(&rv), Some(&rw), Some(&xv), Some(&xw)) =
+                (rest.get(v), rest.get(wi), x.get(v), x.get(wi))
+            else {
+                return false;
+            };
+            let moved_rest = lerp(rv, rw, t_cross);
+            let moved_x = lerp(xv, xw, t_cross);
             incidence.of(v).iter().all(|&t| {
-                let tet = mesh.tets()[t as usize];
-                let at = |p: &[[T; 3]], q: [T; 3]| {
-                    tet.map(|u| if u as usize == v { q } else { p[u as usize] })
+                let Some(&tet) = mesh.tets().get(t as usize) else {
+                    return false;
                 };
-                let q_old = shape_quality(&at(mesh.rest(), mesh.rest()[v]));
-                let q_new = shape_quality(&at(mesh.rest(), moved_rest));
-                let (c_old, c_new) = (at(x, x[v]), at(x, moved_x));
+                // The corners of `tet` in `p`, node `v` at `q`.
+                let at = |p: &[[T; 3]], q: [T; 3]| -> Option<[[T; 3]; 4]> {
+                    let mut corners = [q; 4];
+                    for (c, &u) in corners.iter_mut().zip(&tet) {
+                        if u as usize != v {
+                            *c = *p.get(u as usize)?;
+                        }
+                    }
+                    Some(corners)
+                };
+                let (Some(r_old), Some(r_new), Some(c_old), Some(c_new)) = (
+                    at(rest, rv),
+                    at(rest, moved_rest),
+                    at(x, xv),
+                    at(x, moved_x),
+                ) else {
+                    return false;
+                };
+                let q_old = shape_quality(&r_old);
+                let q_new = shape_quality(&r_new);
                 let keeps_orientation = orientation(c_old[0], c_old[1], c_old[2], c_old[3])
                     <= T::zero()
                     || orientation(c_new[0], c_new[1], c_new[2], c_new[3]) > T::zero();
@@ -104,16 +141,45 @@ pub(super) fn snap_nodes<T: Real>(
         match along.filter(|&a| movable(a)) {
             Some((t_cross, w)) => {
                 let wi = w as usize;
-                let moved_rest = lerp(mesh.rest()[v], mesh.rest()[wi], t_cross);
-                mesh.set_rest(v, moved_rest);
-                x[v] = lerp(x[v], x[wi], t_cross);
-                previous[v] = lerp(previous[v], previous[wi], t_cross);
+                if let (Some(&rv), Some(&rw)) = (mesh.rest().get(v), mesh.rest().get(wi)) {
+                    mesh.set_rest(v, lerp(rv, rw, t_cross));
+                }
+                move_toward(x, v, wi, t_cross);
+                move_toward(previous, v, wi, t_cross);
                 event.nodes_moved += 1;
             }
             None => event.nodes_declared += 1,
         }
-        phi[v] = T::zero();
+        if let Some(p) = phi.get_mut(v) {
+            *p = T::zero();
+        }
     }
+}
+
+/// Moves entry `v` of `s` the fraction `t` of the way to entry `w`.
+fn move_toward<T: Real>(s: &mut [[T; 3]], v: usize, w: usize, t: T) {
+    if let (Some(&sv), Some(&sw)) = (s.get(v), s.get(w))
+        && let Some(slot) = s.get_mut(v)
+    {
+        *slot = lerp(sv, sw, t);
+    }
+}
+
+/// The pairs `(p[a], p[b])`, `a < b`, in the order of the nested loops over `a` then `b`.
+fn pairs<P: Copy, const N: usize>(p: &[P; N]) -> impl Iterator<Item = (P, P)> + '_ {
+    p.iter()
+        .enumerate()
+        .flat_map(move |(a, &pa)| p.iter().skip(a + 1).map(move |&pb| (pa, pb)))
+}
+
+/// The nodes of `tet` with their signs.
+fn with_signs(s: &[Sign; 4], tet: &[u32; 4]) -> [(Sign, u32); 4] {
+    [
+        (s[0], tet[0]),
+        (s[1], tet[1]),
+        (s[2], tet[2]),
+        (s[3], tet[3]),
+    ]
 }
 
 /// Marks in `status` ([`SELECTED`], else 0) the crossed tetrahedra whose crossing (a point where
@@ -129,8 +195,8 @@ pub(super) fn select<T: Real>(
     status: &mut [u32],
     work: &mut CutWork,
 ) {
-    for (t, tet) in mesh.tets().iter().enumerate() {
-        status[t] = 0;
+    for (tet, st) in mesh.tets().iter().zip(status.iter_mut()) {
+        *st = 0;
         let Some(s) = signs_of(phi, tet) else {
             continue;
         };
@@ -139,32 +205,33 @@ pub(super) fn select<T: Real>(
         }
         // The tetrahedron's size in the image: the largest distance between two of its
         // nodes' images (0 if one cannot be projected).
-        let image = tet.map(|v| sep.project(&x[v as usize]));
+        let image = tet.map(|v| x.get(v as usize).and_then(|p| sep.project(p)));
         let mut size = T::zero();
-        for a in 0..4 {
-            for b in a + 1..4 {
-                if let (Some(p), Some(q)) = (image[a], image[b]) {
-                    let d = [p[0] - q[0], p[1] - q[1]];
-                    size = size.max((d[0] * d[0] + d[1] * d[1]).sqrt());
-                }
+        for pair in pairs(&image) {
+            if let (Some(p), Some(q)) = pair {
+                let d = [p[0] - q[0], p[1] - q[1]];
+                size = size.max((d[0] * d[0] + d[1] * d[1]).sqrt());
             }
         }
         let counts = |p: &[T; 3]| sep.in_extent(p) || sep.near_inner_end(p, size);
+        let nodes = with_signs(&s, tet);
         let mut inside = false;
-        for a in 0..4 {
-            for b in (a + 1)..4 {
-                if s[a] * s[b] < 0 {
-                    let (va, vb) = (tet[a], tet[b]);
-                    let p = lerp(x[va as usize], x[vb as usize], crossing(phi, va, vb));
-                    inside |= counts(&p);
-                }
+        for ((sa, va), (sb, vb)) in pairs(&nodes) {
+            if sa * sb < 0
+                && let (Some(&xa), Some(&xb)) = (x.get(va as usize), x.get(vb as usize))
+            {
+                inside |= counts(&lerp(xa, xb, crossing(phi, va, vb)));
             }
-            if s[a] == 0 {
-                inside |= counts(&x[tet[a] as usize]);
+        }
+        for &(sa, va) in &nodes {
+            if sa == 0
+                && let Some(p) = x.get(va as usize)
+            {
+                inside |= counts(p);
             }
         }
         if inside {
-            status[t] = SELECTED;
+            *st = SELECTED;
         }
     }
     work.element_tests += mesh.n_tets() as u64;
@@ -194,15 +261,17 @@ pub(super) fn select_at_tip<T: Real>(
         let mut face = [0u32; 3];
         let mut n = 0;
         for &v in tet {
-            if phi[v as usize] == T::zero() && n < 3 {
-                face[n] = v;
+            if phi.get(v as usize) == Some(&T::zero())
+                && let Some(f) = face.get_mut(n)
+            {
+                *f = v;
                 n += 1;
             }
         }
         if n < 3 {
             continue;
         }
-        let fs = face.map(|v| sign(psi[v as usize]));
+        let fs = face.map(|v| psi.get(v as usize).map_or(0, |&p| sign(p)));
         if !(fs.contains(&1) && fs.contains(&-1)) {
             continue;
         }
@@ -210,36 +279,32 @@ pub(super) fn select_at_tip<T: Real>(
         // on the surface, off it by up to the face's size if its nodes were declared on it.
         let size = face
             .iter()
-            .filter_map(|&v| sep.distance_to_end(k, &x[v as usize]))
+            .filter_map(|&v| x.get(v as usize).and_then(|p| sep.distance_to_end(k, p)))
             .fold(reach, |m, d| m.max(d));
-        for a in 0..3 {
-            for b in a + 1..3 {
-                let (va, vb) = (face[a], face[b]);
-                if fs[a] * fs[b] >= 0 {
-                    continue;
-                }
-                let cross = lerp(x[va as usize], x[vb as usize], crossing(psi, va, vb));
-                let near = sep.distance_to_end(k, &cross).is_some_and(|d| d <= size);
-                if near && n_edges < edges.len() {
-                    edges[n_edges] = [va.min(vb), va.max(vb)];
-                    n_edges += 1;
-                }
+        let nodes = [(fs[0], face[0]), (fs[1], face[1]), (fs[2], face[2])];
+        for ((sa, va), (sb, vb)) in pairs(&nodes) {
+            if sa * sb >= 0 {
+                continue;
+            }
+            let (Some(&xa), Some(&xb)) = (x.get(va as usize), x.get(vb as usize)) else {
+                continue;
+            };
+            let cross = lerp(xa, xb, crossing(psi, va, vb));
+            let near = sep.distance_to_end(k, &cross).is_some_and(|d| d <= size);
+            if near && let Some(slot) = edges.get_mut(n_edges) {
+                *slot = [va.min(vb), va.max(vb)];
+                n_edges += 1;
             }
         }
     }
-    let edges = &mut edges[..n_edges];
+    let edges = edges.get_mut(..n_edges).unwrap_or_default();
     edges.sort_unstable();
-    for (t, tet) in mesh.tets().iter().enumerate() {
-        status[t] = 0;
-        let around = (0..4).any(|a| {
-            (a + 1..4).any(|b| {
-                let key = [tet[a].min(tet[b]), tet[a].max(tet[b])];
-                edges.binary_search(&key).is_ok()
-            })
+    for (tet, st) in mesh.tets().iter().zip(status.iter_mut()) {
+        let around = pairs(tet).any(|(va, vb)| {
+            let key = [va.min(vb), va.max(vb)];
+            edges.binary_search(&key).is_ok()
         });
-        if around {
-            status[t] = SELECTED;
-        }
+        *st = if around { SELECTED } else { 0 };
     }
     work.element_tests += 2 * mesh.n_tets() as u64;
 }
@@ -255,27 +320,29 @@ pub(super) fn stop_at_extent_ends<T: Real>(
     status: &[u32],
     event: &mut CutEvent,
 ) {
-    for t in 0..mesh.n_tets() {
-        if status[t] != SELECTED {
+    let selected = |t: u32| status.get(t as usize) == Some(&SELECTED);
+    for (t, tet) in mesh.tets().iter().enumerate() {
+        if !selected(t as u32) {
             continue;
         }
-        let tet = mesh.tets()[t];
-        for a in 0..4 {
-            for b in (a + 1)..4 {
-                let (va, vb) = (tet[a], tet[b]);
-                if sign(phi[va as usize]) * sign(phi[vb as usize]) >= 0 {
-                    continue;
-                }
-                let outside = incidence.of(va as usize).iter().any(|&u| {
-                    status[u as usize] != SELECTED && mesh.tets()[u as usize].contains(&vb)
-                });
-                if outside {
-                    let near = if crossing(phi, va, vb) < T::of(0.5) {
-                        va
-                    } else {
-                        vb
-                    };
-                    phi[near as usize] = T::zero();
+        for (va, vb) in pairs(tet) {
+            let (Some(&pa), Some(&pb)) = (phi.get(va as usize), phi.get(vb as usize)) else {
+                continue;
+            };
+            if sign(pa) * sign(pb) >= 0 {
+                continue;
+            }
+            let outside = incidence.of(va as usize).iter().any(|&u| {
+                !selected(u) && mesh.tets().get(u as usize).is_some_and(|o| o.contains(&vb))
+            });
+            if outside {
+                let near = if crossing(phi, va, vb) < T::of(0.5) {
+                    va
+                } else {
+                    vb
+                };
+                if let Some(p) = phi.get_mut(near as usize) {
+                    *p = T::zero();
                     event.nodes_declared += 1;
                 }
             }
@@ -294,24 +361,32 @@ pub(super) fn keep_above_floor<T: Real>(
     event: &mut CutEvent,
 ) {
     let floor = T::of(QUALITY_FLOOR);
-    let rest_of = |phi: &[T], v: Vertex| -> [T; 3] {
+    let rest = mesh.rest();
+    let rest_of = |phi: &[T], v: Vertex| -> Option<[T; 3]> {
         match v {
-            Vertex::Node(n) => mesh.rest()[n as usize],
-            Vertex::Edge(a, b) => lerp(
-                mesh.rest()[a as usize],
-                mesh.rest()[b as usize],
+            Vertex::Node(n) => rest.get(n as usize).copied(),
+            Vertex::Edge(a, b) => Some(lerp(
+                *rest.get(a as usize)?,
+                *rest.get(b as usize)?,
                 crossing(phi, a, b),
-            ),
+            )),
+        }
+    };
+    // A piece with a corner out of range counts as flat.
+    let quality = |phi: &[T], c: &[Vertex; 4]| -> T {
+        let [a, b, c, d] = c.map(|v| rest_of(phi, v));
+        match (a, b, c, d) {
+            (Some(a), Some(b), Some(c), Some(d)) => shape_quality(&[a, b, c, d]).abs(),
+            _ => T::zero(),
         }
     };
     for _pass in 0..=mesh.n_nodes() {
         let mut changed = false;
-        for t in 0..mesh.n_tets() {
-            if status[t] != SELECTED {
+        for (t, &tet) in mesh.tets().iter().enumerate() {
+            if status.get(t) != Some(&SELECTED) {
                 continue;
             }
             event.work.element_tests += 1;
-            let tet = mesh.tets()[t];
             let Some(s) = signs_of(phi, &tet) else {
                 continue;
             };
@@ -321,29 +396,29 @@ pub(super) fn keep_above_floor<T: Real>(
             let worst = split(&tet, &s)
                 .as_slice()
                 .iter()
-                .map(|c| shape_quality(&c.map(|v| rest_of(phi, v))).abs())
+                .map(|c| quality(phi, c))
                 .fold(T::one(), |m, q| m.min(q));
             if worst >= floor {
                 continue;
             }
             let mut pick: Option<(T, u32)> = None;
-            for a in 0..4 {
-                for b in (a + 1)..4 {
-                    if s[a] * s[b] < 0 {
-                        let t_ab = crossing(phi, tet[a], tet[b]);
-                        let (d, node) = if t_ab < T::of(0.5) {
-                            (t_ab, tet[a])
-                        } else {
-                            (T::one() - t_ab, tet[b])
-                        };
-                        if pick.is_none_or(|(best, _)| d < best) {
-                            pick = Some((d, node));
-                        }
+            for ((sa, va), (sb, vb)) in pairs(&with_signs(&s, &tet)) {
+                if sa * sb < 0 {
+                    let t_ab = crossing(phi, va, vb);
+                    let (d, node) = if t_ab < T::of(0.5) {
+                        (t_ab, va)
+                    } else {
+                        (T::one() - t_ab, vb)
+                    };
+                    if pick.is_none_or(|(best, _)| d < best) {
+                        pick = Some((d, node));
                     }
                 }
             }
-            if let Some((_, node)) = pick {
-                phi[node as usize] = T::zero();
+            if let Some((_, node)) = pick
+                && let Some(p) = phi.get_mut(node as usize)
+            {
+                *p = T::zero();
                 event.nodes_declared += 1;
                 changed = true;
             }

@@ -2,8 +2,10 @@
 //! piece holding their material point; a feature whose piece lies on the other side of the cut
 //! than its observation goes to the surface of its own side.
 
+#![cfg_attr(not(test), deny(clippy::indexing_slicing))]
+
 use crate::camera::Camera;
-use crate::embed::{Embedding, barycentric, clamp_weights, interpolate};
+use crate::embed::{Embedding, barycentric, clamp_weights, gather, interpolate};
 use crate::mesh::{Mesh, orientation};
 use crate::real::Real;
 use crate::sparse::NONE;
@@ -26,18 +28,30 @@ pub(super) fn into_pieces<T: Real>(
 ) {
     for embedding in embeddings {
         for k in 0..embedding.len() {
-            let t = embedding.tets()[k] as usize;
+            let (Some(&t), Some(&w)) = (embedding.tets().get(k), embedding.weights().get(k)) else {
+                continue;
+            };
+            let t = t as usize;
             let first = status.get(t).copied().unwrap_or(NONE);
             if t >= t0 || first == NONE {
                 continue;
             }
-            let Some(p) = interpolate(mesh.rest(), &parents[t], &embedding.weights()[k]) else {
+            let Some(p) = parents
+                .get(t)
+                .and_then(|parent| interpolate(mesh.rest(), parent, &w))
+            else {
                 continue;
             };
             let mut best: Option<(T, u32, [T; 4])> = None;
             let (start, count) = ((first >> 3) as usize, (first & 7) as usize);
             for child in core::iter::once(t).chain(start..start + count) {
-                let corners = mesh.tets()[child].map(|v| mesh.rest()[v as usize]);
+                let Some(corners) = mesh
+                    .tets()
+                    .get(child)
+                    .and_then(|tet| gather(mesh.rest(), tet))
+                else {
+                    continue;
+                };
                 event.work.embed_tests += 1;
                 if let Some(w) = barycentric(&corners, p) {
                     let score = w.iter().fold(T::one(), |m, &c| m.min(c));
@@ -71,21 +85,29 @@ pub(super) fn features_to_their_side<T: Real>(
     phi: &[T],
     event: &mut CutEvent,
 ) {
-    for k in 0..features.len().min(observed.len()) {
-        let Some(foot) = sep.foot(observed[k]) else {
+    for (k, &uv) in observed.iter().enumerate().take(features.len()) {
+        let Some(foot) = sep.foot(uv) else {
             continue;
         };
         if !foot.inside || foot.signed_px.abs() < T::one() {
             continue;
         }
         let seen: Sign = sign(foot.signed_px);
-        let t = features.tets()[k] as usize;
-        if side_of(phi, &mesh.tets()[t]) == seen {
+        let Some(tet) = features
+            .tets()
+            .get(k)
+            .and_then(|&t| mesh.tets().get(t as usize))
+        else {
+            continue;
+        };
+        if side_of(phi, tet) == seen {
             continue;
         }
         event.work.embed_tests += mesh.surface().len() as u64;
-        let near = nearest_visible_point(mesh, x, camera, observed[k], |tet| {
-            side_of(phi, &mesh.tets()[tet as usize]) == seen
+        let near = nearest_visible_point(mesh, x, camera, uv, |tet| {
+            mesh.tets()
+                .get(tet as usize)
+                .is_some_and(|tet| side_of(phi, tet) == seen)
         });
         if let Some((tet, w)) = near {
             features.set(k, tet, w);
@@ -110,7 +132,9 @@ fn nearest_visible_point<T: Real>(
         if !accept(tet) {
             continue;
         }
-        let p = tri.map(|v| x[v as usize]);
+        let Some(p) = gather(x, tri) else {
+            continue;
+        };
         // Facing the camera: the camera lies on the outer side of the triangle.
         if orientation(p[0], p[1], p[2], [centre.x, centre.y, centre.z]) <= T::zero() {
             continue;
@@ -124,12 +148,18 @@ fn nearest_visible_point<T: Real>(
         }
         let (d2, b) = closest_in_triangle(q, uv);
         if best.as_ref().is_none_or(|(bd, _, _)| d2 < *bd) {
-            let point = [0, 1, 2].map(|c| p[0][c] * b[0] + p[1][c] * b[1] + p[2][c] * b[2]);
+            let at = |c0: T, c1: T, c2: T| c0 * b[0] + c1 * b[1] + c2 * b[2];
+            let [p0, p1, p2] = p;
+            let point = [
+                at(p0[0], p1[0], p2[0]),
+                at(p0[1], p1[1], p2[1]),
+                at(p0[2], p1[2], p2[2]),
+            ];
             best = Some((d2, tet, point));
         }
     }
     let (_, tet, point) = best?;
-    let corners = mesh.tets().get(tet as usize)?.map(|v| x[v as usize]);
+    let corners = gather(x, mesh.tets().get(tet as usize)?)?;
     Some((tet, clamp_weights(barycentric(&corners, point)?)?))
 }
 
@@ -152,8 +182,9 @@ fn closest_in_triangle<T: Real>(q: [[T; 2]; 3], p: [T; 2]) -> (T, [T; 3]) {
     }
     // Outside (or degenerate): the nearest point of the three edges.
     let mut best = (d(p, q[0]), [T::one(), T::zero(), T::zero()]);
-    for k in 0..3 {
-        let (a, b) = (q[k], q[(k + 1) % 3]);
+    // Edge `k` runs from corner `k` to corner `k + 1` (mod 3).
+    let edges = [(q[0], q[1]), (q[1], q[2]), (q[2], q[0])];
+    for (k, (a, b)) in edges.into_iter().enumerate() {
         let e = [b[0] - a[0], b[1] - a[1]];
         let len2 = e[0] * e[0] + e[1] * e[1];
         let t = if len2 > T::EPS {
@@ -166,9 +197,12 @@ fn closest_in_triangle<T: Real>(q: [[T; 2]; 3], p: [T; 2]) -> (T, [T; 3]) {
         let c = [a[0] + e[0] * t, a[1] + e[1] * t];
         let dist = d(p, c);
         if dist < best.0 {
-            let mut w = [T::zero(); 3];
-            w[k] = T::one() - t;
-            w[(k + 1) % 3] = t;
+            let (s, o) = (T::one() - t, T::zero());
+            let w = match k {
+                0 => [s, t, o],
+                1 => [o, s, t],
+                _ => [t, o, s],
+            };
             best = (dist, w);
         }
     }

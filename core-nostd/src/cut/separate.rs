@@ -4,10 +4,13 @@
 //! not cut; a node at the end of a partial cut keeps a single group and is not duplicated, so
 //! the material stays joined beyond the cut.
 
+#![cfg_attr(not(test), deny(clippy::indexing_slicing))]
+
 use crate::error::{Error, Resource};
 use crate::mesh::Mesh;
 use crate::real::Real;
 use crate::sparse::NONE;
+use crate::storage::{sum, times};
 
 /// Node → tetrahedra incidence, in compressed form, built into caller storage.
 pub(crate) struct Incidence<'w> {
@@ -24,40 +27,47 @@ impl<'w> Incidence<'w> {
         ptr: &'w mut [u32],
         list: &'w mut [u32],
     ) -> Result<Self, Error> {
-        if ptr.len() < n_nodes + 1 || list.len() < 4 * tets.len() {
+        let (n_ptr, n_list) = (sum(&[n_nodes, 1]), times(4, tets.len()));
+        let available = ptr.len().saturating_add(list.len());
+        let (Some(ptr), Some(list)) = (ptr.get_mut(..n_ptr), list.get_mut(..n_list)) else {
             return Err(Error::Capacity {
                 resource: Resource::Workspace,
-                needed: n_nodes + 1 + 4 * tets.len(),
-                available: ptr.len() + list.len(),
+                needed: sum(&[n_ptr, n_list]),
+                available,
             });
-        }
-        let ptr = &mut ptr[..n_nodes + 1];
+        };
+        let out_of_range = |t: usize, v: u32| Error::IndexOutOfRange {
+            resource: Resource::Tetrahedra,
+            position: t,
+            index: v as usize,
+            bound: n_nodes,
+        };
         ptr.fill(0);
-        for tet in tets {
+        for (t, tet) in tets.iter().enumerate() {
             for &v in tet {
-                ptr[v as usize + 1] += 1;
+                *ptr.get_mut(v as usize + 1).ok_or(out_of_range(t, v))? += 1;
             }
         }
-        for v in 0..n_nodes {
-            ptr[v + 1] += ptr[v];
+        // Running sums: `ptr[v + 1]` is the end of node v's list (`ptr[0]` stays 0).
+        let mut running = 0u32;
+        for p in ptr.iter_mut() {
+            running += *p;
+            *p = running;
         }
         // Fill from the back so the pointers end up at the starts again.
         for (t, tet) in tets.iter().enumerate().rev() {
             for &v in tet {
-                let at = &mut ptr[v as usize + 1];
+                let at = ptr.get_mut(v as usize + 1).ok_or(out_of_range(t, v))?;
                 *at -= 1;
-                list[*at as usize] = t as u32;
+                *list.get_mut(*at as usize).ok_or(out_of_range(t, v))? = t as u32;
             }
         }
         // `ptr[v + 1]` now holds the start of node v; shift it back into place.
-        for v in 0..n_nodes {
-            ptr[v] = ptr[v + 1];
+        ptr.copy_within(1.., 0);
+        if let Some(end) = ptr.last_mut() {
+            *end = n_list as u32;
         }
-        ptr[n_nodes] = 4 * tets.len() as u32;
-        Ok(Incidence {
-            ptr,
-            tets: &list[..4 * tets.len()],
-        })
+        Ok(Incidence { ptr, tets: list })
     }
 
     /// Tetrahedra around node `v`.
@@ -71,7 +81,13 @@ impl<'w> Incidence<'w> {
 
 /// The three nodes of face `l` of `tet` (the face opposite local node `l`), sorted.
 pub(crate) fn face_key(tet: &[u32; 4], l: usize) -> [u32; 3] {
-    let mut f = [tet[(l + 1) % 4], tet[(l + 2) % 4], tet[(l + 3) % 4]];
+    let [a, b, c, d] = *tet;
+    let mut f = match l % 4 {
+        0 => [b, c, d],
+        1 => [c, d, a],
+        2 => [d, a, b],
+        _ => [a, b, c],
+    };
     f.sort_unstable();
     f
 }
@@ -90,23 +106,23 @@ pub(crate) fn cut_faces<T: Real>(
 ) -> Result<usize, Error> {
     let tets = mesh.tets();
     let available = faces.len();
-    let faces = faces.get_mut(..4 * tets.len()).ok_or(Error::Capacity {
+    let needed = times(4, tets.len());
+    let faces = faces.get_mut(..needed).ok_or(Error::Capacity {
         resource: Resource::Workspace,
-        needed: 4 * tets.len(),
+        needed,
         available,
     })?;
-    for (t, tet) in tets.iter().enumerate() {
-        for l in 0..4 {
+    for (four, (t, tet)) in faces.chunks_exact_mut(4).zip(tets.iter().enumerate()) {
+        for (l, slot) in four.iter_mut().enumerate() {
             let f = face_key(tet, l);
-            faces[4 * t + l] = [f[0], f[1], f[2], t as u32];
+            *slot = [f[0], f[1], f[2], t as u32];
         }
     }
     faces.sort_unstable();
     let mut n = 0;
     let mut k = 0;
-    while k + 1 < faces.len() {
-        let (a, b) = (faces[k], faces[k + 1]);
-        if a[..3] != b[..3] {
+    while let (Some(&a), Some(&b)) = (faces.get(k), faces.get(k + 1)) {
+        if (a[0], a[1], a[2]) != (b[0], b[1], b[2]) {
             k += 1;
             continue;
         }
@@ -135,13 +151,19 @@ pub(crate) struct StarScratch<'w> {
     pub parent: &'w mut [u32],
 }
 
+/// The root of `i`, halving the path on the way (an index out of range is its own root).
 fn find(parent: &mut [u32], mut i: usize) -> usize {
-    while parent[i] as usize != i {
-        let up = parent[i] as usize;
-        parent[i] = parent[up];
+    loop {
+        let up = match parent.get(i) {
+            Some(&up) if up as usize != i => up as usize,
+            _ => return i,
+        };
+        let grandparent = parent.get(up).copied().unwrap_or(up as u32);
+        if let Some(p) = parent.get_mut(i) {
+            *p = grandparent;
+        }
         i = up;
     }
-    i
 }
 
 /// Duplicates the nodes on the cut faces (`cut`, sorted keys) so that the two sides come apart:
@@ -161,38 +183,53 @@ pub(crate) fn duplicate_nodes<T: Real>(
     for &v in on_cut {
         let star = incidence.of(v as usize);
         let m = star.len();
-        if 3 * m > scratch.faces.len() || m > scratch.parent.len() {
+        let needed = times(3, m);
+        let available = scratch.faces.len();
+        let (Some(faces), Some(parent)) =
+            (scratch.faces.get_mut(..needed), scratch.parent.get_mut(..m))
+        else {
             return Err(Error::Capacity {
                 resource: Resource::Workspace,
-                needed: 3 * m,
-                available: scratch.faces.len(),
+                needed,
+                available,
             });
-        }
-        let faces = &mut scratch.faces[..3 * m];
-        let parent = &mut scratch.parent[..m];
-        for (i, &t) in star.iter().enumerate() {
-            parent[i] = i as u32;
-            let tet = mesh.tets()[t as usize];
-            let mut k = 0;
+        };
+        let n_tets = mesh.n_tets();
+        for ((i, &t), (p, three)) in star
+            .iter()
+            .enumerate()
+            .zip(parent.iter_mut().zip(faces.chunks_exact_mut(3)))
+        {
+            *p = i as u32;
+            let tet = *mesh.tets().get(t as usize).ok_or(Error::IndexOutOfRange {
+                resource: Resource::Tetrahedra,
+                position: i,
+                index: t as usize,
+                bound: n_tets,
+            })?;
+            // The first three faces at v, each without one node u: the other two nodes.
+            let mut slots = three.iter_mut();
             for &u in &tet {
-                if u != v && k < 3 {
-                    // The face at v without node u: the other two nodes.
+                if u != v
+                    && let Some(slot) = slots.next()
+                {
                     let others = tet.iter().copied().filter(|&w| w != v && w != u);
                     let mut pair = [NONE; 2];
-                    for (slot, w) in pair.iter_mut().zip(others) {
-                        *slot = w;
+                    for (end, w) in pair.iter_mut().zip(others) {
+                        *end = w;
                     }
                     pair.sort_unstable();
-                    faces[3 * i + k] = [pair[0], pair[1], i as u32];
-                    k += 1;
+                    *slot = [pair[0], pair[1], i as u32];
                 }
             }
         }
         faces.sort_unstable();
         *work_entries += 3 * m as u64;
-        for k in 0..faces.len().saturating_sub(1) {
-            let (a, b) = (faces[k], faces[k + 1]);
-            if a[..2] != b[..2] {
+        for two in faces.windows(2) {
+            let &[a, b] = two else {
+                continue;
+            };
+            if (a[0], a[1]) != (b[0], b[1]) {
                 continue;
             }
             let mut key = [v, a[0], a[1]];
@@ -201,25 +238,31 @@ pub(crate) fn duplicate_nodes<T: Real>(
                 continue;
             }
             let (ra, rb) = (find(parent, a[2] as usize), find(parent, b[2] as usize));
-            if ra != rb {
-                parent[ra.max(rb)] = ra.min(rb) as u32;
+            if ra != rb
+                && let Some(p) = parent.get_mut(ra.max(rb))
+            {
+                *p = ra.min(rb) as u32;
             }
         }
         // Group roots are their smallest member, so group 0 is the first tetrahedron's.
         for i in 0..m {
             let r = find(parent, i);
-            parent[i] = r as u32;
+            if let Some(p) = parent.get_mut(i) {
+                *p = r as u32;
+            }
         }
         for root in 1..m {
-            if parent[root] as usize != root {
+            if parent.get(root).map(|&p| p as usize) != Some(root) {
                 continue;
             }
             let copy = copy_node(mesh, v)?;
             copies += 1;
-            for i in root..m {
-                if parent[i] as usize == root {
-                    let t = star[i] as usize;
-                    let mut tet = mesh.tets()[t];
+            for (&group, &t) in parent.iter().zip(star).skip(root) {
+                if group as usize == root
+                    && let Some(&tet) = mesh.tets().get(t as usize)
+                {
+                    let t = t as usize;
+                    let mut tet = tet;
                     for w in tet.iter_mut() {
                         if *w == v {
                             *w = copy;

@@ -18,6 +18,7 @@
 //! index), or the new node on an edge (after every mesh node, by the edge's two nodes), which
 //! is also the order the new nodes get their indices in.
 
+use crate::embed::gather;
 use crate::error::{Error, Resource};
 use crate::mesh::{Mesh, orientation, shape_quality};
 use crate::real::Real;
@@ -63,15 +64,15 @@ impl Children {
     }
 
     fn push(&mut self, t: [Vertex; 4]) {
-        if self.len < MAX_CHILDREN {
-            self.tets[self.len] = t;
+        if let Some(slot) = self.tets.get_mut(self.len) {
+            *slot = t;
             self.len += 1;
         }
     }
 
     /// The tetrahedra written.
     pub fn as_slice(&self) -> &[[Vertex; 4]] {
-        &self.tets[..self.len]
+        self.tets.get(..self.len).unwrap_or_default()
     }
 }
 
@@ -92,9 +93,11 @@ pub(crate) fn split(tet: &[u32; 4], signs: &[Sign; 4]) -> Children {
     let nodes_with = |s: Sign| {
         let mut v = [0u32; 4];
         let mut k = 0;
-        for (a, &sa) in signs.iter().enumerate() {
+        for (&sa, &node) in signs.iter().zip(tet) {
             if sa == s {
-                v[k] = tet[a];
+                if let Some(slot) = v.get_mut(k) {
+                    *slot = node;
+                }
                 k += 1;
             }
         }
@@ -109,7 +112,11 @@ pub(crate) fn split(tet: &[u32; 4], signs: &[Sign; 4]) -> Children {
             } else {
                 (nodes_with(-1)[0], nodes_with(1))
             };
-            let c = [0, 1, 2].map(|k| Vertex::edge(lone, others[k]));
+            let c = [
+                Vertex::edge(lone, others[0]),
+                Vertex::edge(lone, others[1]),
+                Vertex::edge(lone, others[2]),
+            ];
             out.push([n(lone), c[0], c[1], c[2]]);
             prism(&mut out, [n(others[0]), n(others[1]), n(others[2])], c);
         }
@@ -153,17 +160,10 @@ pub(crate) fn split(tet: &[u32; 4], signs: &[Sign; 4]) -> Children {
 /// The prism with triangles `a` and `b` (edges `a[i]`–`b[i]`) as three tetrahedra.
 fn prism(out: &mut Children, a: [Vertex; 3], b: [Vertex; 3]) {
     // Rotate (and, if need be, swap the two triangles) so the smallest vertex is a[0].
-    let all = [a[0], a[1], a[2], b[0], b[1], b[2]];
-    let mut m = 0;
-    for k in 1..6 {
-        if all[k] < all[m] {
-            m = k;
-        }
-    }
-    let (a, b) = if m < 3 { (a, b) } else { (b, a) };
-    let r = m % 3;
-    let a = [a[r], a[(r + 1) % 3], a[(r + 2) % 3]];
-    let b = [b[r], b[(r + 1) % 3], b[(r + 2) % 3]];
+    let m = first_smallest(&[a[0], a[1], a[2], b[0], b[1], b[2]]);
+    let (mut a, mut b) = if m < 3 { (a, b) } else { (b, a) };
+    a.rotate_left(m % 3);
+    b.rotate_left(m % 3);
     // The two quadrilaterals at a[0] are split through it, leaving a tetrahedron and a
     // pyramid over the third quadrilateral.
     out.push([a[0], b[0], b[1], b[2]]);
@@ -172,16 +172,47 @@ fn prism(out: &mut Children, a: [Vertex; 3], b: [Vertex; 3]) {
 
 /// The pyramid with apex `apex` over the quadrilateral `q` (in cyclic order) as two
 /// tetrahedra, split along the diagonal through `q`'s smallest vertex.
-fn pyramid(out: &mut Children, apex: Vertex, q: [Vertex; 4]) {
-    let mut m = 0;
-    for k in 1..4 {
-        if q[k] < q[m] {
-            m = k;
-        }
-    }
-    let (q0, q1, q2, q3) = (q[m], q[(m + 1) % 4], q[(m + 2) % 4], q[(m + 3) % 4]);
+fn pyramid(out: &mut Children, apex: Vertex, mut q: [Vertex; 4]) {
+    let m = first_smallest(&q);
+    q.rotate_left(m);
+    let [q0, q1, q2, q3] = q;
     out.push([apex, q0, q1, q2]);
     out.push([apex, q0, q2, q3]);
+}
+
+/// Position of the first smallest of `v` (0 if empty).
+fn first_smallest(v: &[Vertex]) -> usize {
+    let mut best: Option<(usize, Vertex)> = None;
+    for (k, &x) in v.iter().enumerate() {
+        if best.is_none_or(|(_, b)| x < b) {
+            best = Some((k, x));
+        }
+    }
+    best.map_or(0, |(k, _)| k)
+}
+
+/// Sets entry `v` of `s` to `f(s[a], s[b])` (a new node on the edge `(a, b)`).
+fn on_edge<P: Copy>(
+    s: &mut [P],
+    [a, b]: [usize; 2],
+    v: usize,
+    f: impl Fn(P, P) -> P,
+) -> Result<(), Error> {
+    let (Some(&pa), Some(&pb)) = (s.get(a), s.get(b)) else {
+        return Err(Error::IndexOutOfRange {
+            resource: Resource::Nodes,
+            position: v,
+            index: a.max(b),
+            bound: s.len(),
+        });
+    };
+    let available = s.len();
+    *s.get_mut(v).ok_or(Error::Capacity {
+        resource: Resource::Nodes,
+        needed: v.saturating_add(1),
+        available,
+    })? = f(pa, pb);
+    Ok(())
 }
 
 /// Splits every selected tetrahedron still crossed: a new node on each crossed edge (the
@@ -211,36 +242,57 @@ pub(super) fn split_selected<T: Real>(
 ) -> Result<(), Error> {
     let (n0, t0) = (mesh.n_nodes(), mesh.n_tets());
     let crossed = |mesh: &Mesh<'_, T>, phi: &[T], t: usize| -> Option<[Sign; 4]> {
-        signs_of(phi, &mesh.tets()[t]).filter(crosses)
+        mesh.tets()
+            .get(t)
+            .and_then(|tet| signs_of(phi, tet))
+            .filter(crosses)
     };
+    let short_work = |needed: usize, available: usize| Error::Capacity {
+        resource: Resource::Workspace,
+        needed,
+        available,
+    };
+    let edge_room = edges.len();
     let mut n_edges = 0;
-    for t in 0..t0 {
-        if status[t] != SELECTED {
+    for (t, &st) in status.iter().enumerate().take(t0) {
+        if st != SELECTED {
             continue;
         }
-        let Some(s) = crossed(mesh, phi, t) else {
+        let (Some(s), Some(&tet)) = (crossed(mesh, phi, t), mesh.tets().get(t)) else {
             continue;
         };
-        let tet = mesh.tets()[t];
-        for a in 0..4 {
-            for b in (a + 1)..4 {
-                if s[a] * s[b] < 0 {
-                    edges[n_edges] = [tet[a].min(tet[b]), tet[a].max(tet[b])];
+        for (a, (&sa, &va)) in s.iter().zip(&tet).enumerate() {
+            for (&sb, &vb) in s.iter().zip(&tet).skip(a + 1) {
+                if sa * sb < 0 {
+                    *edges
+                        .get_mut(n_edges)
+                        .ok_or(short_work(n_edges + 1, edge_room))? = [va.min(vb), va.max(vb)];
                     n_edges += 1;
                 }
             }
         }
     }
-    let edges = &mut edges[..n_edges];
+    let edges = edges
+        .get_mut(..n_edges)
+        .ok_or(short_work(n_edges, edge_room))?;
     edges.sort_unstable();
+    // Compacted in place (sorted, so a repeat equals the last edge kept).
     let mut unique = 0;
+    let mut last = None;
     for k in 0..edges.len() {
-        if k == 0 || edges[k] != edges[k - 1] {
-            edges[unique] = edges[k];
+        let Some(&e) = edges.get(k) else {
+            break;
+        };
+        if last != Some(e) {
+            if let Some(slot) = edges.get_mut(unique) {
+                *slot = e;
+            }
             unique += 1;
+            last = Some(e);
         }
     }
-    let edges = &edges[..unique];
+    let edges: &[[u32; 2]] = edges;
+    let edges = edges.get(..unique).unwrap_or_default();
     let available = mesh.capacity().nodes;
     if n0 + unique > available {
         return Err(Error::Capacity {
@@ -253,12 +305,20 @@ pub(super) fn split_selected<T: Real>(
         let t_ab = crossing(phi, a, b);
         let (ai, bi) = (a as usize, b as usize);
         let fixed = mesh.is_fixed(ai) && mesh.is_fixed(bi);
-        let v = mesh.push_node(lerp(mesh.rest()[ai], mesh.rest()[bi], t_ab), fixed)? as usize;
-        x[v] = lerp(x[ai], x[bi], t_ab);
-        previous[v] = lerp(previous[ai], previous[bi], t_ab);
-        phi[v] = T::zero();
+        let Some([ra, rb]) = gather(mesh.rest(), &[a, b]) else {
+            return Err(Error::IndexOutOfRange {
+                resource: Resource::Nodes,
+                position: 0,
+                index: ai.max(bi),
+                bound: mesh.n_nodes(),
+            });
+        };
+        let v = mesh.push_node(lerp(ra, rb, t_ab), fixed)? as usize;
+        on_edge(x, [ai, bi], v, |pa, pb| lerp(pa, pb, t_ab))?;
+        on_edge(previous, [ai, bi], v, |pa, pb| lerp(pa, pb, t_ab))?;
+        on_edge(phi, [ai, bi], v, |_, _| T::zero())?;
         for values in carry.iter_mut() {
-            values[v] = values[ai] + (values[bi] - values[ai]) * t_ab;
+            on_edge(values, [ai, bi], v, |pa, pb| pa + (pb - pa) * t_ab)?;
         }
     }
     event.edge_nodes += unique;
@@ -271,27 +331,38 @@ pub(super) fn split_selected<T: Real>(
         }
     };
     let mut min_quality = T::one();
+    let parent_room = parents.len();
     for t in 0..t0 {
-        let signs = if status[t] == SELECTED {
+        let Some(st) = status.get_mut(t) else {
+            break;
+        };
+        let signs = if *st == SELECTED {
             crossed(mesh, phi, t)
         } else {
             None
         };
-        let Some(s) = signs else {
-            status[t] = NONE;
+        let (Some(s), Some(&tet)) = (signs, mesh.tets().get(t)) else {
+            *st = NONE;
             continue;
         };
-        let tet = mesh.tets()[t];
         let children = split(&tet, &s);
-        parents[t] = tet;
-        status[t] = ((mesh.n_tets() as u32) << 3) | (children.len as u32 - 1);
+        *parents.get_mut(t).ok_or(short_work(t + 1, parent_room))? = tet;
+        *st = ((mesh.n_tets() as u32) << 3) | (children.len as u32 - 1);
         for (k, child) in children.as_slice().iter().enumerate() {
             let mut nodes = child.map(node_of);
-            let corners = nodes.map(|v| mesh.rest()[v as usize]);
+            let Some(mut corners) = gather(mesh.rest(), &nodes) else {
+                return Err(Error::IndexOutOfRange {
+                    resource: Resource::Nodes,
+                    position: t,
+                    index: NONE as usize,
+                    bound: mesh.n_nodes(),
+                });
+            };
             if orientation(corners[0], corners[1], corners[2], corners[3]) < T::zero() {
                 nodes.swap(2, 3);
+                corners.swap(2, 3);
             }
-            min_quality = min_quality.min(shape_quality(&nodes.map(|v| mesh.rest()[v as usize])));
+            min_quality = min_quality.min(shape_quality(&corners));
             if k == 0 {
                 mesh.set_tet(t, nodes);
             } else {

@@ -7,6 +7,8 @@
 //! the polyline — within the tube, not beyond either end — so that a cut can stop where the
 //! surface stops.
 
+#![cfg_attr(not(test), deny(clippy::indexing_slicing))]
+
 use nalgebra::Vector3;
 
 use crate::camera::Camera;
@@ -14,6 +16,7 @@ use crate::error::{Error, Resource};
 use crate::features::first_hit;
 use crate::mesh::Mesh;
 use crate::real::Real;
+use crate::storage::times;
 
 /// Reals of scratch per polyline vertex: a plane (normal and offset) for the segment it
 /// starts, and the arc length up to it.
@@ -76,15 +79,17 @@ impl<'s, T: Real> SeparationSurface<'s, T> {
     ) -> Result<Self, Error> {
         let m = polyline.len();
         let segments = m.saturating_sub(1);
-        let needed = 4 * segments;
-        if scratch.len() < needed {
-            return Err(Error::Capacity {
+        let needed = times(4, segments);
+        let available = scratch.len();
+        let planes = scratch
+            .get_mut(..needed)
+            .ok_or(Error::Capacity {
                 resource: Resource::CutVertices,
                 needed,
-                available: scratch.len(),
-            });
-        }
-        let planes = scratch[..needed].as_chunks_mut::<4>().0;
+                available,
+            })?
+            .as_chunks_mut::<4>()
+            .0;
         let ext = if extension_px.finite() {
             extension_px.max(T::one())
         } else {
@@ -110,14 +115,15 @@ impl<'s, T: Real> SeparationSurface<'s, T> {
                 (along(ext), false)
             }
         };
-        let ((end0, inner0), (end1, inner1)) = if m >= 2 {
-            (
-                extend(polyline[0], polyline[1], open_ends[0]),
-                extend(polyline[m - 1], polyline[m - 2], open_ends[1]),
-            )
-        } else {
-            (([T::zero(); 2], false), ([T::zero(); 2], false))
-        };
+        let ((end0, inner0), (end1, inner1)) =
+            if let (&[first, second, ..], &[.., before_last, last]) = (polyline, polyline) {
+                (
+                    extend(first, second, open_ends[0]),
+                    extend(last, before_last, open_ends[1]),
+                )
+            } else {
+                (([T::zero(); 2], false), ([T::zero(); 2], false))
+            };
         let ends = [end0, end1];
         let inner = [inner0, inner1];
         let vertex = |k: usize| -> [T; 2] {
@@ -126,21 +132,28 @@ impl<'s, T: Real> SeparationSurface<'s, T> {
             } else if k + 1 == m {
                 ends[1]
             } else {
-                polyline[k]
+                // `k < m` at every call.
+                polyline.get(k).copied().unwrap_or([T::zero(); 2])
             }
         };
         // Across the view through the model's centroid: where a depth-extruded segment is
         // anchored when a ray misses the model.
         let n = mesh.n_nodes();
         let mut centroid = Vector3::zeros();
-        for p in &x[..n] {
+        let at_rest = x.get(..n).ok_or(Error::Capacity {
+            resource: Resource::Nodes,
+            needed: n,
+            available: x.len(),
+        })?;
+        for p in at_rest {
             centroid += Vector3::new(p[0], p[1], p[2]);
         }
         centroid /= T::of(n.max(1) as f64);
         let view = camera.view_direction();
         let point_on_model = |uv: [T; 2]| -> Vector3<T> {
             if let Some((tet, w)) = first_hit(mesh, x, camera, uv)
-                && let Some(p) = crate::embed::interpolate(x, &mesh.tets()[tet as usize], &w)
+                && let Some(nodes) = mesh.tets().get(tet as usize)
+                && let Some(p) = crate::embed::interpolate(x, nodes, &w)
             {
                 return Vector3::new(p[0], p[1], p[2]);
             }
@@ -153,7 +166,7 @@ impl<'s, T: Real> SeparationSurface<'s, T> {
             };
             origin + dir * s
         };
-        for k in 0..segments {
+        for (k, slot) in planes.iter_mut().enumerate() {
             let (a, b) = (vertex(k), vertex(k + 1));
             let t = sub(b, a);
             let len = dot2(t, t).sqrt();
@@ -196,12 +209,12 @@ impl<'s, T: Real> SeparationSurface<'s, T> {
                     ];
                 }
             }
-            planes[k] = plane;
+            *slot = plane;
         }
         // The planes the cut ends on, at the ends inside the object.
         let mut tips = [None, None];
-        for (k, tip) in tips.iter_mut().enumerate() {
-            if !inner[k] || m < 2 {
+        for ((k, tip), &is_inner) in tips.iter_mut().enumerate().zip(&inner) {
+            if !is_inner || m < 2 {
                 continue;
             }
             let (e, back) = if k == 0 {
@@ -266,7 +279,8 @@ impl<'s, T: Real> SeparationSurface<'s, T> {
         } else if k + 1 == m {
             self.ends[1]
         } else {
-            self.polyline[k]
+            // `k < m` at every call.
+            self.polyline.get(k).copied().unwrap_or([T::zero(); 2])
         }
     }
 
@@ -299,8 +313,8 @@ impl<'s, T: Real> SeparationSurface<'s, T> {
     /// end inside the object: the surface must reach past such an end for the plane it ends
     /// on to cut it exactly.
     pub fn near_inner_end(&self, p: &[T; 3], slack: T) -> bool {
-        (0..2).any(|k| {
-            self.tips[k].is_some()
+        self.tips.iter().enumerate().any(|(k, tip)| {
+            tip.is_some()
                 && self
                     .distance_to_end(k, p)
                     .is_some_and(|d| d <= slack + self.tube_px)
@@ -347,10 +361,11 @@ impl<'s, T: Real> SeparationSurface<'s, T> {
         })
     }
 
-    /// `φ` of point `p` against the plane of `segment`, metres.
-    pub fn phi(&self, segment: usize, p: &[T; 3]) -> T {
-        let n = self.planes[segment];
-        n[0] * p[0] + n[1] * p[1] + n[2] * p[2] - n[3]
+    /// `φ` of point `p` against the plane of `segment`, metres (`None` for a segment the
+    /// polyline does not have).
+    pub fn phi(&self, segment: usize, p: &[T; 3]) -> Option<T> {
+        let n = self.planes.get(segment)?;
+        Some(n[0] * p[0] + n[1] * p[1] + n[2] * p[2] - n[3])
     }
 
     /// The nearest segment of `p`'s image and `p`'s `φ` against its plane; `None` when `p`
@@ -361,7 +376,7 @@ impl<'s, T: Real> SeparationSurface<'s, T> {
             .project(&Vector3::new(p[0], p[1], p[2]), 0)
             .ok()?;
         let foot = self.foot([uv.x, uv.y])?;
-        Some((foot, self.phi(foot.segment, p)))
+        Some((foot, self.phi(foot.segment, p)?))
     }
 
     /// Whether the image of `p` lies beside the polyline.

@@ -13,7 +13,7 @@ use crate::mesh::{Mesh, MeshInput};
 use crate::real::Real;
 use crate::solve::{SolverConfig, build_scatter};
 use crate::sparse::{Symbolic, UpperCsc};
-use crate::storage::Slab;
+use crate::storage::{Slab, sum, times};
 
 use super::size::{ModelSize, order_free_nodes};
 
@@ -53,25 +53,28 @@ impl<'a, T: Real> Discretization<'a, T> {
         reals: &mut Slab<'a, T>,
         indices: &mut Slab<'a, u32>,
     ) -> Result<Self, Error> {
-        let c = &size.capacities;
+        let c = size.capacities();
         let n = c.mesh.nodes;
         let mesh = Mesh::with_capacity(&c.mesh, reals, indices)?;
         Ok(Discretization {
             mesh,
-            x: reals.take(3 * n)?.as_chunks_mut::<3>().0,
-            previous: reals.take(3 * n)?.as_chunks_mut::<3>().0,
+            x: reals.take(times(3, n))?.as_chunks_mut::<3>().0,
+            previous: reals.take(times(3, n))?.as_chunks_mut::<3>().0,
             damping: reals.take(n)?,
             depth_weight: reals.take(n)?,
             features: Embedding::with_capacity(c.features, reals, indices)?,
             targets: Embedding::with_capacity(c.targets, reals, indices)?,
-            col_ptr: indices.take(size.unknowns + 1)?,
-            row_idx: indices.take(size.nnz_a)?,
+            col_ptr: indices.take(sum(&[size.unknowns(), 1]))?,
+            row_idx: indices.take(size.nnz_a())?,
             nnz_a: 0,
             symbolic: Symbolic::with_capacity(
                 size.symbolic_capacity(),
                 indices.take(size.symbolic_capacity().index_len())?,
             )?,
-            scatter: indices.take(30 * c.mesh.tets)?.as_chunks_mut::<30>().0,
+            scatter: indices
+                .take(times(30, c.mesh.tets))?
+                .as_chunks_mut::<30>()
+                .0,
             #[cfg(feature = "cut")]
             lips: crate::cut::Lips::with_capacity(n, indices)?,
         })

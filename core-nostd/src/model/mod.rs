@@ -2,7 +2,7 @@
 //! solver, built once in caller storage and stepped frame by frame.
 //!
 //! ```text
-//! let size = ModelSize::new(&capacities);                 every length a const fn of them
+//! let size = ModelSize::new(&capacities)?;                every length a const fn of them
 //! Model::new(mesh, config, &size, ModelBuffers::new(&size, reals, indices)?)
 //! model.embed_features(frame_0)                          virtual features on the surface
 //! model.embed_targets(points)                            internal targets (optional)
@@ -16,7 +16,8 @@ mod discretization;
 mod size;
 
 pub use size::{
-    Capacities, MeshAnalysis, ModelBuffers, ModelSize, analyse_mesh, analyse_mesh_work_len,
+    Capacities, MAX_STORAGE_LEN, MeshAnalysis, ModelBuffers, ModelSize, analyse_mesh,
+    analyse_mesh_work_len,
 };
 
 use nalgebra::Vector3;
@@ -208,14 +209,14 @@ impl<'a, T: Real> Model<'a, T> {
         let ModelBuffers { reals, indices } = buffers;
         ensure_len(reals, size.real_len(), Resource::RealStorage)?;
         ensure_len(indices, size.index_len(), Resource::IndexStorage)?;
-        let caps = &size.capacities;
+        let caps = size.capacities();
         let mut rs = Slab::new(reals, Resource::RealStorage);
         let mut is = Slab::new(indices, Resource::IndexStorage);
         let mut live = Discretization::with_capacity(size, &mut rs, &mut is)?;
         #[cfg(feature = "cut")]
         let spare = Discretization::with_capacity(size, &mut rs, &mut is)?;
-        let dofs = size.unknowns;
-        let hessian = rs.take(size.nnz_a)?;
+        let dofs = size.unknowns();
+        let hessian = rs.take(size.nnz_a())?;
         let factor = LdlFactor::new(
             &size.symbolic_capacity(),
             rs.take(LdlFactor::<T>::storage_len(&size.symbolic_capacity()))?,

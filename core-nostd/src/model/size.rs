@@ -5,17 +5,20 @@
 //! mesh itself except the initial fill of the factor, which [`analyse_mesh`] reports to help
 //! choose [`Capacities::factor_entries`].
 
+#![cfg_attr(not(test), deny(clippy::indexing_slicing))]
+
 use crate::embed::Embedding;
 use crate::error::{Error, Resource};
 use crate::features::Features;
 use crate::mesh::{MeshCapacity, MeshInput};
 use crate::real::Real;
+use crate::sparse::pattern::MAX_INDEX;
 use crate::sparse::{
     Graph, LdlFactor, NONE, Symbolic, SymbolicSize, UpperCsc, analyse_work_len, block_upper_len,
     block_upper_pattern, expand_block_permutation, minimum_degree, minimum_degree_work_len,
     tet_graph_work_len,
 };
-use crate::storage::{Slab, ensure_len};
+use crate::storage::{Slab, ensure_len, sum, times};
 
 #[cfg(feature = "cut")]
 use crate::cut;
@@ -44,18 +47,19 @@ pub struct Capacities {
     pub cut_vertices: usize,
 }
 
-/// Storage sizes of a model, all functions of its [`Capacities`].
+/// Storage sizes of a model, all functions of its [`Capacities`], which [`ModelSize::new`] has
+/// checked: every count fits the core's `u32` indices and every storage length fits a slice,
+/// so the lengths below are exact and a model built from them cannot overflow its indices.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct ModelSize {
-    /// The capacities.
-    pub capacities: Capacities,
-    /// Capacity of stored entries of the stiffness matrix (upper triangle): its bound from the
-    /// element count, `6 n + 54 t` (a node's diagonal block has 6 stored entries, a node pair
-    /// 9, and a tetrahedron joins at most 6 pairs).
-    pub nnz_a: usize,
-    /// Capacity of unknowns: three per node.
-    pub unknowns: usize,
+    capacities: Capacities,
+    nnz_a: usize,
+    unknowns: usize,
 }
+
+/// Most entries [`ModelSize::new`] lets [`ModelSize::real_len`] or [`ModelSize::index_len`]
+/// reach: the longest slice of `f64` the address space allows (`isize::MAX` bytes).
+pub const MAX_STORAGE_LEN: usize = isize::MAX as usize / 8;
 
 /// Halves of the topology-dependent storage: the one in service and, when the mesh can be
 /// cut, the spare a cut is built into.
@@ -65,15 +69,96 @@ const fn max(a: usize, b: usize) -> usize {
     if a > b { a } else { b }
 }
 
-impl ModelSize {
-    /// The sizes for `capacities`.
-    pub const fn new(capacities: &Capacities) -> Self {
-        let (n, t) = (capacities.mesh.nodes, capacities.mesh.tets);
-        ModelSize {
-            capacities: *capacities,
-            nnz_a: 6 * n + 54 * t,
-            unknowns: 3 * n,
+/// `Err(TooLarge)` when `requested` exceeds `limit`.
+const fn at_most(resource: Resource, requested: usize, limit: usize) -> Result<(), Error> {
+    if requested > limit {
+        Err(Error::TooLarge {
+            resource,
+            requested,
+            limit,
+        })
+    } else {
+        Ok(())
+    }
+}
+
+/// `?` for a `const fn`.
+macro_rules! check {
+    ($e:expr) => {
+        if let Err(e) = $e {
+            return Err(e);
         }
+    };
+}
+
+impl ModelSize {
+    /// The sizes for `capacities`, once they are checked against what the core can hold.
+    ///
+    /// Node, tetrahedron, triangle, feature, target, pair, cut-vertex and factor-entry counts
+    /// are stored in `u32` indices, so each, and the unknowns `3 n` and the stiffness entries
+    /// `6 n + 54 t` that follow from the nodes `n` and tetrahedra `t`, must be at most
+    /// [`MAX_INDEX`]; the storage lengths ([`ModelSize::real_len`], [`ModelSize::index_len`])
+    /// must be at most [`MAX_STORAGE_LEN`]. The arithmetic saturates
+    /// ([`crate::storage::times`]), so no capacity, however large, overflows on the way.
+    ///
+    /// # Errors
+    /// [`Error::TooLarge`] naming the first count that does not fit: [`Resource::Nodes`],
+    /// [`Resource::Unknowns`], [`Resource::Tetrahedra`], [`Resource::MatrixEntries`],
+    /// [`Resource::SurfaceTriangles`], [`Resource::Features`], [`Resource::Targets`],
+    /// [`Resource::FactorEntries`], [`Resource::Pairs`], [`Resource::CutVertices`], then
+    /// [`Resource::RealStorage`] or [`Resource::IndexStorage`].
+    pub const fn new(capacities: &Capacities) -> Result<Self, Error> {
+        let c = capacities;
+        let (unknowns, nnz_a) = match mesh_counts(c.mesh.nodes, c.mesh.tets) {
+            Ok(counts) => counts,
+            Err(e) => return Err(e),
+        };
+        let counts = [
+            (Resource::SurfaceTriangles, c.mesh.surface_triangles),
+            (Resource::Features, c.features),
+            (Resource::Targets, c.targets),
+            (Resource::FactorEntries, c.factor_entries),
+            (Resource::Pairs, c.pairs),
+            (Resource::CutVertices, c.cut_vertices),
+        ];
+        let mut rest: &[(Resource, usize)] = &counts;
+        while let [(resource, count), tail @ ..] = rest {
+            check!(at_most(*resource, *count, MAX_INDEX));
+            rest = tail;
+        }
+        let size = ModelSize {
+            capacities: *c,
+            nnz_a,
+            unknowns,
+        };
+        check!(at_most(
+            Resource::RealStorage,
+            size.real_len(),
+            MAX_STORAGE_LEN
+        ));
+        check!(at_most(
+            Resource::IndexStorage,
+            size.index_len(),
+            MAX_STORAGE_LEN
+        ));
+        Ok(size)
+    }
+
+    /// The capacities.
+    pub const fn capacities(&self) -> &Capacities {
+        &self.capacities
+    }
+
+    /// Capacity of stored entries of the stiffness matrix (upper triangle): its bound from the
+    /// element count, `6 n + 54 t` (a node's diagonal block has 6 stored entries, a node pair
+    /// 9, and a tetrahedron joins at most 6 pairs).
+    pub const fn nnz_a(&self) -> usize {
+        self.nnz_a
+    }
+
+    /// Capacity of unknowns: three per node.
+    pub const fn unknowns(&self) -> usize {
+        self.unknowns
     }
 
     /// Capacity of the symbolic analysis and the numeric factor.
@@ -89,38 +174,45 @@ impl ModelSize {
     pub(crate) const fn half_real_len(&self) -> usize {
         let c = &self.capacities;
         let n = c.mesh.nodes;
-        c.mesh.real_len()
-            + 3 * n // positions
-            + 3 * n // previous positions (damping reference)
-            + 2 * n // damping and depth-prior weights
-            + Embedding::<f64>::real_len(c.features)
-            + Embedding::<f64>::real_len(c.targets)
+        sum(&[
+            c.mesh.real_len(),
+            times(3, n), // positions
+            times(3, n), // previous positions (damping reference)
+            times(2, n), // damping and depth-prior weights
+            Embedding::<f64>::real_len(c.features),
+            Embedding::<f64>::real_len(c.targets),
+        ])
     }
 
     /// Indices of one half.
     pub(crate) const fn half_index_len(&self) -> usize {
         let c = &self.capacities;
-        c.mesh.index_len()
-            + (self.unknowns + 1) // column pointers of the stiffness pattern
-            + self.nnz_a // its row indices
-            + self.symbolic_capacity().index_len()
-            + 30 * c.mesh.tets // scatter map
-            + Embedding::<f64>::index_len(c.features)
-            + Embedding::<f64>::index_len(c.targets)
-            + Self::lips_len(c)
+        sum(&[
+            c.mesh.index_len(),
+            self.unknowns, // column pointers of the stiffness pattern
+            1,
+            self.nnz_a, // its row indices
+            self.symbolic_capacity().index_len(),
+            times(30, c.mesh.tets), // scatter map
+            Embedding::<f64>::index_len(c.features),
+            Embedding::<f64>::index_len(c.targets),
+            Self::lips_len(c),
+        ])
     }
 
     /// Scalars of the copies a failing call gives back (features, their embedding, the
     /// damping reference).
     const fn saved_real_len(c: &Capacities) -> usize {
-        Features::<f64>::real_len(c.features)
-            + Embedding::<f64>::real_len(c.features)
-            + 3 * c.mesh.nodes
+        sum(&[
+            Features::<f64>::real_len(c.features),
+            Embedding::<f64>::real_len(c.features),
+            times(3, c.mesh.nodes),
+        ])
     }
 
     #[cfg(feature = "cut")]
     const fn lips_len(c: &Capacities) -> usize {
-        2 * c.mesh.nodes
+        times(2, c.mesh.nodes)
     }
 
     #[cfg(not(feature = "cut"))]
@@ -131,27 +223,31 @@ impl ModelSize {
     /// Scalars of storage a model needs (the same count for `f32` and `f64`).
     pub const fn real_len(&self) -> usize {
         let c = &self.capacities;
-        HALVES * self.half_real_len()
-            + self.nnz_a // Hessian values
-            + LdlFactor::<f64>::storage_len(&self.symbolic_capacity())
-            + 7 * self.unknowns // gradient, step, the PCG vectors, solve work
-            + LdlFactor::<f64>::SUPERNODAL_WORK_LEN // packed blocks of the factorization
-            + 3 * c.mesh.nodes // trial positions of the line search
-            + Features::<f64>::real_len(c.features)
-            + Self::saved_real_len(c)
-            + Self::detection_real_len(c)
+        sum(&[
+            times(HALVES, self.half_real_len()),
+            self.nnz_a, // Hessian values
+            LdlFactor::<f64>::storage_len(&self.symbolic_capacity()),
+            times(7, self.unknowns), // gradient, step, the PCG vectors, solve work
+            LdlFactor::<f64>::SUPERNODAL_WORK_LEN, // packed blocks of the factorization
+            times(3, c.mesh.nodes),  // trial positions of the line search
+            Features::<f64>::real_len(c.features),
+            Self::saved_real_len(c),
+            Self::detection_real_len(c),
+        ])
     }
 
     /// Indices of storage a model needs, its workspace included.
     pub const fn index_len(&self) -> usize {
         let c = &self.capacities;
-        HALVES * self.half_index_len()
-            + LdlFactor::<f64>::supernodal_index_work_len(self.unknowns) // factorization
-            + Features::<f64>::index_len(c.features)
-            + Features::<f64>::index_len(c.features) // saved copy
-            + Embedding::<f64>::index_len(c.features) // saved copy
-            + Self::detection_index_len(c)
-            + self.work_len()
+        sum(&[
+            times(HALVES, self.half_index_len()),
+            LdlFactor::<f64>::supernodal_index_work_len(self.unknowns), // factorization
+            Features::<f64>::index_len(c.features),
+            Features::<f64>::index_len(c.features), // saved copy
+            Embedding::<f64>::index_len(c.features), // saved copy
+            Self::detection_index_len(c),
+            self.work_len(),
+        ])
     }
 
     /// Indices of the workspace the model keeps for rebuilding its mesh and factor (part of
@@ -160,12 +256,12 @@ impl ModelSize {
     pub const fn work_len(&self) -> usize {
         let c = &self.capacities;
         let (n, t) = (c.mesh.nodes, c.mesh.tets);
-        let graph = 12 * t;
+        let graph = times(12, t);
         let phases = max(
             max(tet_graph_work_len(n, t), minimum_degree_work_len(n, graph)),
             analyse_work_len(self.unknowns, self.nnz_a),
         );
-        let rebuild = (n + 1) + graph + n + self.unknowns + phases;
+        let rebuild = sum(&[n, 1, graph, n, self.unknowns, phases]);
         max(max(c.mesh.work_len(), rebuild), Self::cut_work_len(c))
     }
 
@@ -181,11 +277,13 @@ impl ModelSize {
 
     #[cfg(feature = "cut")]
     const fn detection_real_len(c: &Capacities) -> usize {
-        Detector::<f64>::real_len(c.features, c.pairs)
-            + CutLine::<f64>::real_len(c.cut_vertices)
-            + 2 * c.features // residuals
-            + 2 * max(c.features, c.cut_vertices) // projections
-            + cut::real_len(c.mesh.nodes, c.cut_vertices)
+        sum(&[
+            Detector::<f64>::real_len(c.features, c.pairs),
+            CutLine::<f64>::real_len(c.cut_vertices),
+            times(2, c.features),                      // residuals
+            times(2, max(c.features, c.cut_vertices)), // projections
+            cut::real_len(c.mesh.nodes, c.cut_vertices),
+        ])
     }
 
     #[cfg(not(feature = "cut"))]
@@ -195,7 +293,10 @@ impl ModelSize {
 
     #[cfg(feature = "cut")]
     const fn detection_index_len(c: &Capacities) -> usize {
-        Detector::<f64>::index_len(c.features, c.pairs) + CutLine::<f64>::index_len(c.cut_vertices)
+        sum(&[
+            Detector::<f64>::index_len(c.features, c.pairs),
+            CutLine::<f64>::index_len(c.cut_vertices),
+        ])
     }
 
     #[cfg(not(feature = "cut"))]
@@ -203,9 +304,13 @@ impl ModelSize {
         0
     }
 
-    /// Bytes of storage for scalar type `T` (scalars and indices).
+    /// Bytes of storage for scalar type `T` (scalars and indices), saturated at `usize::MAX`
+    /// (where `usize` is narrower than 64 bits, `f64` storage of a valid size may not fit).
     pub const fn bytes<T>(&self) -> usize {
-        self.real_len() * core::mem::size_of::<T>() + self.index_len() * 4
+        sum(&[
+            times(self.real_len(), core::mem::size_of::<T>()),
+            times(self.index_len(), 4),
+        ])
     }
 }
 
@@ -249,30 +354,40 @@ pub struct MeshAnalysis {
 }
 
 /// Length of the workspace [`analyse_mesh`] needs for a mesh of `nodes` nodes and `tets`
-/// tetrahedra.
+/// tetrahedra (saturated at `usize::MAX`, see [`crate::storage::times`]).
 pub const fn analyse_mesh_work_len(nodes: usize, tets: usize) -> usize {
-    let size = ModelSize::new(&Capacities {
-        mesh: MeshCapacity {
-            nodes,
-            tets,
-            surface_triangles: 0,
-        },
-        features: 0,
-        targets: 0,
-        factor_entries: 0,
-        pairs: 0,
-        cut_vertices: 0,
-    });
-    let graph = 12 * tets;
+    let unknowns = times(3, nodes);
+    let nnz_a = stiffness_len(nodes, tets);
+    let graph = times(12, tets);
     let phases = max(
         max(
             tet_graph_work_len(nodes, tets),
             minimum_degree_work_len(nodes, graph),
         ),
-        analyse_work_len(size.unknowns, size.nnz_a),
+        analyse_work_len(unknowns, nnz_a),
     );
     // The free-node map, the pattern, then what ordering it leaves for the phases.
-    nodes + (size.unknowns + 1) + size.nnz_a + (nodes + 1) + graph + nodes + size.unknowns + phases
+    sum(&[
+        nodes, unknowns, 1, nnz_a, nodes, 1, graph, nodes, unknowns, phases,
+    ])
+}
+
+/// Bound on the stored entries of the stiffness matrix of `nodes` nodes and `tets` tetrahedra
+/// (see [`ModelSize::nnz_a`]), saturated.
+const fn stiffness_len(nodes: usize, tets: usize) -> usize {
+    sum(&[times(6, nodes), times(54, tets)])
+}
+
+/// Checks that a mesh of `nodes` nodes and `tets` tetrahedra fits the `u32` indices; returns
+/// its unknowns and the bound on its stiffness entries.
+const fn mesh_counts(nodes: usize, tets: usize) -> Result<(usize, usize), Error> {
+    check!(at_most(Resource::Nodes, nodes, MAX_INDEX));
+    let unknowns = times(3, nodes);
+    check!(at_most(Resource::Unknowns, unknowns, MAX_INDEX));
+    check!(at_most(Resource::Tetrahedra, tets, MAX_INDEX));
+    let nnz_a = stiffness_len(nodes, tets);
+    check!(at_most(Resource::MatrixEntries, nnz_a, MAX_INDEX));
+    Ok((unknowns, nnz_a))
 }
 
 /// Orders the free nodes of `mesh` as a model does and reports the sizes of its stiffness
@@ -280,12 +395,15 @@ pub const fn analyse_mesh_work_len(nodes: usize, tets: usize) -> usize {
 /// `work` needs [`analyse_mesh_work_len`] entries.
 ///
 /// # Errors
-/// [`Error::IndexOutOfRange`] for a bad node index, [`Error::Capacity`] for a short `work`.
+/// [`Error::TooLarge`] for a mesh whose counts do not fit the `u32` indices (as
+/// [`ModelSize::new`]); [`Error::IndexOutOfRange`] for a bad node index, [`Error::Capacity`]
+/// for a short `work`.
 pub fn analyse_mesh<T: Real>(
     mesh: &MeshInput<'_, T>,
     work: &mut [u32],
 ) -> Result<MeshAnalysis, Error> {
     let (n, t) = (mesh.rest.len(), mesh.tets.len());
+    mesh_counts(n, t)?;
     ensure_len(work, analyse_mesh_work_len(n, t), Resource::Workspace)?;
     let mut slab = Slab::new(work, Resource::Workspace);
     let free = slab.take(n)?;
@@ -299,21 +417,28 @@ pub fn analyse_mesh<T: Real>(
         })?;
         *slot = NONE;
     }
+    // At most `n` free nodes, which fits `u32` (checked above).
     let mut n_free = 0u32;
     for f in free.iter_mut() {
         if *f != NONE {
             *f = n_free;
-            n_free += 1;
+            n_free = n_free.saturating_add(1);
         }
     }
     let n_free = n_free as usize;
-    let col_ptr = slab.take(3 * n_free + 1)?;
-    let row_idx = slab.take(6 * n_free + 54 * t)?;
+    // Both within the workspace checked above, so exact.
+    let unknowns = times(3, n_free);
+    let col_ptr = slab.take(sum(&[unknowns, 1]))?;
+    let row_idx = slab.take(stiffness_len(n_free, t))?;
     let ordered = order_free_nodes(mesh.tets, free, n_free, col_ptr, row_idx, &mut slab)?;
     let a = UpperCsc::new(
-        3 * n_free,
-        &col_ptr[..3 * n_free + 1],
-        &row_idx[..ordered.nnz_a],
+        unknowns,
+        col_ptr,
+        row_idx.get(..ordered.nnz_a).ok_or(Error::Capacity {
+            resource: Resource::MatrixEntries,
+            needed: ordered.nnz_a,
+            available: row_idx.len(),
+        })?,
     )?;
     let size = Symbolic::size(&a, ordered.perm, ordered.scratch)?;
     Ok(MeshAnalysis {
@@ -343,10 +468,10 @@ pub(crate) fn order_free_nodes<'w>(
     row_idx: &mut [u32],
     slab: &mut Slab<'w, u32>,
 ) -> Result<Ordered<'w>, Error> {
-    let g_ptr = slab.take(n_free + 1)?;
-    let g_adj = slab.take(12 * tets.len())?;
+    let g_ptr = slab.take(sum(&[n_free, 1]))?;
+    let g_adj = slab.take(times(12, tets.len()))?;
     let node_perm = slab.take(n_free)?;
-    let perm = slab.take(3 * n_free)?;
+    let perm = slab.take(times(3, n_free))?;
     // The rest of the slab is scratch for each phase in turn.
     let scratch = slab.take(slab.remaining())?;
     let graph = Graph::from_tets(tets, free, g_ptr, g_adj, scratch)?;

@@ -6,7 +6,7 @@ use super::symbolic::{Symbolic, SymbolicSize};
 use super::ux;
 use crate::error::{Error, Resource};
 use crate::real::Real;
-use crate::storage::{Slab, ensure_exact_len, ensure_len};
+use crate::storage::{Slab, ensure_exact_len, ensure_len, sum, times};
 
 /// The numeric factor `C = L D Lᵀ` of `C = P A Pᵀ`, `L` unit lower triangular (its strictly lower
 /// part stored in the column pattern of a [`Symbolic`]) and `D` diagonal and positive.
@@ -30,7 +30,7 @@ pub struct LdlFactor<'a, T> {
 impl<'a, T: Real> LdlFactor<'a, T> {
     /// Scalars of storage a factor of capacity `size` needs.
     pub const fn storage_len(size: &SymbolicSize) -> usize {
-        2 * (size.nnz_l + size.n)
+        times(2, sum(&[size.nnz_l, size.n]))
     }
 
     /// An empty factor (nothing in service yet) in `storage`, for analyses up to `capacity`.

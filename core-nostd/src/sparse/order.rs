@@ -24,12 +24,12 @@
 use super::pattern::Graph;
 use super::{NONE, ux};
 use crate::error::{Error, Resource};
-use crate::storage::{Slab, ensure_exact_len};
+use crate::storage::{Slab, ensure_exact_len, sum, times};
 
 /// Length of the `u32` workspace [`minimum_degree`] needs for a graph of `n` vertices and `nnz`
 /// adjacency entries.
 pub const fn minimum_degree_work_len(n: usize, nnz: usize) -> usize {
-    nnz + 15 * n + 1
+    sum(&[nnz, times(15, n), 1])
 }
 
 const VARIABLE: u32 = 0;

@@ -3,7 +3,7 @@
 
 use super::{NONE, ux};
 use crate::error::{Error, PatternProblem, Resource};
-use crate::storage::{Slab, ensure_exact_len, ensure_len};
+use crate::storage::{Slab, ensure_exact_len, ensure_len, sum, times};
 
 /// Largest dimension or entry count the `u32` indices can hold (one value is kept for [`NONE`]).
 pub const MAX_INDEX: usize = (u32::MAX - 1) as usize;
@@ -132,7 +132,7 @@ pub struct Graph<'a> {
 
 /// Length of the `u32` workspace that [`Graph::from_tets`] needs.
 pub const fn tet_graph_work_len(n_nodes: usize, n_tets: usize) -> usize {
-    2 * n_nodes + 1 + 4 * n_tets
+    sum(&[times(2, n_nodes), 1, times(4, n_tets)])
 }
 
 impl<'a> Graph<'a> {
@@ -442,7 +442,17 @@ fn for_each_neighbour(
 /// Entries of the upper triangle of the matrix with a dense `b × b` block on the diagonal and
 /// on every edge of `graph` (the stiffness pattern with `b = 3` unknowns per node).
 pub fn block_upper_len(graph: &Graph<'_>, b: usize) -> usize {
-    graph.n() * b * (b + 1) / 2 + graph.nnz() / 2 * b * b
+    // `b (b + 1) / 2` entries per vertex (halving the even factor keeps it exact), `b²` per
+    // edge; saturated at `usize::MAX` ([`times`]).
+    let triangle = if b.is_multiple_of(2) {
+        times(b / 2, sum(&[b, 1]))
+    } else {
+        times(b, sum(&[b, 1]) / 2)
+    };
+    sum(&[
+        times(graph.n(), triangle),
+        times(graph.nnz() / 2, times(b, b)),
+    ])
 }
 
 /// Builds the pattern that [`block_upper_len`] counts: vertex `v` owns rows and columns
@@ -457,7 +467,7 @@ pub fn block_upper_pattern<'a>(
     col_ptr: &'a mut [u32],
     row_idx: &'a mut [u32],
 ) -> Result<UpperCsc<'a>, Error> {
-    let n = graph.n() * b;
+    let n = times(graph.n(), b);
     let nnz = block_upper_len(graph, b);
     if n > MAX_INDEX || nnz > MAX_INDEX {
         return Err(Error::Pattern {

@@ -26,7 +26,7 @@ use super::symbolic::Symbolic;
 use super::{NONE, ux};
 use crate::error::{Error, Resource};
 use crate::real::Real;
-use crate::storage::{Slab, ensure_len};
+use crate::storage::{Slab, ensure_len, times};
 
 /// Rows of the micro-kernel's accumulator tile.
 pub const MR: usize = 4;
@@ -47,7 +47,7 @@ pub const REAL_WORK_LEN: usize = KC * (MC + NC);
 
 /// Indices of workspace the supernodal factorization needs for dimension `n`.
 pub const fn index_work_len(n: usize) -> usize {
-    5 * n
+    times(5, n)
 }
 
 /// The supernodal structure of a [`Symbolic`] analysis.

@@ -4,7 +4,7 @@
 use super::pattern::{MAX_INDEX, UpperCsc};
 use super::{NONE, ux};
 use crate::error::{Error, PatternProblem, Resource};
-use crate::storage::{Slab, ensure_exact_len, ensure_len};
+use crate::storage::{Slab, ensure_exact_len, ensure_len, sum, times};
 
 /// Sizes of a symbolic factorization: what the storage of [`Symbolic`] and of the numeric
 /// factor ([`crate::sparse::LdlFactor`]) depends on.
@@ -21,13 +21,18 @@ pub struct SymbolicSize {
 impl SymbolicSize {
     /// Length of the `u32` storage [`Symbolic::new`] needs.
     pub const fn index_len(&self) -> usize {
-        4 * self.n + 4 * (self.n + 1) + 3 * self.nnz_a + 2 * self.nnz_l
+        sum(&[
+            times(4, self.n),
+            times(4, sum(&[self.n, 1])),
+            times(3, self.nnz_a),
+            times(2, self.nnz_l),
+        ])
     }
 }
 
 /// Length of the `u32` workspace [`Symbolic::size`] and [`Symbolic::new`] need.
 pub const fn analyse_work_len(n: usize, nnz_a: usize) -> usize {
-    2 * nnz_a + 5 * n + 1
+    sum(&[times(2, nnz_a), times(5, n), 1])
 }
 
 /// The symbolic factorization of `C = P A Pᵀ`, where `C(k, l) = A(perm[k], perm[l])`.
