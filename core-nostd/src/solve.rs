@@ -1,6 +1,7 @@
 //! The per-frame minimisation: assembly of the energy, its gradient and a positive definite
-//! Hessian into the fixed stiffness pattern, the two linear strategies, and a line search with
-//! a fixed number of trial steps.
+//! Hessian into the fixed stiffness pattern (here), and the Newton loop over it with the linear
+//! strategies and a line search with a fixed number of trial steps ([`newton`], the stage
+//! [`crate::Model::step`] calls).
 //!
 //! The energy minimised over the free nodes is
 //! `W(x) = W_I(x) + W_S(x) + W_D(x)`:
@@ -26,6 +27,12 @@
 //!
 //! Every loop runs a number of times fixed by the configuration and the scene's sizes, so a
 //! frame's cost does not depend on the data.
+
+mod newton;
+
+pub(crate) use newton::problem_of;
+#[cfg(feature = "cut")]
+pub(crate) use newton::{assemble_on, factorize_on};
 
 use nalgebra::{Matrix3, Vector3};
 
@@ -276,6 +283,8 @@ impl<T: Real> Problem<'_, '_, T> {
     ///
     /// # Errors
     /// [`Error::FeatureBehindCamera`] if a virtual feature cannot be projected.
+    // Out of line, as `assemble`: a few calls per frame, and profilers can tell the stages apart.
+    #[inline(never)]
     pub fn energy(&self, x: &[[T; 3]], work: &mut WorkCount) -> Result<Energies<T>, Error> {
         let mut e = Energies::default();
         for t in 0..self.mesh.n_tets() {
@@ -353,6 +362,9 @@ impl<T: Real> Problem<'_, '_, T> {
     ///
     /// # Errors
     /// [`Error::FeatureBehindCamera`] if a virtual feature cannot be projected.
+    // Out of line (a few calls per frame) so that profilers can tell assembly from the Newton
+    // loop around it.
+    #[inline(never)]
     pub fn assemble(
         &self,
         x: &[[T; 3]],

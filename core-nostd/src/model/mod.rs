@@ -12,7 +12,7 @@
 //! The storage that a cut changes lives twice ([`discretization`]): the half in service and a
 //! spare the cut is built into, swapped in only when the whole rebuild succeeded.
 
-mod discretization;
+pub(crate) mod discretization;
 mod size;
 
 pub use size::{
@@ -36,8 +36,10 @@ use crate::features::{EmbedReport, Features, Observation};
 use crate::material::Lame;
 use crate::mesh::{Mesh, MeshInput};
 use crate::real::Real;
-use crate::solve::{Energies, Problem, SolverConfig, Strategy, WorkCount, dot};
-use crate::sparse::{LdlFactor, NONE, Symbolic, UpperCsc, sym_matvec};
+use crate::solve::{Energies, SolverConfig, Strategy, WorkCount, problem_of};
+#[cfg(feature = "cut")]
+use crate::solve::{assemble_on, factorize_on};
+use crate::sparse::{LdlFactor, NONE, Symbolic, UpperCsc};
 use crate::storage::{Fingerprint, Slab, ensure_exact_len, ensure_len};
 
 use discretization::Discretization;
@@ -66,7 +68,7 @@ pub struct ModelConfig<T: Real> {
 
 /// Which matrix the factor in service holds.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum FactorHolds {
+pub(crate) enum FactorHolds {
     Nothing,
     /// The frozen matrix of [`Strategy::Frozen`].
     Frozen,
@@ -120,58 +122,58 @@ pub struct Linearization<'m, T> {
 
 /// Vectors of the Newton step and its linear solve, over the unknowns (no meaning between
 /// calls; a cut uses them as scratch too).
-struct SolveVectors<'a, T> {
-    gradient: &'a mut [T],
-    step: &'a mut [T],
+pub(crate) struct SolveVectors<'a, T> {
+    pub(crate) gradient: &'a mut [T],
+    pub(crate) step: &'a mut [T],
     /// PCG residual, preconditioned residual, direction and `H·direction`.
-    residual: &'a mut [T],
-    preconditioned: &'a mut [T],
-    direction: &'a mut [T],
-    product: &'a mut [T],
+    pub(crate) residual: &'a mut [T],
+    pub(crate) preconditioned: &'a mut [T],
+    pub(crate) direction: &'a mut [T],
+    pub(crate) product: &'a mut [T],
     /// Work of the triangular solves and the factorization.
-    solve_work: &'a mut [T],
+    pub(crate) solve_work: &'a mut [T],
     /// Positions tried by the line search.
-    trial: &'a mut [[T; 3]],
+    pub(crate) trial: &'a mut [[T; 3]],
     /// Packed blocks of the supernodal factorization ([`LdlFactor::SUPERNODAL_WORK_LEN`]).
-    factor_work: &'a mut [T],
+    pub(crate) factor_work: &'a mut [T],
     /// Index workspace of the supernodal factorization
     /// ([`LdlFactor::supernodal_index_work_len`] of the unknowns).
-    factor_indices: &'a mut [u32],
+    pub(crate) factor_indices: &'a mut [u32],
 }
 
 /// The organ model.
 pub struct Model<'a, T: Real> {
-    config: ModelConfig<T>,
-    lame: Lame<T>,
+    pub(crate) config: ModelConfig<T>,
+    pub(crate) lame: Lame<T>,
     /// The mesh and everything built on it, in service.
-    live: Discretization<'a, T>,
+    pub(crate) live: Discretization<'a, T>,
     /// Room to build the next topology in (no meaning between cuts).
     #[cfg(feature = "cut")]
-    spare: Discretization<'a, T>,
-    hessian: &'a mut [T],
-    factor: LdlFactor<'a, T>,
-    holds: FactorHolds,
-    vectors: SolveVectors<'a, T>,
+    pub(crate) spare: Discretization<'a, T>,
+    pub(crate) hessian: &'a mut [T],
+    pub(crate) factor: LdlFactor<'a, T>,
+    pub(crate) holds: FactorHolds,
+    pub(crate) vectors: SolveVectors<'a, T>,
     /// Workspace of rebuilds and cuts (no meaning between calls).
     #[cfg(feature = "cut")]
-    work: &'a mut [u32],
-    features: Features<'a, T>,
+    pub(crate) work: &'a mut [u32],
+    pub(crate) features: Features<'a, T>,
     /// What a failing call gives back (no meaning between calls).
-    saved: Saved<'a, T>,
+    pub(crate) saved: Saved<'a, T>,
     #[cfg(feature = "cut")]
     cut: CutState<'a, T>,
-    frame: u32,
+    pub(crate) frame: u32,
 }
 
 /// Copies of the state that [`Model::step`] and [`Model::embed_features`] overwrite before they
 /// know whether they succeed, so that a failure can put it back bit for bit.
-struct Saved<'a, T> {
+pub(crate) struct Saved<'a, T> {
     /// The features' ids, targets and observed flags.
-    features: Features<'a, T>,
+    pub(crate) features: Features<'a, T>,
     /// The virtual features' embedding.
-    embedding: Embedding<'a, T>,
+    pub(crate) embedding: Embedding<'a, T>,
     /// The damping reference (positions before the last frame).
-    previous: &'a mut [[T; 3]],
+    pub(crate) previous: &'a mut [[T; 3]],
 }
 
 /// The detector, the cut line and their scratch.
@@ -596,243 +598,6 @@ impl<'a, T: Real> Model<'a, T> {
         }
         let margin = self.config.solver.image_margin;
         self.features.set_frame(&self.config.camera, frame, margin)
-    }
-
-    fn solve_frame(&mut self) -> Result<StepReport<T>, Error> {
-        let n = self.n_unknowns();
-        let mut work = WorkCount::default();
-        let newton = self.config.solver.newton_iterations;
-        let trials = self.config.solver.line_search_steps;
-
-        if let Strategy::Frozen { .. } = self.config.solver.strategy
-            && self.holds != FactorHolds::Frozen
-        {
-            // Only after a switch of strategy: a one-off cost, counted in this frame's work.
-            self.prepare_frozen(&mut work)?;
-        }
-
-        let mut energy_before = Energies::default();
-        let mut gradient_norm_before = T::zero();
-        let mut min_step = T::one();
-        for it in 0..newton {
-            let e = self.assemble(true, &mut work)?;
-            let v = &mut self.vectors;
-            if it == 0 {
-                energy_before = e;
-                gradient_norm_before = dot(&v.gradient[..n], &v.gradient[..n]).sqrt();
-            }
-            match self.config.solver.strategy {
-                Strategy::Refactor => self.refactor_and_solve(&mut work)?,
-                Strategy::FactorOnce { .. } if it == 0 => self.refactor_and_solve(&mut work)?,
-                Strategy::Frozen { pcg_iterations } | Strategy::FactorOnce { pcg_iterations } => {
-                    self.pcg(pcg_iterations, &mut work)?;
-                }
-            }
-            let v = &self.vectors;
-            let slope = dot(&v.gradient[..n], &v.step[..n]);
-            let alpha = self.line_search(&e, slope, trials, &mut work)?;
-            min_step = min_step.min(alpha);
-            if alpha > T::zero() {
-                self.move_along(alpha);
-            }
-        }
-        let energy_after = self.assemble(false, &mut work)?;
-        let v = &self.vectors;
-        let gradient_norm_after = dot(&v.gradient[..n], &v.gradient[..n]).sqrt();
-        if !(gradient_norm_after.finite() && energy_after.total().finite()) {
-            return Err(Error::Diverged);
-        }
-        Ok(StepReport {
-            frame: 0,
-            observed: 0,
-            energy_before,
-            energy_after,
-            gradient_norm_before,
-            gradient_norm_after,
-            min_step_length: min_step,
-            work,
-            #[cfg(feature = "cut")]
-            detection: DetectionReport::default(),
-            #[cfg(feature = "cut")]
-            cut_line: CutLineReport::default(),
-            #[cfg(feature = "cut")]
-            cut: CutReport::default(),
-        })
-    }
-
-    /// Assembles the gradient (and, if asked, the Hessian) at the current positions.
-    fn assemble(&mut self, with_hessian: bool, work: &mut WorkCount) -> Result<Energies<T>, Error> {
-        let Model {
-            live,
-            lame,
-            config,
-            features,
-            vectors,
-            hessian,
-            ..
-        } = self;
-        assemble_on(
-            live,
-            features,
-            lame,
-            config,
-            &mut vectors.gradient[..],
-            with_hessian.then_some(&mut hessian[..]),
-            work,
-        )
-    }
-
-    /// Factors the Hessian just assembled and solves the Newton system exactly.
-    fn refactor_and_solve(&mut self, work: &mut WorkCount) -> Result<(), Error> {
-        let n = self.n_unknowns();
-        self.factorize(work)?;
-        self.holds = FactorHolds::Step;
-        let v = &mut self.vectors;
-        for (s, &g) in v.step[..n].iter_mut().zip(&v.gradient[..n]) {
-            *s = -g;
-        }
-        self.factor.solve_in_place(
-            &self.live.symbolic,
-            &mut v.step[..n],
-            &mut v.solve_work[..n],
-        )?;
-        work.solves += 1;
-        work.solve_flops += self.live.symbolic.solve_flops();
-        Ok(())
-    }
-
-    /// Factors the frozen matrix: the positive definite Hessian at the current state.
-    fn prepare_frozen(&mut self, work: &mut WorkCount) -> Result<(), Error> {
-        self.assemble(true, work)?;
-        self.factorize(work)?;
-        self.holds = FactorHolds::Frozen;
-        Ok(())
-    }
-
-    fn factorize(&mut self, work: &mut WorkCount) -> Result<(), Error> {
-        factorize_on(
-            &self.live,
-            self.hessian,
-            &mut self.factor,
-            &mut self.vectors,
-            work,
-        )
-    }
-
-    /// Preconditioned conjugate gradients on `H step = −grad` with the factor in service (the
-    /// frozen one, or this frame's first Newton step's), a fixed
-    /// number of iterations (fewer only if the residual vanishes exactly).
-    fn pcg(&mut self, iterations: u32, work: &mut WorkCount) -> Result<(), Error> {
-        let n = self.n_unknowns();
-        let nnz = self.live.nnz_a;
-        let a = self.live.pattern()?;
-        let sym = &self.live.symbolic;
-        let v = &mut self.vectors;
-        let (step, r, z, p, q, y) = (
-            &mut v.step[..n],
-            &mut v.residual[..n],
-            &mut v.preconditioned[..n],
-            &mut v.direction[..n],
-            &mut v.product[..n],
-            &mut v.solve_work[..n],
-        );
-        step.fill(T::zero());
-        for (ri, &g) in r.iter_mut().zip(&v.gradient[..n]) {
-            *ri = -g;
-        }
-        z.copy_from_slice(r);
-        self.factor.solve_in_place(sym, z, y)?;
-        work.solves += 1;
-        work.solve_flops += sym.solve_flops();
-        p.copy_from_slice(z);
-        let mut rz = dot(r, z);
-        for _ in 0..iterations {
-            sym_matvec(&a, &self.hessian[..nnz], p, q)?;
-            work.matvecs += 1;
-            work.matvec_flops += 2 * nnz as u64;
-            let pq = dot(p, q);
-            if !(pq > T::zero() && rz > T::zero()) {
-                break;
-            }
-            let alpha = rz / pq;
-            for i in 0..n {
-                step[i] += alpha * p[i];
-                r[i] -= alpha * q[i];
-            }
-            z.copy_from_slice(r);
-            self.factor.solve_in_place(sym, z, y)?;
-            work.solves += 1;
-            work.solve_flops += sym.solve_flops();
-            let rz_new = dot(r, z);
-            let beta = rz_new / rz;
-            for i in 0..n {
-                p[i] = z[i] + beta * p[i];
-            }
-            rz = rz_new;
-        }
-        Ok(())
-    }
-
-    /// Evaluates all trial lengths `1, ½, …` and returns the first that satisfies the Armijo
-    /// condition, else the one with the lowest energy if it improves, else 0.
-    ///
-    /// Armijo is tested with the energy's rounding error as slack: near the minimum the
-    /// decrease a Newton step buys falls below what the energy can resolve, and the step must
-    /// still be taken for the gradient to keep shrinking.
-    fn line_search(
-        &mut self,
-        at: &Energies<T>,
-        slope: T,
-        trials: u32,
-        work: &mut WorkCount,
-    ) -> Result<T, Error> {
-        let n_nodes = self.live.mesh.n_nodes();
-        let energy = at.total();
-        let slack = T::of(2.0) * at.rounding;
-        let mut alpha = T::one();
-        let mut chosen: Option<T> = None;
-        let mut best = (energy, T::zero());
-        for _ in 0..trials {
-            self.fill_trial(alpha);
-            let problem = problem_of(&self.live, &self.features, &self.lame, &self.config);
-            let e = match problem.energy(&self.vectors.trial[..n_nodes], work) {
-                Ok(e) => e.total(),
-                Err(Error::FeatureBehindCamera { .. }) => T::zero() / T::zero(),
-                Err(e) => return Err(e),
-            };
-            if e.finite() {
-                if chosen.is_none() && e <= energy + T::of(1e-4) * alpha * slope + slack {
-                    chosen = Some(alpha);
-                }
-                if e < best.0 {
-                    best = (e, alpha);
-                }
-            }
-            alpha *= T::of(0.5);
-        }
-        Ok(chosen.unwrap_or(best.1))
-    }
-
-    fn fill_trial(&mut self, alpha: T) {
-        let n_nodes = self.live.mesh.n_nodes();
-        let free = self.live.mesh.free_index();
-        let v = &mut self.vectors;
-        for node in 0..n_nodes {
-            let f = free[node];
-            v.trial[node] = self.live.x[node];
-            if f != NONE {
-                let b = 3 * f as usize;
-                for c in 0..3 {
-                    v.trial[node][c] += alpha * v.step[b + c];
-                }
-            }
-        }
-    }
-
-    fn move_along(&mut self, alpha: T) {
-        self.fill_trial(alpha);
-        let n_nodes = self.live.mesh.n_nodes();
-        self.live.x[..n_nodes].copy_from_slice(&self.vectors.trial[..n_nodes]);
     }
 
     /// The worst-case work of one [`Model::step`]'s steady part with every feature observed:
@@ -1328,67 +1093,4 @@ impl<'a, T: Real> Model<'a, T> {
         let tet = self.live.mesh.tets().get(t as usize)?;
         interpolate(x, tet, &self.live.targets.weights()[k])
     }
-}
-
-/// The energy of a discretization with the features' observations.
-fn problem_of<'p, 'a, T: Real>(
-    d: &'p Discretization<'a, T>,
-    features: &'p Features<'a, T>,
-    lame: &Lame<T>,
-    config: &'p ModelConfig<T>,
-) -> Problem<'p, 'a, T> {
-    let n = d.mesh.n_nodes();
-    Problem {
-        mesh: &d.mesh,
-        lame: *lame,
-        camera: &config.camera,
-        features,
-        embedding: &d.features,
-        spring_stiffness: config.solver.spring_stiffness,
-        damping: &d.damping[..n],
-        depth_weight: &d.depth_weight[..n],
-        anchor: &d.previous[..n],
-        scatter: &d.scatter[..d.mesh.n_tets()],
-        col_ptr: &d.col_ptr[..d.n_unknowns() + 1],
-    }
-}
-
-/// Gradient (and, if given, the Hessian values) of a discretization at its positions.
-fn assemble_on<T: Real>(
-    d: &Discretization<'_, T>,
-    features: &Features<'_, T>,
-    lame: &Lame<T>,
-    config: &ModelConfig<T>,
-    gradient: &mut [T],
-    hessian: Option<&mut [T]>,
-    work: &mut WorkCount,
-) -> Result<Energies<T>, Error> {
-    let n = d.n_unknowns();
-    let nnz = d.nnz_a;
-    problem_of(d, features, lame, config).assemble(
-        &d.x[..d.mesh.n_nodes()],
-        &mut gradient[..n],
-        hessian.map(|h| &mut h[..nnz]),
-        work,
-    )
-}
-
-/// Factors the Hessian values of a discretization with its symbolic analysis.
-fn factorize_on<T: Real>(
-    d: &Discretization<'_, T>,
-    hessian: &[T],
-    factor: &mut LdlFactor<'_, T>,
-    vectors: &mut SolveVectors<'_, T>,
-    work: &mut WorkCount,
-) -> Result<(), Error> {
-    let n = d.n_unknowns();
-    factor.factorize_supernodal(
-        &d.symbolic,
-        &hessian[..d.nnz_a],
-        vectors.factor_work,
-        &mut vectors.factor_indices[..LdlFactor::<T>::supernodal_index_work_len(n)],
-    )?;
-    work.factorizations += 1;
-    work.factor_flops += d.symbolic.factor_flops();
-    Ok(())
 }
