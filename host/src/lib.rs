@@ -32,12 +32,12 @@ pub mod generate;
 pub mod limits;
 pub mod metrics;
 pub mod msh;
-pub mod overlay;
 pub mod render;
 pub mod report;
 pub mod rng;
 pub mod run;
 pub mod scene;
+pub mod storage;
 pub mod vtu;
 
 // The OpenCV video driver.

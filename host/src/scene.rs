@@ -18,11 +18,14 @@ use std::fmt;
 use std::path::{Path, PathBuf};
 
 use incise_core::nalgebra::{Matrix3, Vector3};
-use incise_core::{Camera, Intrinsics, Material, ModelConfig, Observation, SolverConfig, Strategy};
+use incise_core::{
+    Camera, Intrinsics, Material, MeshInput, ModelConfig, Observation, SolverConfig, Strategy,
+};
 use serde::{Deserialize, Serialize};
 
 use crate::limits::{self, Refusal};
 use crate::msh;
+use crate::storage::{ModelStorage, SceneCapacities, StorageError};
 
 /// An error while reading a scene: the file, the line (0 when the whole file is at fault) and
 /// what is wrong.
@@ -79,7 +82,7 @@ pub struct SceneFile {
     pub detection: DetectionSection,
     /// Capacities of the core's fixed storage.
     #[serde(default)]
-    pub capacities: CapacitySection,
+    pub capacities: SceneCapacities,
     /// Facts of the ground truth.
     #[serde(default)]
     pub ground_truth: GroundTruthSection,
@@ -278,102 +281,6 @@ impl DetectionSection {
     }
 }
 
-/// `[capacities]`: the fixed storage of the core. The mesh's own nodes and tetrahedra are
-/// counted from the model; a cut's new ones come from the room reserved here.
-#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields, default)]
-pub struct CapacitySection {
-    /// Tracked features.
-    pub features: usize,
-    /// Internal targets the model carries.
-    pub targets: usize,
-    /// Nodes a cut may add to the model's (new nodes on cut edges and node copies).
-    pub cut_nodes: usize,
-    /// Tetrahedra a cut may add (the pieces of split tetrahedra).
-    pub cut_tets: usize,
-    /// Entries of the factor `L` after every cut; absent: three times what the uncut model
-    /// needs.
-    pub factor_entries: Option<usize>,
-    /// Neighbour pairs of the cut detection.
-    pub pairs: usize,
-    /// Vertices of the cut line.
-    pub cut_vertices: usize,
-}
-
-impl Default for CapacitySection {
-    fn default() -> Self {
-        CapacitySection {
-            features: 1024,
-            targets: 64,
-            cut_nodes: 256,
-            cut_tets: 1024,
-            factor_entries: None,
-            pairs: 32_768,
-            cut_vertices: 64,
-        }
-    }
-}
-
-impl CapacitySection {
-    /// Checks every capacity against its bound in [`crate::limits`]; with `detection` on, the
-    /// detection needs room for at least one pair and a cut line of two vertices (with none,
-    /// it could never report a cut).
-    ///
-    /// # Errors
-    /// A [`Refusal`] naming the first key out of bounds.
-    pub fn check(&self, detection: bool) -> Result<(), Refusal> {
-        const S: &str = "capacities";
-        limits::within(S, "features", self.features as u64, 1, limits::MAX_FEATURES)?;
-        limits::within(S, "targets", self.targets as u64, 0, limits::MAX_TARGETS)?;
-        limits::within(
-            S,
-            "cut_nodes",
-            self.cut_nodes as u64,
-            0,
-            limits::MAX_CUT_NODES,
-        )?;
-        limits::within(S, "cut_tets", self.cut_tets as u64, 0, limits::MAX_CUT_TETS)?;
-        if let Some(entries) = self.factor_entries {
-            limits::within(
-                S,
-                "factor_entries",
-                entries as u64,
-                1,
-                limits::MAX_FACTOR_ENTRIES,
-            )?;
-        }
-        for (key, value, least, max, what) in [
-            (
-                "pairs",
-                self.pairs,
-                1,
-                limits::MAX_PAIRS,
-                "neighbour pairs to compare",
-            ),
-            (
-                "cut_vertices",
-                self.cut_vertices,
-                limits::MIN_CUT_VERTICES,
-                limits::MAX_CUT_VERTICES,
-                "a cut line of at least two vertices",
-            ),
-        ] {
-            if detection && (value as u64) < least {
-                return Err(Refusal::new(
-                    S,
-                    key,
-                    format!(
-                        "{value}, but cut detection is on ([detection] enabled) and needs \
-                         {what}; set [detection] enabled = false to run without it"
-                    ),
-                ));
-            }
-            limits::within(S, key, value as u64, 0, max)?;
-        }
-        Ok(())
-    }
-}
-
 /// `[ground_truth]`: facts the generator knows.
 #[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
@@ -425,7 +332,7 @@ impl SceneFile {
     }
 
     /// Checks the values that need no mesh: every capacity against its bound (see
-    /// [`CapacitySection::check`]), the image size, the model's scale and material, and the
+    /// [`SceneCapacities::check`]), the image size, the model's scale and material, and the
     /// ground truth's frames. [`SceneFile::parse`] calls it; [`Scene::load_model`] checks what
     /// needs the mesh.
     ///
@@ -837,6 +744,15 @@ impl Scene {
         })
     }
 
+    /// The model mesh as the core takes it: rest positions, tetrahedra, fixed nodes.
+    pub fn mesh_input(&self) -> MeshInput<'_, f64> {
+        MeshInput {
+            rest: &self.rest,
+            tets: &self.tets,
+            fixed: &self.file.model.fixed,
+        }
+    }
+
     /// Loads the scene in `dir`: `scene.toml`, its model mesh and `tracks.csv`.
     ///
     /// # Errors
@@ -946,14 +862,12 @@ impl Scene {
         }
         // The memory the capacities imply with this mesh, before a run asks for it. A mesh
         // the core refuses is left to the run, which says why in its own words.
-        let input = incise_core::MeshInput {
+        let input = MeshInput {
             rest: &rest,
             tets: &mesh.tets,
             fixed: &file.model.fixed,
         };
-        if let Err(crate::run::StorageError::Refused(r)) =
-            crate::run::ModelStorage::<f64>::plan(&input, &file.capacities)
-        {
+        if let Err(StorageError::Refused(r)) = ModelStorage::<f64>::plan(&input, &file.capacities) {
             return Err(SceneError::new(&toml_path, r.line(&text), r.to_string()));
         }
         Ok(Scene {
