@@ -27,8 +27,31 @@ use std::fs::File;
 use std::io::{self, BufWriter, Write};
 use std::path::Path;
 
-/// Gmsh's element type number of the 4-node (linear) tetrahedron.
-const TET4: i64 = 4;
+/// A Gmsh element type: its number (the same in every version), how many nodes an element of
+/// it lists, and its name.
+struct ElementType {
+    number: i64,
+    nodes: usize,
+    name: &'static str,
+}
+
+/// The element types the reader keeps, for every version alike: the 4-node (linear)
+/// tetrahedron only, because the solver meshes volumes with linear tetrahedra. An element of
+/// any other type is counted and skipped unread, whatever its nodes (the reader does not judge
+/// what it drops).
+const KEPT: [ElementType; 1] = [ElementType {
+    number: 4,
+    nodes: 4,
+    name: "tetrahedron",
+}];
+
+/// Gmsh's element type number of the 4-node tetrahedron.
+const TET4: i64 = KEPT[0].number;
+
+/// The entry of [`KEPT`] for element type `number`, if elements of it are kept.
+fn kept_type(number: i64) -> Option<&'static ElementType> {
+    KEPT.iter().find(|t| t.number == number)
+}
 
 /// A tetrahedral mesh read from a Gmsh file.
 ///
@@ -159,8 +182,8 @@ pub fn parse_msh(text: &str, file: &str) -> Result<MshMesh, MshError> {
                 )));
             }
             let read = match version {
-                MshVersion::V1 => read_elements_v1(&mut lines, &section, &table)?,
-                MshVersion::V2_2 => read_elements_v2(&mut lines, &section, &table)?,
+                MshVersion::V1 => read_elements(&mut lines, &section, &table, element_v1)?,
+                MshVersion::V2_2 => read_elements(&mut lines, &section, &table, element_v2)?,
                 MshVersion::V4_1 => read_elements_v41(&mut lines, &section, &table)?,
             };
             elements = Some((read, at.line));
@@ -596,16 +619,11 @@ impl NodeTable {
         Ok(())
     }
 
-    /// The tetrahedron `element` whose node tags are `tokens`, as 0-based node indices.
+    /// The tetrahedron `element` whose node tags are `tokens` (four, as [`KEPT`]
+    /// checked), as 0-based node indices.
     fn tet(&self, at: At<'_>, element: u64, tokens: &[&str]) -> Result<[u32; 4], MshError> {
-        let &[a, b, c, d] = tokens else {
-            return Err(at.error(format!(
-                "tetrahedron {element} (element type {TET4}) needs 4 node tags, the line gives {}",
-                tokens.len()
-            )));
-        };
         let mut out = [0; 4];
-        for (slot, token) in out.iter_mut().zip([a, b, c, d]) {
+        for (slot, token) in out.iter_mut().zip(tokens) {
             let tag = at.tag(token, "node tag")?;
             *slot = *self.index.get(&tag).ok_or_else(|| {
                 at.error(format!(
@@ -623,6 +641,61 @@ struct Elements<'a> {
     skipped: usize,
     /// The end marker, where "no tetrahedron" is reported.
     end: At<'a>,
+}
+
+/// One element as a line of any version gives it.
+struct Element<'t> {
+    tag: u64,
+    /// Gmsh's element type number.
+    kind: i64,
+    /// Its node tags, as written.
+    nodes: &'t [&'t str],
+}
+
+/// The elements of a section as they are read: the tetrahedra kept, the others counted.
+struct ElementReader<'n> {
+    table: &'n NodeTable,
+    tets: Vec<[u32; 4]>,
+    skipped: usize,
+}
+
+impl<'n> ElementReader<'n> {
+    fn new(table: &'n NodeTable) -> Self {
+        ElementReader {
+            table,
+            tets: Vec::new(),
+            skipped: 0,
+        }
+    }
+
+    /// Keeps `e` if its type is in [`KEPT`] (its node count checked), or counts it as
+    /// skipped.
+    fn add(&mut self, at: At<'_>, e: Element<'_>) -> Result<(), MshError> {
+        let Some(t) = kept_type(e.kind) else {
+            self.skipped += 1;
+            return Ok(());
+        };
+        if e.nodes.len() != t.nodes {
+            return Err(at.error(format!(
+                "{} {} (element type {}) needs {} node tags, the line gives {}",
+                t.name,
+                e.tag,
+                t.number,
+                t.nodes,
+                e.nodes.len()
+            )));
+        }
+        self.tets.push(self.table.tet(at, e.tag, e.nodes)?);
+        Ok(())
+    }
+
+    fn finish(self, end: At<'_>) -> Elements<'_> {
+        Elements {
+            tets: self.tets,
+            skipped: self.skipped,
+            end,
+        }
+    }
 }
 
 /// The whitespace-separated values of a line.
@@ -665,92 +738,78 @@ fn read_nodes_v12(
     Ok(())
 }
 
-/// `$ELM` (version 1): a count, then `tag type physical elementary node-count nodes…` per line.
-fn read_elements_v1<'a>(
+/// `$ELM` (version 1) and `$Elements` (version 2): a count, then one element per line, read by
+/// `element` (the version's layout of the line).
+fn read_elements<'a>(
     lines: &mut Lines<'a>,
     section: &Section<'_>,
     table: &NodeTable,
+    element: for<'t> fn(At<'_>, &'t [&'t str]) -> Result<Element<'t>, MshError>,
 ) -> Result<Elements<'a>, MshError> {
     let (at, text) = lines.content(section, || "the number of elements".into())?;
     let n = single_count(at, text, "number of elements")?;
-    let (mut tets, mut skipped) = (Vec::new(), 0);
+    let mut read = ElementReader::new(table);
     for i in 0..n {
         let (at, text) = lines.content(section, || format!("element {} of {n}", i + 1))?;
         let tokens = split(text);
-        let [tag, kind, physical, elementary, count, nodes @ ..] = tokens.as_slice() else {
-            return Err(at.error(format!(
-                "a version 1 element line starts with 5 values (tag type physical elementary \
-                 node-count), this one holds {}",
-                tokens.len()
-            )));
-        };
-        let tag = at.tag(tag, "element tag")?;
-        let kind = at.int(kind, "element type")?;
-        at.int(physical, "physical region")?;
-        at.int(elementary, "elementary region")?;
-        let count = at.count(count, "number of nodes")?;
-        if nodes.len() != count {
-            return Err(at.error(format!(
-                "element {tag} announces {count} nodes but lists {}",
-                nodes.len()
-            )));
-        }
-        if kind == TET4 {
-            tets.push(table.tet(at, tag, nodes)?);
-        } else {
-            skipped += 1;
-        }
+        read.add(at, element(at, &tokens)?)?;
     }
     let end = lines.end(section, || format!("{n} elements"))?;
-    Ok(Elements { tets, skipped, end })
+    Ok(read.finish(end))
 }
 
-/// `$Elements` (version 2): a count, then `tag type tag-count tags… nodes…` per line.
-fn read_elements_v2<'a>(
-    lines: &mut Lines<'a>,
-    section: &Section<'_>,
-    table: &NodeTable,
-) -> Result<Elements<'a>, MshError> {
-    let (at, text) = lines.content(section, || "the number of elements".into())?;
-    let n = single_count(at, text, "number of elements")?;
-    let (mut tets, mut skipped) = (Vec::new(), 0);
-    for i in 0..n {
-        let (at, text) = lines.content(section, || format!("element {} of {n}", i + 1))?;
-        let tokens = split(text);
-        let [tag, kind, tag_count, rest @ ..] = tokens.as_slice() else {
-            return Err(at.error(format!(
-                "an element line starts with 3 values (tag type number-of-tags), this one holds {}",
-                tokens.len()
-            )));
-        };
-        let tag = at.tag(tag, "element tag")?;
-        let kind = at.int(kind, "element type")?;
-        let tag_count = at.count(tag_count, "number of tags")?;
-        let Some(nodes) = rest.get(tag_count..) else {
-            return Err(at.error(format!(
-                "element {tag} announces {tag_count} tags but the line holds only {} values after \
-                 the count",
-                rest.len()
-            )));
-        };
-        if let Some(bad) = rest
-            .iter()
-            .take(tag_count)
-            .find(|t| t.parse::<i64>().is_err())
-        {
-            return Err(at.error(format!(
-                "a tag of element {tag} is {}, not an integer",
-                quote(bad)
-            )));
-        }
-        if kind == TET4 {
-            tets.push(table.tet(at, tag, nodes)?);
-        } else {
-            skipped += 1;
-        }
+/// A version 1 element line: `tag type physical elementary node-count nodes…`.
+fn element_v1<'t>(at: At<'_>, tokens: &'t [&'t str]) -> Result<Element<'t>, MshError> {
+    let [tag, kind, physical, elementary, count, nodes @ ..] = tokens else {
+        return Err(at.error(format!(
+            "a version 1 element line starts with 5 values (tag type physical elementary \
+             node-count), this one holds {}",
+            tokens.len()
+        )));
+    };
+    let tag = at.tag(tag, "element tag")?;
+    let kind = at.int(kind, "element type")?;
+    at.int(physical, "physical region")?;
+    at.int(elementary, "elementary region")?;
+    let count = at.count(count, "number of nodes")?;
+    if nodes.len() != count {
+        return Err(at.error(format!(
+            "element {tag} announces {count} nodes but lists {}",
+            nodes.len()
+        )));
     }
-    let end = lines.end(section, || format!("{n} elements"))?;
-    Ok(Elements { tets, skipped, end })
+    Ok(Element { tag, kind, nodes })
+}
+
+/// A version 2 element line: `tag type tag-count tags… nodes…`.
+fn element_v2<'t>(at: At<'_>, tokens: &'t [&'t str]) -> Result<Element<'t>, MshError> {
+    let [tag, kind, tag_count, rest @ ..] = tokens else {
+        return Err(at.error(format!(
+            "an element line starts with 3 values (tag type number-of-tags), this one holds {}",
+            tokens.len()
+        )));
+    };
+    let tag = at.tag(tag, "element tag")?;
+    let kind = at.int(kind, "element type")?;
+    let tag_count = at.count(tag_count, "number of tags")?;
+    let Some(nodes) = rest.get(tag_count..) else {
+        return Err(at.error(format!(
+            "element {tag} announces {tag_count} tags but the line holds only {} values after \
+             the count",
+            rest.len()
+        )));
+    };
+    if let Some(bad) = rest
+        .iter()
+        .take(tag_count)
+        .find(|t| t.parse::<i64>().is_err())
+    {
+        return Err(at.error(format!(
+            "a tag of element {tag} is {}, not an integer",
+            quote(bad)
+        )));
+    }
+    Ok(Element { tag, kind, nodes })
 }
 
 /// The header line of a version 4.1 `$Nodes` or `$Elements` section:
@@ -890,7 +949,7 @@ fn read_elements_v41<'a>(
     let (at, text) = lines.content(section, || "the $Elements header".into())?;
     let header = at.line;
     let (blocks, total) = block_section_header(at, text, "Elements")?;
-    let (mut tets, mut skipped, mut seen) = (Vec::new(), 0, 0);
+    let (mut read, mut seen) = (ElementReader::new(table), 0);
     for b in 1..=blocks {
         let (at, text) = lines.content(section, || {
             format!("the header of element block {b} of {blocks}")
@@ -901,8 +960,8 @@ fn read_elements_v41<'a>(
         for i in 1..=count {
             let (at, text) =
                 lines.content(section, || format!("element {i} of {count} in block {b}"))?;
-            if kind != TET4 {
-                skipped += 1;
+            if kept_type(kind).is_none() {
+                read.skipped += 1;
                 continue;
             }
             let tokens = split(text);
@@ -910,7 +969,7 @@ fn read_elements_v41<'a>(
                 return Err(at.error("an empty element line"));
             };
             let tag = at.tag(tag, "element tag")?;
-            tets.push(table.tet(at, tag, nodes)?);
+            read.add(at, Element { tag, kind, nodes })?;
         }
     }
     if seen != total {
@@ -919,7 +978,7 @@ fn read_elements_v41<'a>(
         )));
     }
     let end = lines.end(section, || format!("{total} elements"))?;
-    Ok(Elements { tets, skipped, end })
+    Ok(read.finish(end))
 }
 
 #[cfg(test)]
