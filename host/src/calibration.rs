@@ -11,6 +11,9 @@
 //!
 //! Invariants of a [`CalibrationFile`]: `fx, fy > 0`, no skew, last row `0 0 1`, every number
 //! finite; 0, 4, 5, 8, 12 or 14 distortion coefficients.
+//!
+//! With the `opencv` feature, `Calibration` is a calibration in use: it undistorts tracked
+//! points and gives its intrinsics to the scene's camera.
 
 use std::path::Path;
 #[cfg(feature = "opencv")]

@@ -6,7 +6,8 @@
 //!
 //! With a camera calibration, tracking runs on the raw (distorted) pictures and the tracked
 //! points are undistorted before they reach the core, in pixels of the calibration's camera
-//! matrix, which then replaces the scene's intrinsics.
+//! matrix, which then replaces the scene's intrinsics ([`crate::calibration::Calibration`]).
+//! The frame source that tracks a video for a run is [`crate::run::VideoFrames`].
 
 use std::fmt;
 use std::path::PathBuf;

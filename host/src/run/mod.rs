@@ -143,8 +143,8 @@ pub fn run_once(
 /// observations used, so that a second pass (cutting off) can replay them.
 ///
 /// The stages: build the model, place the frame-0 features and the internal targets on it,
-/// then per frame step the model ([`Pass::step`]), read its cut line, measure it against the
-/// ground truth ([`FrameMeasure`]) and hand the frame to the outputs ([`Outputs`]).
+/// then per frame step the model (`Pass::step`), read its cut line, measure it against the
+/// ground truth (`truth::FrameMeasure`) and hand the frame to the outputs (`sinks::Outputs`).
 ///
 /// # Errors
 /// As [`run_once`], and the source's or the sink's errors.

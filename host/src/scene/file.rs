@@ -267,7 +267,7 @@ impl SceneFile {
 
     /// Checks the values that need no mesh: every capacity against its bound (see
     /// [`SceneCapacities::check`]), the image size, the model's scale and material, and the
-    /// ground truth's frames. [`SceneFile::parse`] calls it; [`Scene::load_model`] checks what
+    /// ground truth's frames. [`SceneFile::parse`] calls it; [`super::Scene::load_model`] checks what
     /// needs the mesh.
     ///
     /// # Errors
