@@ -31,8 +31,8 @@ use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::sparse::linalg::cholesky::{
     CholeskySymbolicParams, SymmetricOrdering, factorize_symbolic_cholesky,
 };
-use incise::run::ModelStorage;
 use incise::scene::{Scene, read_points_csv};
+use incise::storage::ModelStorage;
 use incise_core::{Material, MeshInput, Model, ModelConfig, Observation, StepReport, Strategy};
 use incise_validation::oracle::to_faer;
 

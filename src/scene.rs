@@ -1,7 +1,7 @@
 //! Small synthetic scenes for tests and benchmarks: a camera looking at a mesh and observations
 //! of material points. The model itself is built in the host's `ModelStorage`.
 
-pub use incise::run::ModelStorage;
+pub use incise::storage::ModelStorage;
 
 use incise_core::{Camera, Intrinsics, Observation};
 use nalgebra::{Matrix3, Vector3};

@@ -14,7 +14,7 @@
 //! `usize::MAX / 54`, `u32::MAX + 1`, the `u32` index bound and one past it) and from random
 //! values of every magnitude, each field alone and all of them together.
 
-use incise::run::OwnedStorage;
+use incise::storage::OwnedStorage;
 use incise_core::cut;
 use incise_core::cutline::CutLine;
 use incise_core::detect::{Detector, GRID_CELLS};

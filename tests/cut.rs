@@ -6,8 +6,8 @@
 
 use std::path::{Path, PathBuf};
 
-use incise::run::ModelStorage;
-use incise::scene::{CapacitySection, Scene, read_points_csv};
+use incise::scene::{Scene, read_points_csv};
+use incise::storage::{ModelStorage, SceneCapacities};
 use incise_core::cut::SNAP_TOLERANCE;
 use incise_core::nalgebra::Vector3;
 use incise_core::{Error, MeshInput, Model, ModelConfig, Observation, Resource};
@@ -133,7 +133,7 @@ fn every_cut_event_keeps_the_mesh_valid_and_everything_on_its_side() {
 
 /// Runs `scene` with `capacities` until a cut is refused; returns the model's fingerprint and
 /// the error of trying the same cut again (which must not change the fingerprint).
-fn refused_cut(name: &str, capacities: CapacitySection) -> Error {
+fn refused_cut(name: &str, capacities: SceneCapacities) -> Error {
     let scene = load(name);
     let config = config(&scene);
     let input = MeshInput {
@@ -174,7 +174,7 @@ fn a_cut_that_overflows_a_capacity_leaves_the_model_exactly_as_it_was() {
     // No room for the copies of the nodes along the cut.
     let e = refused_cut(
         "band-side-cut",
-        CapacitySection {
+        SceneCapacities {
             cut_nodes: 1,
             ..scene.file.capacities.clone()
         },
@@ -213,7 +213,7 @@ fn a_cut_that_overflows_a_capacity_leaves_the_model_exactly_as_it_was() {
     let exact = needed.expect("a cut adds fill") - 1;
     let e = refused_cut(
         "liver-lobe",
-        CapacitySection {
+        SceneCapacities {
             factor_entries: Some(exact),
             ..scene.file.capacities.clone()
         },

@@ -10,8 +10,7 @@
 //! A refused cut leaves the model's fingerprint unchanged.
 
 use incise::render::silhouette;
-use incise::run::ModelStorage;
-use incise::scene::CapacitySection;
+use incise::storage::{ModelStorage, SceneCapacities};
 use incise_core::cut::SNAP_TOLERANCE;
 use incise_core::nalgebra::{Matrix3, Rotation3, Vector3};
 use incise_core::{
@@ -288,12 +287,12 @@ fn run(c: &Case) -> Result<Outcome, TestCaseError> {
     };
     let mut storage = ModelStorage::new(
         &input,
-        &CapacitySection {
+        &SceneCapacities {
             features: 64,
             targets: 16,
             cut_nodes: c.room.0,
             cut_tets: c.room.1,
-            ..CapacitySection::default()
+            ..SceneCapacities::default()
         },
     )
     .unwrap();

@@ -4,8 +4,9 @@
 
 use std::path::{Path, PathBuf};
 
-use incise::run::{ModelStorage, RunOptions, run_scene};
+use incise::run::{RunOptions, run_scene};
 use incise::scene::Scene;
+use incise::storage::ModelStorage;
 use incise_core::nalgebra::Vector3;
 use incise_core::{MeshInput, Observation};
 

@@ -22,7 +22,7 @@
 
 use std::sync::atomic::{AtomicU64, Ordering};
 
-use incise::run::OwnedStorage;
+use incise::storage::OwnedStorage;
 use incise_core::solve::{MAX_LINE_SEARCH_STEPS, MAX_NEWTON_ITERATIONS, MAX_PCG_ITERATIONS};
 use incise_core::{Capacities, Error, Model, Observation, Strategy as Linear};
 use incise_validation::bench_model::{Bench, SIZE, Snapshot};

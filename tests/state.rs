@@ -4,7 +4,7 @@
 //! flags are compared as bits besides), and checks that the error names the exact parameter,
 //! resource or index at fault.
 
-use incise::run::OwnedStorage;
+use incise::storage::OwnedStorage;
 use incise_core::sparse::{LdlFactor, Symbolic, UpperCsc, analyse_work_len};
 use incise_core::{
     Capacities, DetectionConfig, Error, Model, Observation, Parameter, Resource, Strategy,

@@ -9,9 +9,9 @@ use std::path::{Path, PathBuf};
 
 use incise::generate::pipeline::simulate;
 use incise::generate::texture::render_frame;
-use incise::run::{RunOptions, run_scene, run_scene_with};
+use incise::run::{RunOptions, VideoFrames, rest_silhouette, run_scene, run_scene_with};
 use incise::scene::Scene;
-use incise::track::{Tracker, TrackerConfig, VideoFrames, rest_silhouette};
+use incise::track::{Tracker, TrackerConfig};
 use incise::video::{VideoSink, VideoSource};
 
 fn scene_dir() -> PathBuf {

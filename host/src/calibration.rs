@@ -11,10 +11,24 @@
 //!
 //! Invariants of a [`CalibrationFile`]: `fx, fy > 0`, no skew, last row `0 0 1`, every number
 //! finite; 0, 4, 5, 8, 12 or 14 distortion coefficients.
+//!
+//! With the `opencv` feature, `Calibration` is a calibration in use: it undistorts tracked
+//! points and gives its intrinsics to the scene's camera.
 
 use std::path::Path;
+#[cfg(feature = "opencv")]
+use std::path::PathBuf;
 
+#[cfg(feature = "opencv")]
+use opencv::calib3d;
+#[cfg(feature = "opencv")]
+use opencv::core::{self as cvcore, Mat, Point2d, TermCriteria, Vector};
+
+#[cfg(feature = "opencv")]
+use crate::scene::CameraSection;
 use crate::scene::SceneError;
+#[cfg(feature = "opencv")]
+use crate::track::{TrackError, cv};
 
 /// A calibration as read: the pinhole matrix, the distortion coefficients and the picture size.
 #[derive(Clone, Debug, PartialEq)]
@@ -461,6 +475,106 @@ pub const EXAMPLE_XML: &str = "<?xml version=\"1.0\"?>
     -0.2 0.05 0.001 -0.002 0.01</data></distortion_coefficients>
 </opencv_storage>
 ";
+
+/// A camera calibration: the pinhole matrix and OpenCV's lens-distortion coefficients.
+///
+/// Invariants established by [`Calibration::load`]: `fx, fy > 0`, no skew, last row
+/// `0 0 1`, all finite; 0, 4, 5, 8, 12 or 14 distortion coefficients.
+#[cfg(feature = "opencv")]
+#[derive(Clone, Debug, PartialEq)]
+pub struct Calibration {
+    /// `[[fx, 0, cx], [0, fy, cy], [0, 0, 1]]`, pixels.
+    pub camera_matrix: [[f64; 3]; 3],
+    /// `k1, k2, p1, p2[, k3[, k4, k5, k6[, s1, s2, s3, s4[, τx, τy]]]]`.
+    pub dist_coeffs: Vec<f64>,
+    /// The calibrated picture size (`image_width`, `image_height`), if the file states it.
+    pub image_size: Option<(u32, u32)>,
+    /// The file read.
+    pub path: PathBuf,
+}
+
+#[cfg(feature = "opencv")]
+impl Calibration {
+    /// Reads a calibration file in OpenCV's `FileStorage` format (YAML or XML) with the
+    /// matrices `camera_matrix` and `dist_coeffs` (or `distortion_coefficients`, as OpenCV's
+    /// calibration sample writes), and optionally `image_width` and `image_height`; read by the
+    /// host's own reader (the module's documentation says why not OpenCV's).
+    ///
+    /// # Errors
+    /// [`TrackError::Calibration`] naming the file and line: missing, unreadable, a key absent,
+    /// a matrix of the wrong shape, or intrinsics the core cannot represent (skew,
+    /// non-positive focal length).
+    pub fn load(path: &Path) -> Result<Self, TrackError> {
+        let file = read_calibration(path).map_err(|e| TrackError::Calibration {
+            path: e.file,
+            message: if e.line > 0 {
+                format!("line {}: {}", e.line, e.message)
+            } else {
+                e.message
+            },
+        })?;
+        Ok(Calibration {
+            camera_matrix: file.camera_matrix,
+            dist_coeffs: file.dist_coeffs,
+            image_size: file.image_size,
+            path: path.to_path_buf(),
+        })
+    }
+
+    /// Undistorts pixel positions of the raw picture into pixels of the same camera matrix
+    /// (the ideal pinhole camera the model's camera is), by OpenCV's iterative inversion of the
+    /// distortion model.
+    ///
+    /// # Errors
+    /// [`TrackError::OpenCv`] if OpenCV fails.
+    pub fn undistort_points(&self, pts: &[[f64; 2]]) -> Result<Vec<[f64; 2]>, TrackError> {
+        if pts.is_empty() {
+            return Ok(vec![]);
+        }
+        let ctx = "undistorting points";
+        let src: Vector<Point2d> = pts.iter().map(|p| Point2d::new(p[0], p[1])).collect();
+        let k = Mat::from_slice_2d(&self.camera_matrix).map_err(cv(ctx))?;
+        let d = Mat::from_slice(&self.dist_coeffs).map_err(cv(ctx))?;
+        let mut dst = Vector::<Point2d>::new();
+        calib3d::undistort_points_iter(
+            &src,
+            &mut dst,
+            &k,
+            &d,
+            &cvcore::no_array(),
+            &k,
+            TermCriteria::new(
+                cvcore::TermCriteria_COUNT + cvcore::TermCriteria_EPS,
+                100,
+                1e-8,
+            )
+            .map_err(cv(ctx))?,
+        )
+        .map_err(cv(ctx))?;
+        Ok(dst.iter().map(|p| [p.x, p.y]).collect())
+    }
+
+    /// Puts the calibration's intrinsics into `camera` (the scene's), keeping its size and pose.
+    ///
+    /// # Errors
+    /// [`TrackError::SizeMismatch`] if the calibration states a picture size other than the
+    /// camera's.
+    pub fn apply_to(&self, camera: &mut CameraSection) -> Result<(), TrackError> {
+        if let Some(size) = self.image_size
+            && size != (camera.width, camera.height)
+        {
+            return Err(TrackError::SizeMismatch {
+                subject: format!("the calibration {}", self.path.display()),
+                size,
+                reference: "the scene camera".into(),
+                expected: (camera.width, camera.height),
+            });
+        }
+        let k = &self.camera_matrix;
+        (camera.fx, camera.fy, camera.cx, camera.cy) = (k[0][0], k[1][1], k[0][2], k[1][2]);
+        Ok(())
+    }
+}
 
 #[cfg(test)]
 mod tests {

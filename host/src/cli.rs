@@ -474,12 +474,12 @@ fn track_command(video: &Path, _: &Path, _: &Path, _: Option<&Path>) -> Result<(
 fn video_scene(
     dir: &Path,
     calibration: Option<&Path>,
-) -> Result<(Scene, Option<crate::track::Calibration>), String> {
+) -> Result<(Scene, Option<crate::calibration::Calibration>), String> {
     let mut scene = crate::scene::Scene::load_model(dir).map_err(|e| e.to_string())?;
     let Some(path) = calibration else {
         return Ok((scene, None));
     };
-    let calibration = crate::track::Calibration::load(path).map_err(|e| e.to_string())?;
+    let calibration = crate::calibration::Calibration::load(path).map_err(|e| e.to_string())?;
     let before = scene.file.camera.clone();
     calibration
         .apply_to(&mut scene.file.camera)
@@ -508,8 +508,7 @@ fn run_video_command(
     json: bool,
     out: Option<PathBuf>,
 ) -> Result<(), Failure> {
-    use crate::run::{FrameSink, run_scene_with};
-    use crate::track::VideoFrames;
+    use crate::run::{FrameSink, VideoFrames, run_scene_with};
     use crate::video::VideoSink;
 
     let (scene, calibration) = video_scene(dir, calibration)?;
@@ -555,18 +554,12 @@ fn track_command(
     out: &Path,
     calibration: Option<&Path>,
 ) -> Result<(), Failure> {
-    use crate::run::FrameSource;
-    use crate::track::{VideoFrames, rest_silhouette};
-    use indicatif::{ProgressBar, ProgressStyle};
+    use crate::run::{FrameSource, VideoFrames, progress_bar, rest_silhouette};
 
     let (scene, calibration) = video_scene(dir, calibration)?;
     let mask = rest_silhouette(&scene).map_err(|e| e.to_string())?;
     let mut frames = VideoFrames::open(video, &scene, calibration).map_err(|e| e.to_string())?;
-    let bar = ProgressBar::new(frames.len_hint().unwrap_or(0) as u64);
-    if let Ok(style) = ProgressStyle::with_template("{prefix:>16} [{bar:30}] {pos}/{len} frames") {
-        bar.set_style(style.progress_chars("=> "));
-    }
-    bar.set_prefix("tracking");
+    let bar = progress_bar(frames.len_hint(), "tracking");
     let mut tracks = vec![];
     while let Some(frame) = frames.next(&mask).map_err(|e| e.to_string())? {
         tracks.push(frame.observations);

@@ -5,9 +5,12 @@ use std::path::Path;
 use image::{RgbImage, imageops};
 use plotters::prelude::*;
 
+use incise_core::Model;
+
 use crate::render::Canvas;
-use crate::run::{Summary, Trace};
+use crate::run::{FrameRecord, Summary, Trace};
 use crate::scene::SolverSection;
+use crate::vtu;
 
 /// A few lines a person reads after a run.
 pub fn human_summary(s: &Summary) -> String {
@@ -391,4 +394,49 @@ pub fn plot_sweep(scene: &str, rows: &[(SweepSetting, Summary)], out: &Path) -> 
         }
     }
     root.present().map_err(|e| e.to_string())
+}
+
+/// Writes the model as it is (cut, with its lips apart) as a VTU file at `path`, with the
+/// displacement from rest.
+///
+/// # Errors
+/// The I/O error of writing `path`.
+pub fn write_mesh_vtu(path: &Path, model: &Model<'_, f64>) -> std::io::Result<()> {
+    let x = model.positions();
+    let disp: Vec<[f64; 3]> = x
+        .iter()
+        .zip(model.mesh().rest())
+        .map(|(a, b)| [a[0] - b[0], a[1] - b[1], a[2] - b[2]])
+        .collect();
+    vtu::write_vtu(
+        path,
+        x,
+        model.mesh().tets(),
+        &[("displacement", &disp)],
+        &[],
+    )
+}
+
+/// Writes the per-frame records of a run as CSV (`frames.csv`).
+///
+/// # Errors
+/// The I/O error of writing `path`.
+pub fn write_frames_csv(path: &Path, frames: &[FrameRecord]) -> std::io::Result<()> {
+    let mut csv = String::from(
+        "frame,dice,tre_mm,step_ms,observed,outlier_pairs,separation_points,cut_vertices\n",
+    );
+    for r in frames {
+        csv.push_str(&format!(
+            "{},{:.5},{:.4},{:.3},{},{},{},{}\n",
+            r.frame,
+            r.dice,
+            r.tre_mm,
+            r.ms,
+            r.observed,
+            r.outlier_pairs,
+            r.separation_points,
+            r.cut_vertices
+        ));
+    }
+    std::fs::write(path, csv)
 }

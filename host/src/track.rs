@@ -6,22 +6,21 @@
 //!
 //! With a camera calibration, tracking runs on the raw (distorted) pictures and the tracked
 //! points are undistorted before they reach the core, in pixels of the calibration's camera
-//! matrix, which then replaces the scene's intrinsics.
+//! matrix, which then replaces the scene's intrinsics ([`crate::calibration::Calibration`]).
+//! The frame source that tracks a video for a run is [`crate::run::VideoFrames`].
 
 use std::fmt;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use image::RgbImage;
-use incise_core::{MeshInput, Observation};
-use opencv::core::{self as cvcore, Mat, Point2d, Point2f, Size, TermCriteria, Vector};
+use incise_core::Observation;
+use opencv::core::{self as cvcore, Mat, Point2f, Size, TermCriteria, Vector};
 use opencv::prelude::*;
-use opencv::{calib3d, imgproc, video};
+use opencv::{imgproc, video};
 
-use crate::calibration::read_calibration;
-use crate::render::{Mask, silhouette};
-use crate::run::{FrameSource, ModelStorage, RunError, SourceFrame};
-use crate::scene::{CameraSection, Scene};
-use crate::video::{VideoError, VideoSource, rgb_mat};
+use crate::render::Mask;
+use crate::run::RunError;
+use crate::video::{VideoError, rgb_mat};
 
 /// A failure of tracking.
 #[derive(Clone, Debug, PartialEq)]
@@ -108,7 +107,8 @@ impl From<TrackError> for RunError {
     }
 }
 
-fn cv(context: &'static str) -> impl Fn(opencv::Error) -> TrackError {
+/// An OpenCV error as a [`TrackError`] in `context`.
+pub(crate) fn cv(context: &'static str) -> impl Fn(opencv::Error) -> TrackError {
     move |e| TrackError::OpenCv {
         context,
         message: e.message,
@@ -472,272 +472,4 @@ impl Tracker {
     pub fn size(&self) -> (u32, u32) {
         self.size
     }
-}
-
-/// A camera calibration: the pinhole matrix and OpenCV's lens-distortion coefficients.
-///
-/// Invariants established by [`Calibration::load`]: `fx, fy > 0`, no skew, last row
-/// `0 0 1`, all finite; 0, 4, 5, 8, 12 or 14 distortion coefficients.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Calibration {
-    /// `[[fx, 0, cx], [0, fy, cy], [0, 0, 1]]`, pixels.
-    pub camera_matrix: [[f64; 3]; 3],
-    /// `k1, k2, p1, p2[, k3[, k4, k5, k6[, s1, s2, s3, s4[, τx, τy]]]]`.
-    pub dist_coeffs: Vec<f64>,
-    /// The calibrated picture size (`image_width`, `image_height`), if the file states it.
-    pub image_size: Option<(u32, u32)>,
-    /// The file read.
-    pub path: PathBuf,
-}
-
-impl Calibration {
-    /// Reads a calibration file in OpenCV's `FileStorage` format (YAML or XML) with the
-    /// matrices `camera_matrix` and `dist_coeffs` (or `distortion_coefficients`, as OpenCV's
-    /// calibration sample writes), and optionally `image_width` and `image_height`; read by the
-    /// host's own reader ([`crate::calibration`] says why not OpenCV's).
-    ///
-    /// # Errors
-    /// [`TrackError::Calibration`] naming the file and line: missing, unreadable, a key absent,
-    /// a matrix of the wrong shape, or intrinsics the core cannot represent (skew,
-    /// non-positive focal length).
-    pub fn load(path: &Path) -> Result<Self, TrackError> {
-        let file = read_calibration(path).map_err(|e| TrackError::Calibration {
-            path: e.file,
-            message: if e.line > 0 {
-                format!("line {}: {}", e.line, e.message)
-            } else {
-                e.message
-            },
-        })?;
-        Ok(Calibration {
-            camera_matrix: file.camera_matrix,
-            dist_coeffs: file.dist_coeffs,
-            image_size: file.image_size,
-            path: path.to_path_buf(),
-        })
-    }
-
-    /// Undistorts pixel positions of the raw picture into pixels of the same camera matrix
-    /// (the ideal pinhole camera the model's camera is), by OpenCV's iterative inversion of the
-    /// distortion model.
-    ///
-    /// # Errors
-    /// [`TrackError::OpenCv`] if OpenCV fails.
-    pub fn undistort_points(&self, pts: &[[f64; 2]]) -> Result<Vec<[f64; 2]>, TrackError> {
-        if pts.is_empty() {
-            return Ok(vec![]);
-        }
-        let ctx = "undistorting points";
-        let src: Vector<Point2d> = pts.iter().map(|p| Point2d::new(p[0], p[1])).collect();
-        let k = Mat::from_slice_2d(&self.camera_matrix).map_err(cv(ctx))?;
-        let d = Mat::from_slice(&self.dist_coeffs).map_err(cv(ctx))?;
-        let mut dst = Vector::<Point2d>::new();
-        calib3d::undistort_points_iter(
-            &src,
-            &mut dst,
-            &k,
-            &d,
-            &cvcore::no_array(),
-            &k,
-            TermCriteria::new(
-                cvcore::TermCriteria_COUNT + cvcore::TermCriteria_EPS,
-                100,
-                1e-8,
-            )
-            .map_err(cv(ctx))?,
-        )
-        .map_err(cv(ctx))?;
-        Ok(dst.iter().map(|p| [p.x, p.y]).collect())
-    }
-
-    /// Puts the calibration's intrinsics into `camera` (the scene's), keeping its size and pose.
-    ///
-    /// # Errors
-    /// [`TrackError::SizeMismatch`] if the calibration states a picture size other than the
-    /// camera's.
-    pub fn apply_to(&self, camera: &mut CameraSection) -> Result<(), TrackError> {
-        if let Some(size) = self.image_size
-            && size != (camera.width, camera.height)
-        {
-            return Err(TrackError::SizeMismatch {
-                subject: format!("the calibration {}", self.path.display()),
-                size,
-                reference: "the scene camera".into(),
-                expected: (camera.width, camera.height),
-            });
-        }
-        let k = &self.camera_matrix;
-        (camera.fx, camera.fy, camera.cx, camera.cy) = (k[0][0], k[1][1], k[0][2], k[1][2]);
-        Ok(())
-    }
-}
-
-/// Frames of a video tracked on the fly: a [`FrameSource`] for [`crate::run::run_with`].
-///
-/// The first call to [`VideoFrames::next`] starts the tracker on frame 0 inside the model
-/// silhouette it is given; later calls track. Observations are undistorted when a calibration
-/// is given.
-pub struct VideoFrames {
-    source: VideoSource,
-    config: TrackerConfig,
-    calibration: Option<Calibration>,
-    tracker: Option<Tracker>,
-}
-
-impl VideoFrames {
-    /// Tracks `source`, whose frames must be `camera_size` (the scene camera's width and
-    /// height).
-    ///
-    /// # Errors
-    /// [`TrackError::SizeMismatch`] naming both sizes if the video's size is not the camera's
-    /// or the calibration's; [`TrackError::Config`] for a bad tracker parameter.
-    pub fn new(
-        source: VideoSource,
-        camera_size: (u32, u32),
-        config: TrackerConfig,
-        calibration: Option<Calibration>,
-    ) -> Result<Self, TrackError> {
-        config.validate()?;
-        let size = source.size();
-        let subject = || format!("the video {}", source.path().display());
-        if size != camera_size {
-            return Err(TrackError::SizeMismatch {
-                subject: subject(),
-                size,
-                reference: "the scene camera".into(),
-                expected: camera_size,
-            });
-        }
-        if let Some(c) = &calibration
-            && let Some(expected) = c.image_size
-            && expected != size
-        {
-            return Err(TrackError::SizeMismatch {
-                subject: subject(),
-                size,
-                reference: format!("the calibration {}", c.path.display()),
-                expected,
-            });
-        }
-        Ok(VideoFrames {
-            source,
-            config,
-            calibration,
-            tracker: None,
-        })
-    }
-
-    /// Opens the video at `path` for `scene` (with the calibration's intrinsics already
-    /// applied to it, if any): the tracker takes the default number of features (about the
-    /// paper's 438), never more than the scene's feature capacity.
-    ///
-    /// # Errors
-    /// As [`VideoSource::open`] and [`VideoFrames::new`].
-    pub fn open(
-        path: &Path,
-        scene: &Scene,
-        calibration: Option<Calibration>,
-    ) -> Result<Self, TrackError> {
-        let source = VideoSource::open(path)?;
-        let config = TrackerConfig {
-            max_features: TrackerConfig::default()
-                .max_features
-                .min(scene.file.capacities.features),
-            ..TrackerConfig::default()
-        };
-        let camera = &scene.file.camera;
-        Self::new(source, (camera.width, camera.height), config, calibration)
-    }
-
-    /// The next frame with its observations (undistorted if calibrated), `None` at the end.
-    /// `model_silhouette` is where features are looked for at frame 0 (ignored afterwards).
-    ///
-    /// # Errors
-    /// The video's errors; [`TrackError::NoFeatures`] at frame 0 when nothing is trackable
-    /// inside the silhouette; the tracker's errors.
-    pub fn next(&mut self, model_silhouette: &Mask) -> Result<Option<SourceFrame>, TrackError> {
-        let Some(image) = self.source.next_frame()? else {
-            return Ok(None);
-        };
-        let tracker = match &mut self.tracker {
-            Some(t) => {
-                t.track(&image)?;
-                t
-            }
-            None => self.tracker.insert(Tracker::start(
-                &image,
-                model_silhouette,
-                self.config.clone(),
-            )?),
-        };
-        let mut observations = tracker.observations();
-        if let Some(c) = &self.calibration {
-            let raw: Vec<[f64; 2]> = observations.iter().map(|o| o.uv).collect();
-            for (o, uv) in observations.iter_mut().zip(c.undistort_points(&raw)?) {
-                o.uv = uv;
-            }
-        }
-        Ok(Some(SourceFrame {
-            observations,
-            image: Some(image),
-        }))
-    }
-
-    /// The tracker, once frame 0 has been read.
-    pub fn tracker(&self) -> Option<&Tracker> {
-        self.tracker.as_ref()
-    }
-
-    /// The video.
-    pub fn source(&self) -> &VideoSource {
-        &self.source
-    }
-}
-
-impl FrameSource for VideoFrames {
-    fn len_hint(&self) -> Option<usize> {
-        self.source.frame_count()
-    }
-
-    fn next_frame(&mut self, model_silhouette: &Mask) -> Result<Option<SourceFrame>, RunError> {
-        Ok(self.next(model_silhouette)?)
-    }
-}
-
-/// The model's silhouette at rest in the scene's camera: where features are looked for at
-/// frame 0 (the mask [`crate::run::run_with`] hands its frame source).
-///
-/// # Errors
-/// A [`RunError`] for a camera or mesh the core refuses.
-pub fn rest_silhouette(scene: &Scene) -> Result<Mask, RunError> {
-    let toml = scene.dir.join("scene.toml");
-    let camera = scene.file.camera(&toml)?;
-    let input = MeshInput {
-        rest: &scene.rest,
-        tets: &scene.tets,
-        fixed: &scene.file.model.fixed,
-    };
-    let core = |context: &str| {
-        let context = context.to_string();
-        move |error| RunError::Core { context, error }
-    };
-    // The model exactly as a run builds it, for its checked mesh and boundary surface.
-    let mut storage =
-        ModelStorage::<f64>::new(&input, &scene.file.capacities).map_err(|e| e.in_scene(&toml))?;
-    let config = incise_core::ModelConfig {
-        material: incise_core::Material {
-            young: scene.file.model.young,
-            poisson: scene.file.model.poisson,
-        },
-        camera,
-        solver: scene.file.solver(&toml)?,
-        detection: incise_core::DetectionConfig {
-            enabled: false,
-            ..scene.file.detection.config()
-        },
-    };
-    let model = storage
-        .model(&input, &config)
-        .map_err(core("building the model"))?;
-    Ok(silhouette(&camera, &scene.rest, model.mesh().surface()))
 }

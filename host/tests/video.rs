@@ -31,11 +31,12 @@ mod with_opencv {
     use std::path::Path;
 
     use image::{Rgb, RgbImage};
+    use incise::calibration::Calibration;
     use incise::render::Mask;
     use incise::rng::Rng;
-    use incise::run::FrameSource;
+    use incise::run::{FrameSource, VideoFrames};
     use incise::scene::read_tracks;
-    use incise::track::{Calibration, TrackError, Tracker, TrackerConfig, VideoFrames};
+    use incise::track::{TrackError, Tracker, TrackerConfig};
     use incise::video::{VideoSink, VideoSource};
 
     use super::{SCENE, incise};

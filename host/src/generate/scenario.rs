@@ -6,7 +6,8 @@ use std::path::Path;
 use serde::{Deserialize, Serialize};
 
 use crate::limits::{self, Refusal};
-use crate::scene::{CapacitySection, DetectionSection, SceneError, SolverSection};
+use crate::scene::{DetectionSection, SceneError, SolverSection};
+use crate::storage::SceneCapacities;
 
 /// A whole scenario.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
@@ -41,7 +42,7 @@ pub struct Scenario {
     pub detection: DetectionSection,
     /// Capacities.
     #[serde(default)]
-    pub capacities: CapacitySection,
+    pub capacities: SceneCapacities,
 }
 
 /// `[object]`: the shape and material of the real object.

@@ -1,6 +1,8 @@
 //! Pictures: binary silhouettes rasterised at the camera's resolution, and RGB overlays (the
 //! frame or the true silhouette, the model's wireframe, features, the cut polyline).
 
+pub mod overlay;
+
 use std::path::Path;
 
 use image::{GrayImage, Luma, Rgb, RgbImage};

@@ -46,8 +46,9 @@
 //! shared by all Newton iterations of the frame).
 //!
 //! Everything runs sequentially in a fixed order, so results are bit-for-bit reproducible.
-
-use std::fmt;
+//!
+//! Here: the simulator, its sub-steps, predictor, Newton and line search; `assembly`: the
+//! energy, gradient and Hessian assembly and the sparse solve; `error`: why a step fails.
 
 use incise_core::Error as CoreError;
 use incise_core::material::{ElementRest, Lame};
@@ -58,7 +59,13 @@ use incise_core::sparse::{
 };
 use nalgebra::Vector3;
 
-use super::neohookean::{Projection, element_energy, element_eval};
+use crate::generate::neohookean::{Projection, element_eval};
+
+mod assembly;
+mod error;
+
+use assembly::Linear;
+pub use error::{Failure, SimError};
 
 /// Default convergence tolerance of [`Simulator::solve`], relative to the force scale `E h²`
 /// (see [`Simulator::force_scale`]): strain errors of about `10⁻¹⁰`. Rounding leaves residual
@@ -82,138 +89,6 @@ const ARMIJO: f64 = 1e-4;
 
 /// Tikhonov term relative to the mean diagonal of the free-node Hessian.
 const REGULARISATION: f64 = 1e-8;
-
-/// Why a sub-step failed; carried by [`SimError::NotConverged`] for the last failure.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum Failure {
-    /// Newton used its `max_iter` iterations without meeting the tolerance.
-    IterationLimit,
-    /// No trial step of the line search was acceptable (or the Newton direction was not a
-    /// descent direction).
-    LineSearchStalled,
-    /// Moving the prescribed nodes inverted an element, with and without the predictor.
-    InvertedStart,
-    /// The regularised Hessian could not be factorized.
-    Factorization,
-}
-
-impl fmt::Display for Failure {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(match self {
-            Failure::IterationLimit => "iteration limit reached",
-            Failure::LineSearchStalled => "line search stalled",
-            Failure::InvertedStart => "moving the prescribed nodes inverts an element",
-            Failure::Factorization => "the Hessian could not be factorized",
-        })
-    }
-}
-
-/// Errors of [`Simulator::new`] and [`Simulator::solve`].
-///
-/// `PartialEq` but not `Eq`: [`SimError::NotConverged`] carries floating-point diagnostics.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum SimError {
-    /// From the core: bad material parameters, a non-finite, degenerate or inverted rest
-    /// tetrahedron (named by index), or a failure of the sparse pipeline.
-    Core(CoreError),
-    /// A tetrahedron or the prescribed list names node `node`, but there are only `nodes`.
-    NodeOutOfRange {
-        /// The offending index.
-        node: u32,
-        /// Number of nodes.
-        nodes: usize,
-    },
-    /// Node `node` is listed twice in the prescribed nodes.
-    DuplicatePrescribed {
-        /// The repeated node.
-        node: u32,
-    },
-    /// Every node is prescribed: there is nothing to solve for.
-    NoFreeNodes,
-    /// `targets` must have one entry per prescribed node.
-    TargetCount {
-        /// Number of prescribed nodes.
-        expected: usize,
-        /// Length of `targets`.
-        got: usize,
-    },
-    /// `targets[index]` has a NaN or infinite coordinate.
-    NonFiniteTarget {
-        /// Position in `targets`.
-        index: usize,
-    },
-    /// The frame could not be solved within [`MAX_HALVINGS`] sub-step halvings (or
-    /// [`MAX_SUBSTEPS`] sub-steps). The simulator is left in its state before the call.
-    NotConverged {
-        /// Fraction of the frame's prescribed increment that had been reached, in `[0, 1)`.
-        reached: f64,
-        /// Newton iterations spent in the call.
-        iterations: usize,
-        /// `‖∇W‖∞` (N) over the free nodes when the last sub-step gave up.
-        gradient_norm: f64,
-        /// Why the last attempted sub-step failed.
-        cause: Failure,
-    },
-    /// A NaN or infinity appeared in the gradient of a feasible state (should not happen: the
-    /// element functions guard against it). The simulator is left in its state before the
-    /// call.
-    NotFinite,
-    /// [`Simulator::set_displacements`] was given `got` displacements for `expected` nodes.
-    StateLength {
-        /// Number of nodes.
-        expected: usize,
-        /// Length of the given state.
-        got: usize,
-    },
-    /// [`Simulator::set_displacements`] was given a state that is not finite or inverts an
-    /// element.
-    InfeasibleState,
-}
-
-impl From<CoreError> for SimError {
-    fn from(e: CoreError) -> Self {
-        SimError::Core(e)
-    }
-}
-
-impl fmt::Display for SimError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            SimError::Core(e) => write!(f, "{e}"),
-            SimError::NodeOutOfRange { node, nodes } => {
-                write!(f, "node {node} out of range (the mesh has {nodes} nodes)")
-            }
-            SimError::DuplicatePrescribed { node } => {
-                write!(f, "node {node} is prescribed twice")
-            }
-            SimError::NoFreeNodes => f.write_str("every node is prescribed"),
-            SimError::TargetCount { expected, got } => {
-                write!(f, "{got} targets given for {expected} prescribed nodes")
-            }
-            SimError::NonFiniteTarget { index } => write!(f, "target {index} is not finite"),
-            SimError::NotConverged {
-                reached,
-                iterations,
-                gradient_norm,
-                cause,
-            } => write!(
-                f,
-                "quasi-static solve did not converge ({cause}) after {iterations} Newton \
-                 iterations, {:.1} % of the prescribed motion reached, |grad| = {gradient_norm:e} N",
-                100.0 * reached
-            ),
-            SimError::NotFinite => f.write_str("non-finite value in the elastic gradient"),
-            SimError::StateLength { expected, got } => {
-                write!(f, "{got} displacements given for {expected} nodes")
-            }
-            SimError::InfeasibleState => {
-                f.write_str("the given state is not finite or inverts an element")
-            }
-        }
-    }
-}
-
-impl std::error::Error for SimError {}
 
 /// What one [`Simulator::solve`] did.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -669,42 +544,6 @@ impl Simulator {
         self.newton(lin, max_iter, stats)
     }
 
-    /// Assembles and factorizes the Hessian at the current state (and `coupling` as in
-    /// [`Simulator::assemble`]): the exact Hessian when it factorizes, i.e. is positive
-    /// definite, which it is near a stable equilibrium even where single elements are not, so
-    /// Newton converges quadratically; else the eigenvalue-clamped one, always positive
-    /// semidefinite (with clamped element Hessians alone, convergence in compressed regions is
-    /// only linear). Returns which one is in service.
-    fn factor_hessian(
-        &self,
-        lin: &mut Linear<'_>,
-        grad: &mut [f64],
-        values: &mut [f64],
-        mut coupling: Option<(&[[f64; 3]], &mut [f64])>,
-        stats: &mut SolveStats,
-    ) -> Result<Projection, Failure> {
-        self.assemble(
-            &self.u,
-            grad,
-            values,
-            Projection::Exact,
-            coupling.as_mut().map(|(d, r)| (*d, &mut **r)),
-        );
-        if lin.factorize(values, &self.diag, 0).is_ok() {
-            return Ok(Projection::Exact);
-        }
-        self.assemble(
-            &self.u,
-            grad,
-            values,
-            Projection::ClampEigenvalues,
-            coupling,
-        );
-        lin.factorize(values, &self.diag, 3)?;
-        stats.projected += 1;
-        Ok(Projection::ClampEigenvalues)
-    }
-
     /// Newton iterations with line search on the free nodes from the current (feasible) state.
     fn newton(
         &mut self,
@@ -782,153 +621,6 @@ impl Simulator {
                 }
             }
         }
-    }
-
-    /// Total energy with its rounding estimate from the element energies alone: each element
-    /// energy is uncertain by a few ulps of the terms it is summed from.
-    fn energy_of(&self, u: &[[f64; 3]]) -> Energy {
-        let mut e = Energy {
-            value: 0.0,
-            rounding: 0.0,
-        };
-        for (t, el) in self.tets.iter().zip(&self.elements) {
-            let w = element_energy(&self.lame, &el.rest, &el.g, &t.map(|v| u[v as usize]));
-            if !w.energy.is_finite() {
-                return Energy {
-                    value: f64::INFINITY,
-                    rounding: f64::INFINITY,
-                };
-            }
-            e.value += w.energy;
-            e.rounding += w.magnitude;
-        }
-        e.rounding *= 8.0 * f64::EPSILON;
-        e
-    }
-
-    /// Energy and gradient over the free unknowns (`grad`, overwritten). The rounding estimate
-    /// adds to [`Simulator::energy_of`]'s the effect of the displacements being known only to
-    /// `ε|u|`: each element's energy moves by its nodal forces times that.
-    fn energy_gradient(&self, u: &[[f64; 3]], grad: &mut [f64]) -> Energy {
-        grad.fill(0.0);
-        let mut e = self.energy_of(u);
-        if !e.value.is_finite() {
-            grad.fill(f64::NAN);
-            return e;
-        }
-        let mut force_sum = 0.0;
-        for (t, el) in self.tets.iter().zip(&self.elements) {
-            let ue = t.map(|v| u[v as usize]);
-            let ev = element_eval(&self.lame, &el.rest, &el.g, &ue, Projection::Exact);
-            force_sum += ev.gradient.iter().map(|f| f.abs().sum()).sum::<f64>();
-            self.scatter_gradient(t, &ev.gradient, grad);
-        }
-        let u_max = u.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
-        e.rounding += 8.0 * f64::EPSILON * u_max * force_sum;
-        e
-    }
-
-    fn scatter_gradient(&self, t: &[u32; 4], ge: &[Vector3<f64>; 4], grad: &mut [f64]) {
-        for (a, &v) in t.iter().enumerate() {
-            let f = self.free[v as usize];
-            if f != NONE {
-                for c in 0..3 {
-                    grad[3 * f as usize + c] += ge[a][c];
-                }
-            }
-        }
-    }
-
-    /// Gradient (`grad`) and positive semidefinite Hessian (`values`, upper pattern) over the
-    /// free unknowns, both overwritten; with `coupling = Some((d, r))`, also `r = K_fp d` for
-    /// the prescribed-node displacements `d` (indexed by node, zero on free nodes), overwritten.
-    /// The state must be feasible (no inverted element).
-    fn assemble(
-        &self,
-        u: &[[f64; 3]],
-        grad: &mut [f64],
-        values: &mut [f64],
-        projection: Projection,
-        mut coupling: Option<(&[[f64; 3]], &mut [f64])>,
-    ) {
-        grad.fill(0.0);
-        values.fill(0.0);
-        if let Some((_, r)) = coupling.as_mut() {
-            r.fill(0.0);
-        }
-        for ((t, el), map) in self.tets.iter().zip(&self.elements).zip(&self.scatter) {
-            let ue = t.map(|v| u[v as usize]);
-            let ev = element_eval(&self.lame, &el.rest, &el.g, &ue, projection);
-            self.scatter_gradient(t, &ev.gradient, grad);
-            for (e, &s) in map.iter().enumerate() {
-                if s != NONE {
-                    values[s as usize] += ev.hessian[(e / 12, e % 12)];
-                }
-            }
-            if let Some((d, r)) = coupling.as_mut() {
-                let de: [f64; 12] = std::array::from_fn(|j| d[t[j / 3] as usize][j % 3]);
-                if de.iter().all(|&v| v == 0.0) {
-                    continue;
-                }
-                for i in 0..12 {
-                    let f = self.free[t[i / 3] as usize];
-                    if f != NONE {
-                        let ki: f64 = (0..12).map(|j| ev.hessian[(i, j)] * de[j]).sum();
-                        r[3 * f as usize + i % 3] += ki;
-                    }
-                }
-            }
-        }
-    }
-}
-
-/// The numeric side of the sparse solve, living for one [`Simulator::solve`].
-struct Linear<'s> {
-    sym: Symbolic<'s>,
-    ldl: LdlFactor<'s, f64>,
-    y: Vec<f64>,
-    cursor: Vec<u32>,
-}
-
-impl Linear<'_> {
-    /// Adds `δ I` (`δ = 10⁻⁸ ×` mean diagonal) and factorizes; on a non-positive pivot raises
-    /// `δ` a hundredfold, up to `retries` times.
-    fn factorize(&mut self, values: &mut [f64], diag: &[u32], retries: u32) -> Result<(), Failure> {
-        let mean = diag.iter().map(|&s| values[s as usize]).sum::<f64>() / diag.len() as f64;
-        // A free node in no tetrahedron has a zero diagonal; keep δ positive regardless.
-        let mut delta = REGULARISATION * if mean > 0.0 { mean } else { 1.0 };
-        let mut added = 0.0;
-        for _ in 0..=retries {
-            for &s in diag {
-                values[s as usize] += delta - added;
-            }
-            added = delta;
-            match self
-                .ldl
-                .factorize(&self.sym, values, &mut self.y, &mut self.cursor)
-            {
-                Ok(()) => return Ok(()),
-                Err(CoreError::NotPositiveDefinite { .. }) => delta *= 100.0,
-                Err(_) => return Err(Failure::Factorization),
-            }
-        }
-        Err(Failure::Factorization)
-    }
-
-    /// `dir = −K⁻¹ grad` with the factor in service; returns the slope `dir · grad`.
-    fn newton_direction(&mut self, grad: &[f64], dir: &mut [f64]) -> f64 {
-        for (d, g) in dir.iter_mut().zip(grad) {
-            *d = -g;
-        }
-        self.solve(dir);
-        dir.iter().zip(grad).map(|(d, g)| d * g).sum()
-    }
-
-    /// `b ← K⁻¹ b` with the factor in service.
-    fn solve(&mut self, b: &mut [f64]) {
-        self.ldl
-            .solve_in_place(&self.sym, b, &mut self.y)
-            .expect("sizes match the symbolic factor built for this pattern");
     }
 }
 

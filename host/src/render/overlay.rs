@@ -6,7 +6,7 @@ use image::RgbImage;
 use incise_core::{Camera, Model, Observation};
 use nalgebra::Vector3;
 
-use crate::render::{Canvas, Mask, colour};
+use super::{Canvas, Mask, colour};
 
 /// Everything one frame's overlay shows.
 pub struct Overlay<'a> {

@@ -1,0 +1,84 @@
+//! Where a run's outputs go: overlay pictures to a [`FrameSink`] (an overlay video) and, with
+//! an output directory, PNG stills, the deformed mesh per frame (VTU, with a `.pvd` series) and
+//! `frames.csv`. The files themselves are written by [`crate::report`] and [`crate::vtu`].
+
+use std::path::Path;
+
+use image::RgbImage;
+use incise_core::Model;
+
+use crate::render::Canvas;
+use crate::report::{write_frames_csv, write_mesh_vtu};
+use crate::run::{FrameRecord, RunError, output};
+use crate::vtu;
+
+/// Where overlay pictures go besides PNG stills: an overlay video (the `opencv` feature).
+pub trait FrameSink {
+    /// Appends one overlay picture.
+    ///
+    /// # Errors
+    /// A [`RunError`] if it cannot be written.
+    fn write(&mut self, picture: &RgbImage) -> Result<(), RunError>;
+}
+
+/// The outputs of one pass: an output directory, a sink, or neither.
+pub(crate) struct Outputs<'d, 's> {
+    dir: Option<&'d Path>,
+    sink: Option<&'s mut dyn FrameSink>,
+    /// The `.pvd` series: time and file of each frame's mesh.
+    pvd: Vec<(f64, String)>,
+}
+
+impl<'d, 's> Outputs<'d, 's> {
+    /// Outputs to `dir` (created if missing) and `sink`.
+    pub(crate) fn new(
+        dir: Option<&'d Path>,
+        sink: Option<&'s mut dyn FrameSink>,
+    ) -> Result<Self, RunError> {
+        if let Some(dir) = dir {
+            std::fs::create_dir_all(dir).map_err(output)?;
+        }
+        Ok(Outputs {
+            dir,
+            sink,
+            pvd: vec![],
+        })
+    }
+
+    /// Whether any output wants the overlay pictures.
+    pub(crate) fn wants_overlay(&self) -> bool {
+        self.dir.is_some() || self.sink.is_some()
+    }
+
+    /// Hands the overlay of frame `f` to the sink, then saves it as `frame_<f>.png`.
+    pub(crate) fn overlay(&mut self, f: usize, canvas: &Canvas) -> Result<(), RunError> {
+        if let Some(sink) = self.sink.as_deref_mut() {
+            sink.write(&canvas.image)?;
+        }
+        if let Some(dir) = self.dir {
+            canvas
+                .save(&dir.join(format!("frame_{f:04}.png")))
+                .map_err(output)?;
+        }
+        Ok(())
+    }
+
+    /// Writes the model as it is after frame `f` as `mesh_<f>.vtu`.
+    pub(crate) fn mesh(&mut self, f: usize, model: &Model<'_, f64>) -> Result<(), RunError> {
+        if let Some(dir) = self.dir {
+            let name = format!("mesh_{f:04}.vtu");
+            write_mesh_vtu(&dir.join(&name), model).map_err(output)?;
+            self.pvd.push((f as f64, name));
+        }
+        Ok(())
+    }
+
+    /// Writes the mesh series (`mesh.pvd`) and the per-frame records (`frames.csv`).
+    pub(crate) fn finish(self, frames: &[FrameRecord]) -> Result<(), RunError> {
+        if let Some(dir) = self.dir {
+            vtu::write_pvd(&dir.join("mesh.pvd"), &self.pvd).map_err(output)?;
+            write_frames_csv(&dir.join("frames.csv"), frames).map_err(output)?;
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,275 @@
+//! What a run records: the trace of one pass over a scene, frame by frame, and the summary
+//! `incise run --json` prints.
+
+use incise_core::Observation;
+use serde::Serialize;
+
+use crate::scene::Scene;
+
+/// What `incise run --json` prints.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct Summary {
+    /// Scene name.
+    pub scene: String,
+    /// Frames, frame 0 included.
+    pub frames: usize,
+    /// Features tracked at frame 0.
+    pub features: usize,
+    /// Features whose ray missed the model at frame 0 (left out).
+    pub features_missed: usize,
+    /// Neighbour pairs used for detection.
+    pub pairs: usize,
+    /// Pairs dropped by the temporal filter.
+    pub pairs_lost: usize,
+    /// Features taken out of detection by the temporal filter.
+    pub features_filtered: usize,
+    /// The features' spacing at frame 0, pixels: the unit of the cut line's lengths.
+    pub feature_spacing_px: f64,
+    /// Frame at which a cut was detected, if any.
+    pub cut_detected_frame: Option<u32>,
+    /// Frame at which the true cut opens (ground truth), if the scene has one.
+    pub cut_open_frame: Option<u32>,
+    /// Hausdorff distance of the final detected polyline to the true cut, pixels.
+    pub cut_hausdorff_px: Option<f64>,
+    /// The same, in percent of the image diagonal.
+    pub cut_hausdorff_percent: Option<f64>,
+    /// Dice of the last frame with cutting switched off.
+    pub dice_final_uncut: f64,
+    /// Dice of the last frame.
+    pub dice_final: f64,
+    /// Mean Dice over the frames from the opening of the cut (all frames without a cut).
+    pub dice_mean_after_cut: f64,
+    /// Surface RMS distance at the last frame, millimetres.
+    pub surface_rmse_mm_final: f64,
+    /// Target registration error at the last frame, millimetres.
+    pub tre_mm_final: f64,
+    /// The same with cutting switched off.
+    pub tre_mm_final_uncut: f64,
+    /// The same for the rest model left in place: the baseline any registration must beat.
+    pub tre_mm_final_rest: f64,
+    /// Cut events (a new topology put in service).
+    pub cut_events: usize,
+    /// Frame of the first cut event.
+    pub cut_first_frame: Option<usize>,
+    /// Nodes of the model at the start.
+    pub nodes_initial: usize,
+    /// Nodes and tetrahedra of the model at the end (more than at the start once cut).
+    pub nodes_final: usize,
+    /// Tetrahedra of the model at the end.
+    pub tets_final: usize,
+    /// The first cut the core refused, if any: frame and reason.
+    pub cut_refused: Option<String>,
+    /// Median time of `Model::step`, milliseconds.
+    pub ms_per_frame_median: f64,
+    /// Largest time of `Model::step`, milliseconds.
+    pub ms_per_frame_max: f64,
+    /// Median time of the steps that did not cut the mesh (the steady frame), milliseconds.
+    pub ms_steady_median: f64,
+    /// Largest time of a step that cut the mesh (the steady work plus the cut event: the
+    /// geometry, the new ordering, symbolic analysis and factorization), milliseconds.
+    pub ms_cut_frame_max: Option<f64>,
+    /// Image width, pixels.
+    pub image_width: u32,
+    /// Image height, pixels.
+    pub image_height: u32,
+    /// Bytes of the model's fixed storage.
+    pub model_bytes: usize,
+    /// Frames the core refused (the model stayed as it was and the run went on).
+    pub frames_rejected: usize,
+    /// The first refused frame and the core's reason.
+    pub first_rejected: Option<String>,
+}
+
+/// Per-frame record of one run.
+#[derive(Clone, Debug, Serialize)]
+pub struct FrameRecord {
+    /// Frame number.
+    pub frame: usize,
+    /// Dice against the true silhouette.
+    pub dice: f64,
+    /// Target registration error, millimetres.
+    pub tre_mm: f64,
+    /// Time of the step, milliseconds.
+    pub ms: f64,
+    /// Features observed.
+    pub observed: usize,
+    /// Outlier pairs of the cut detection.
+    pub outlier_pairs: usize,
+    /// Separation points.
+    pub separation_points: usize,
+    /// Vertices of the cut line.
+    pub cut_vertices: usize,
+}
+
+/// What the cut detection did over a run.
+#[derive(Clone, Debug, Default)]
+pub struct DetectionTrace {
+    /// Frame at which the cut line started.
+    pub detected_frame: Option<u32>,
+    /// Neighbour pairs.
+    pub pairs: usize,
+    /// Pairs dropped by the temporal filter, by the end.
+    pub pairs_lost: usize,
+    /// Features taken out by the temporal filter, by the end.
+    pub features_filtered: usize,
+    /// The features' spacing at frame 0 (the unit of the cut line's lengths), pixels.
+    pub spacing_px: f64,
+    /// The cut line at the last frame, pixels.
+    pub polyline: Vec<[f64; 2]>,
+    /// Its Hausdorff distance to the true cut at the last frame, pixels.
+    pub hausdorff_px: Option<f64>,
+}
+
+/// What cutting the mesh did over a run.
+#[derive(Clone, Debug, Default)]
+pub struct CutTrace {
+    /// Frames at which a cut went into service.
+    pub frames: Vec<usize>,
+    /// Tetrahedra split, nodes and tetrahedra added, over all events.
+    pub tets_split: usize,
+    /// Nodes added (on cut edges and as copies).
+    pub nodes_added: usize,
+    /// Tetrahedra added.
+    pub tets_added: usize,
+    /// Lowest shape quality of a tetrahedron a cut created or moved.
+    pub min_quality: f64,
+    /// The first cut the core refused, and why.
+    pub refused: Option<(usize, String)>,
+}
+
+impl CutTrace {
+    pub(crate) fn record(&mut self, frame: usize, r: &incise_core::CutReport) {
+        if r.applied {
+            let e = &r.event;
+            if self.frames.is_empty() {
+                self.min_quality = 1.0;
+            }
+            self.frames.push(frame);
+            self.tets_split += e.tets_split;
+            self.nodes_added += e.edge_nodes + e.nodes_duplicated;
+            self.tets_added += e.tets_added;
+            self.min_quality = self.min_quality.min(f64::from(e.min_quality_milli) / 1e3);
+        }
+        if let (None, Some(err)) = (&self.refused, r.refused) {
+            self.refused = Some((frame, err.to_string()));
+        }
+    }
+}
+
+/// One pass over a scene.
+#[derive(Clone, Debug)]
+pub struct Trace {
+    /// The observations of every frame, as used (to replay the run).
+    pub observations: Vec<Vec<Observation<f64>>>,
+    /// The cut detection.
+    pub detection: DetectionTrace,
+    /// Per frame (frame 0 included, with no step time).
+    pub frames: Vec<FrameRecord>,
+    /// Dice of the last frame.
+    pub dice_final: f64,
+    /// Surface RMS distance at the last frame, metres.
+    pub surface_rms_final: f64,
+    /// TRE at the last frame, metres.
+    pub tre_final: f64,
+    /// TRE at the last frame of the rest model left in place, metres: the baseline any
+    /// registration must beat.
+    pub tre_rest_final: f64,
+    /// Cutting the mesh.
+    pub cuts: CutTrace,
+    /// Frames the core refused, with its reason; the model stayed as it was and the run went
+    /// on.
+    pub rejected: Vec<(usize, String)>,
+    /// Nodes and tetrahedra of the model at the end.
+    pub mesh_final: (usize, usize),
+    /// Features embedded / missed.
+    pub embedded: usize,
+    /// Features missed.
+    pub missed: usize,
+    /// Storage bytes.
+    pub model_bytes: usize,
+}
+
+impl Summary {
+    /// The summary of a run: `trace` with cutting on, `uncut` the same observations replayed
+    /// with cutting off (for the `_uncut` figures).
+    pub fn new(scene: &Scene, trace: &Trace, uncut: &Trace) -> Summary {
+        let times: Vec<f64> = trace.frames.iter().skip(1).map(|r| r.ms).collect();
+        let open = scene.file.ground_truth.cut_open_frame;
+        let after: Vec<f64> = trace
+            .frames
+            .iter()
+            .filter(|r| open.is_none_or(|o| r.frame >= o as usize))
+            .map(|r| r.dice)
+            .collect();
+        let camera = &scene.file.camera;
+        Summary {
+            scene: scene.file.name.clone(),
+            frames: trace.frames.len(),
+            features: trace.observations.first().map_or(0, Vec::len),
+            features_missed: trace.missed,
+            pairs: trace.detection.pairs,
+            pairs_lost: trace.detection.pairs_lost,
+            features_filtered: trace.detection.features_filtered,
+            feature_spacing_px: trace.detection.spacing_px,
+            cut_detected_frame: trace.detection.detected_frame,
+            cut_open_frame: open,
+            cut_hausdorff_px: trace.detection.hausdorff_px,
+            cut_hausdorff_percent: trace
+                .detection
+                .hausdorff_px
+                .map(|h| 100.0 * h / f64::from(camera.width).hypot(f64::from(camera.height))),
+            dice_final_uncut: uncut.dice_final,
+            dice_final: trace.dice_final,
+            dice_mean_after_cut: after.iter().sum::<f64>() / after.len().max(1) as f64,
+            surface_rmse_mm_final: trace.surface_rms_final * 1e3,
+            tre_mm_final: trace.tre_final * 1e3,
+            tre_mm_final_uncut: uncut.tre_final * 1e3,
+            tre_mm_final_rest: trace.tre_rest_final * 1e3,
+            cut_events: trace.cuts.frames.len(),
+            cut_first_frame: trace.cuts.frames.first().copied(),
+            nodes_initial: scene.rest.len(),
+            nodes_final: trace.mesh_final.0,
+            tets_final: trace.mesh_final.1,
+            cut_refused: trace
+                .cuts
+                .refused
+                .as_ref()
+                .map(|(f, e)| format!("frame {f}: {e}")),
+            ms_per_frame_median: median(&times),
+            ms_per_frame_max: times.iter().copied().fold(0.0, f64::max),
+            ms_steady_median: median(
+                &trace
+                    .frames
+                    .iter()
+                    .skip(1)
+                    .filter(|r| !trace.cuts.frames.contains(&r.frame))
+                    .map(|r| r.ms)
+                    .collect::<Vec<_>>(),
+            ),
+            ms_cut_frame_max: trace
+                .cuts
+                .frames
+                .iter()
+                .map(|&f| trace.frames[f].ms)
+                .reduce(f64::max),
+            image_width: camera.width,
+            image_height: camera.height,
+            model_bytes: trace.model_bytes,
+            frames_rejected: trace.rejected.len(),
+            first_rejected: trace
+                .rejected
+                .first()
+                .map(|(f, e)| format!("frame {f}: {e}")),
+        }
+    }
+}
+
+/// The median of `v` (the upper one of an even count), 0 for none.
+fn median(v: &[f64]) -> f64 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    let mut s = v.to_vec();
+    s.sort_by(|a, b| a.total_cmp(b));
+    s[s.len() / 2]
+}
