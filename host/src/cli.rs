@@ -39,6 +39,10 @@ pub enum Command {
         /// --video, the overlay video (overlay.avi, Motion-JPEG) too.
         #[arg(long)]
         out: Option<PathBuf>,
+        /// Also run with the mesh cut along the true cut (ground truth) instead of the
+        /// detected one: `dice_final_true_cut`, `tre_mm_final_true_cut`.
+        #[arg(long, conflicts_with = "video")]
+        true_cut: bool,
         // --- OpenCV video driver (options present in every build; they need `opencv`) ---
         /// Track this video (KLT) instead of reading the scene's tracks.csv, in one streaming
         /// pass (needs the `opencv` feature).
@@ -72,6 +76,10 @@ pub enum Command {
         /// Scene directories.
         #[arg(required = true)]
         scenes: Vec<PathBuf>,
+        /// Also run each cut scene with its mesh cut along the true cut, and print a second
+        /// table: Dice and target error with the detected cut against the true one.
+        #[arg(long)]
+        true_cut: bool,
     },
     /// Error against run time: run a scene under several solver settings (strategy, Newton
     /// steps, PCG steps) and report Dice, target error and step time for each, as a table and
@@ -202,15 +210,17 @@ pub fn run(cli: Cli) -> i32 {
             scene,
             json,
             out,
+            true_cut,
             video: None,
             calibration: _,
-        } => run_command(&scene, json, out),
+        } => run_command(&scene, json, out, true_cut),
         Command::Run {
             scene,
             json,
             out,
             video: Some(video),
             calibration,
+            ..
         } => run_video_command(&scene, &video, calibration.as_deref(), json, out),
         Command::Track {
             video,
@@ -247,7 +257,7 @@ pub fn run(cli: Cli) -> i32 {
             out,
             video,
         } => gen_command(&scenarios, out, video),
-        Command::Table { scenes } => table_command(&scenes),
+        Command::Table { scenes, true_cut } => table_command(&scenes, true_cut),
         Command::Sweep { scene, out } => sweep_command(&scene, out.as_deref()),
     };
     match result {
@@ -261,11 +271,17 @@ pub fn run(cli: Cli) -> i32 {
     }
 }
 
-fn run_command(dir: &Path, json: bool, out: Option<PathBuf>) -> Result<(), Failure> {
+fn run_command(
+    dir: &Path,
+    json: bool,
+    out: Option<PathBuf>,
+    true_cut: bool,
+) -> Result<(), Failure> {
     let scene = Scene::load(dir).map_err(|e| e.to_string())?;
     let options = RunOptions {
         out: out.clone(),
         progress: !json,
+        true_cut,
     };
     let (summary, _) = run_scene(&scene, &options).map_err(|e| e.to_string())?;
     print_summary(&summary, json, out.as_deref())
@@ -291,14 +307,21 @@ fn print_summary(
     Ok(())
 }
 
-fn table_command(dirs: &[PathBuf]) -> Result<(), Failure> {
+fn table_command(dirs: &[PathBuf], true_cut: bool) -> Result<(), Failure> {
     let mut rows = vec![];
+    let options = RunOptions {
+        true_cut,
+        ..RunOptions::default()
+    };
     for dir in dirs {
         let scene = Scene::load(dir).map_err(|e| e.to_string())?;
-        let (summary, _) = run_scene(&scene, &RunOptions::default()).map_err(|e| e.to_string())?;
+        let (summary, _) = run_scene(&scene, &options).map_err(|e| e.to_string())?;
         rows.push(summary);
     }
     out!("{}", crate::report::markdown_table(&rows))?;
+    if true_cut {
+        out!("\n{}", crate::report::true_cut_table(&rows))?;
+    }
     Ok(())
 }
 
@@ -431,6 +454,7 @@ fn demo(out: &Path) -> Result<(), Failure> {
     let options = RunOptions {
         out: Some(frames_dir.clone()),
         progress: true,
+        true_cut: false,
     };
     let (summary, trace) = run_scene(&scene, &options).map_err(|e| e.to_string())?;
     out!("{}", crate::report::human_summary(&summary))?;

@@ -90,6 +90,35 @@ pub fn markdown_table(rows: &[Summary]) -> String {
     out
 }
 
+/// For the scenes run with `--true-cut`: the last frame's Dice and target error with the mesh
+/// cut where the core detected the cut and along the true cut, and the share of the uncut
+/// model's Dice deficit each closes, `(Dice − Dice uncut) / (1 − Dice uncut)`.
+pub fn true_cut_table(rows: &[Summary]) -> String {
+    let mut out = String::from(
+        "| scene | Dice uncut | Dice, detected cut | Dice, true cut | deficit closed, detected | deficit closed, true | TRE uncut mm | TRE mm, detected cut | TRE mm, true cut |\n\
+         | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n",
+    );
+    let closed = |dice: f64, uncut: f64| 100.0 * (dice - uncut) / (1.0 - uncut);
+    for s in rows {
+        let (Some(dice), Some(tre)) = (s.dice_final_true_cut, s.tre_mm_final_true_cut) else {
+            continue;
+        };
+        out.push_str(&format!(
+            "| {} | {:.3} | {:.3} | {:.3} | {:.0}% | {:.0}% | {:.2} | {:.2} | {:.2} |\n",
+            s.scene,
+            s.dice_final_uncut,
+            s.dice_final,
+            dice,
+            closed(s.dice_final, s.dice_final_uncut),
+            closed(dice, s.dice_final_uncut),
+            s.tre_mm_final_uncut,
+            s.tre_mm_final,
+            tre,
+        ));
+    }
+    out
+}
+
 /// The four frames of a run that tell its story, with a caption under each: for a cut scene,
 /// before the cut opens, the cut detected, the mesh cut (or the model opening), and the last
 /// frame; for an intact one, the first, a third, two thirds and the last frame.

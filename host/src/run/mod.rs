@@ -88,6 +88,27 @@ pub struct RunOptions {
     pub out: Option<PathBuf>,
     /// Show a progress bar.
     pub progress: bool,
+    /// Also run the scene with its mesh cut along the true cut instead of the detected one
+    /// ([`Cutting::AlongTruth`]), for [`Summary::dice_final_true_cut`] and
+    /// [`Summary::tre_mm_final_true_cut`].
+    pub true_cut: bool,
+}
+
+/// How a pass cuts the mesh.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Cutting {
+    /// Never: detection off, the model stays whole.
+    Off,
+    /// Where the core detects the cut (the product).
+    Detected,
+    /// Along the true cut of the ground truth, detection off: the straight line through the
+    /// true cut's points in the image (total least squares, from end to end, extended by a
+    /// feature spacing as a detected line is), cut into the mesh in the first frame after the
+    /// cut opens and again whenever the true line has grown by 5 % (a cut that grows while
+    /// filmed). What the model reaches with a perfect detector:
+    /// the difference to [`Cutting::Detected`] is the detector's share of the error, the rest
+    /// the model's.
+    AlongTruth,
 }
 
 /// The storage of `scene`'s model, its capacities checked.
@@ -156,9 +177,29 @@ pub fn run_with(
     sink: Option<&mut dyn FrameSink>,
     progress: bool,
 ) -> Result<Trace, RunError> {
+    let mode = if cutting {
+        Cutting::Detected
+    } else {
+        Cutting::Off
+    };
+    run_pass(scene, source, mode, out, sink, progress)
+}
+
+/// [`run_with`] with the way the mesh is cut spelled out.
+///
+/// # Errors
+/// As [`run_with`].
+pub fn run_pass(
+    scene: &Scene,
+    source: &mut dyn FrameSource,
+    cutting: Cutting,
+    out: Option<&Path>,
+    sink: Option<&mut dyn FrameSink>,
+    progress: bool,
+) -> Result<Trace, RunError> {
     let toml = scene.dir.join("scene.toml");
     let mut config = scene.model_config()?;
-    config.detection.enabled &= cutting;
+    config.detection.enabled &= cutting == Cutting::Detected;
     config
         .detection
         .validate()
@@ -201,6 +242,11 @@ pub fn run_with(
             },
         };
         let mut record = pass.step(&mut model, f, &frame.observations);
+        if cutting == Cutting::AlongTruth
+            && let Some(t) = truth.as_ref()
+        {
+            pass.cut_along_truth(&mut model, f, t, scene.file.ground_truth.cut_open_frame);
+        }
         let x = model.positions().to_vec();
         let surface = model.mesh().surface().to_vec();
         pass.read_cut_line(&model, f)?;
@@ -274,6 +320,8 @@ struct Pass {
     polyline: Vec<[f64; 2]>,
     /// Dice and target error (metres) of the last frame.
     last: (f64, f64),
+    /// Length of the true cut line last cut into the mesh ([`Cutting::AlongTruth`]), pixels.
+    true_cut_px: f64,
 }
 
 impl Pass {
@@ -286,6 +334,7 @@ impl Pass {
             rejected: vec![],
             polyline: vec![[0.0; 2]; cut_vertices.max(1)],
             last: (0.0, 0.0),
+            true_cut_px: 0.0,
         }
     }
 
@@ -343,6 +392,36 @@ impl Pass {
         record
     }
 
+    /// [`Cutting::AlongTruth`]: after frame `f`'s step, cuts the mesh along the true cut's
+    /// straight line if the cut has opened (`open`) and its line is new or has grown by 5 %.
+    fn cut_along_truth(
+        &mut self,
+        model: &mut Model<'_, f64>,
+        f: usize,
+        truth: &Truth,
+        open: Option<u32>,
+    ) {
+        if open.is_none_or(|o| f <= o as usize) {
+            return;
+        }
+        let Some(line) = truth.cut_at(f).and_then(straight_line) else {
+            return;
+        };
+        let length = (line[1][0] - line[0][0]).hypot(line[1][1] - line[0][1]);
+        if length <= 1.05 * self.true_cut_px {
+            return;
+        }
+        // Extended by a feature spacing, as the core extends a detected line's open ends.
+        let extension = model.detector().spacing();
+        let report = model
+            .cut_along(&line, extension)
+            .unwrap_or_else(incise_core::CutReport::refused);
+        self.cuts.record(f, &report);
+        if report.applied {
+            self.true_cut_px = length;
+        }
+    }
+
     /// Copies the model's cut line after frame `f` into the detection trace.
     fn read_cut_line(&mut self, model: &Model<'_, f64>, f: usize) -> Result<(), RunError> {
         // `polyline` holds `cut_vertices` entries: the whole line always fits.
@@ -352,6 +431,36 @@ impl Pass {
         self.detection.polyline = self.polyline[..n].to_vec();
         Ok(())
     }
+}
+
+/// The straight segment through `points` (total least squares), from the first point's
+/// projection on it to the last's extreme: `None` for fewer than two distinct points.
+fn straight_line(points: &[[f64; 2]]) -> Option<[[f64; 2]; 2]> {
+    let n = points.len() as f64;
+    if points.len() < 2 {
+        return None;
+    }
+    let c = points
+        .iter()
+        .fold([0.0; 2], |a, p| [a[0] + p[0] / n, a[1] + p[1] / n]);
+    let (mut sxx, mut sxy, mut syy) = (0.0, 0.0, 0.0);
+    for p in points {
+        let d = [p[0] - c[0], p[1] - c[1]];
+        sxx += d[0] * d[0];
+        sxy += d[0] * d[1];
+        syy += d[1] * d[1];
+    }
+    let angle = 0.5 * (2.0 * sxy).atan2(sxx - syy);
+    let e = [angle.cos(), angle.sin()];
+    let t = |p: &[f64; 2]| (p[0] - c[0]) * e[0] + (p[1] - c[1]) * e[1];
+    let lo = points.iter().map(t).fold(f64::INFINITY, f64::min);
+    let hi = points.iter().map(t).fold(f64::NEG_INFINITY, f64::max);
+    (hi > lo).then(|| {
+        [
+            [c[0] + e[0] * lo, c[1] + e[1] * lo],
+            [c[0] + e[0] * hi, c[1] + e[1] * hi],
+        ]
+    })
 }
 
 /// Runs a scene and summarises it (with cutting on, and, for the `_uncut` figures, off).
@@ -390,5 +499,57 @@ pub fn run_scene_with(
         None,
         false,
     )?;
-    Ok((Summary::new(scene, &trace, &uncut), trace))
+    let mut summary = Summary::new(scene, &trace, &uncut);
+    if options.true_cut && scene.file.ground_truth.cut_open_frame.is_some() {
+        let along = run_pass(
+            scene,
+            &mut TrackSource::new(&trace.observations),
+            Cutting::AlongTruth,
+            None,
+            None,
+            false,
+        )?;
+        summary.dice_final_true_cut = Some(along.dice_final);
+        summary.tre_mm_final_true_cut = Some(along.tre_final * 1e3);
+    }
+    Ok((summary, trace))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::straight_line;
+
+    #[test]
+    fn straight_line_spans_the_points_along_their_direction() {
+        // Pairs of points 1 px either side of the line v = 2u + 10 (along its normal
+        // (−2, 1)/√5), u from 3 to 40: total least squares gives the line itself.
+        let n = [-2.0 / 5f64.sqrt(), 1.0 / 5f64.sqrt()];
+        let points: Vec<[f64; 2]> = (0..24)
+            .map(|k| {
+                let u = 3.0 + 37.0 * f64::from(k / 2) / 11.0;
+                let off = if k % 2 == 0 { 1.0 } else { -1.0 };
+                [u + off * n[0], 2.0 * u + 10.0 + off * n[1]]
+            })
+            .collect();
+        let [a, b] = straight_line(&points).expect("a line");
+        let slope = (b[1] - a[1]) / (b[0] - a[0]);
+        assert!((slope - 2.0).abs() < 1e-9, "slope {slope}");
+        // The ends are the extreme points' projections: u = 3 and u = 40 on the line.
+        let (lo, hi) = if a[0] < b[0] { (a, b) } else { (b, a) };
+        assert!(
+            (lo[0] - 3.0).abs() < 1e-9 && (lo[1] - 16.0).abs() < 1e-9,
+            "{lo:?}"
+        );
+        assert!(
+            (hi[0] - 40.0).abs() < 1e-9 && (hi[1] - 90.0).abs() < 1e-9,
+            "{hi:?}"
+        );
+    }
+
+    #[test]
+    fn straight_line_needs_two_distinct_points() {
+        assert!(straight_line(&[]).is_none());
+        assert!(straight_line(&[[1.0, 2.0]]).is_none());
+        assert!(straight_line(&[[1.0, 2.0], [1.0, 2.0]]).is_none());
+    }
 }

@@ -47,6 +47,12 @@ pub struct Summary {
     pub tre_mm_final_uncut: f64,
     /// The same for the rest model left in place: the baseline any registration must beat.
     pub tre_mm_final_rest: f64,
+    /// Dice of the last frame with the mesh cut along the true cut instead of the detected one
+    /// (`--true-cut`; a scene with a cut): what a perfect detector would reach.
+    pub dice_final_true_cut: Option<f64>,
+    /// Target registration error of the last frame with the mesh cut along the true cut,
+    /// millimetres (`--true-cut`).
+    pub tre_mm_final_true_cut: Option<f64>,
     /// Cut events (a new topology put in service).
     pub cut_events: usize,
     /// Frame of the first cut event.
@@ -225,6 +231,8 @@ impl Summary {
             tre_mm_final: trace.tre_final * 1e3,
             tre_mm_final_uncut: uncut.tre_final * 1e3,
             tre_mm_final_rest: trace.tre_rest_final * 1e3,
+            dice_final_true_cut: None,
+            tre_mm_final_true_cut: None,
             cut_events: trace.cuts.frames.len(),
             cut_first_frame: trace.cuts.frames.first().copied(),
             nodes_initial: scene.rest.len(),
