@@ -20,14 +20,16 @@
 //! - [`mesh`]: the tetrahedral mesh, its fixed nodes and its boundary surface.
 //! - [`camera`]: the pinhole camera, projection, Jacobian and rays.
 //! - [`features`]: virtual features embedded in the surface, and the frame's observations.
-//! - [`solve`]: assembly, the `Refactor` and `Frozen` strategies, the line search.
+//! - [`solve`]: the per-frame minimisation: assembly, the Newton loop with the `Refactor`,
+//!   `Frozen` and `FactorOnce` strategies, PCG and the line search.
 //! - [`detect`]: cut detection from motion discontinuities (the detector needs the `cut`
 //!   feature; its configuration is always there).
 //! - `cutline` (`cut` feature): the cut polyline, its fronts, and the separation surface.
 //! - `cut` (`cut` feature): cutting the volume mesh along the separation surface (snap, split,
 //!   separate, re-embed), on a spare copy of the model's storage swapped in on success.
-//! - [`material`]: Saint Venant–Kirchhoff elasticity on linear tetrahedra: Lamé parameters,
-//!   rest geometry, element energy, forces and the (optionally PSD-projected) 12 × 12 tangent.
+//! - [`material`]: Saint Venant–Kirchhoff elasticity on linear tetrahedra, in layers: the law
+//!   (Lamé parameters, strain, stress), the element's rest geometry, and the element energy,
+//!   forces and (optionally PSD-projected) 12 × 12 tangent with its 3 × 3 eigen-solve.
 //! - [`sparse`]: symmetric sparse patterns, a minimum-degree ordering, the symbolic analysis and
 //!   the numeric LDLᵀ factorization with its solves.
 //! - [`storage`]: carving caller-owned slices into the pieces a structure needs.
