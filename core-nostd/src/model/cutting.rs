@@ -1,0 +1,308 @@
+//! The cut stages of [`Model::step`] (`cut` feature): detecting the cut, growing its line and
+//! cutting the mesh along it, and what a caller reads of them. One module behind one `cfg`, so
+//! that a build without the `cut` feature leaves all of it out.
+
+use super::*;
+
+impl<'a, T: Real> Model<'a, T> {
+    /// The worst-case work of the cut detection and the cut line in one [`Model::step`]: a
+    /// formula of the capacities ([`DetectionWork::bound`], [`LineWork::bound`]), whether the
+    /// frame starts the line (its robust fit) or grows it.
+    pub fn worst_case_detection_work(&self) -> (DetectionWork, LineWork) {
+        let features = self.features.capacity() as u64;
+        let pairs = self.cut.detector.pair_capacity() as u64;
+        (
+            DetectionWork::bound(features, pairs),
+            LineWork::bound(self.cut.line.capacity() as u64, pairs, features),
+        )
+    }
+
+    /// The worst-case work of one cut event ([`Model::apply_cut`]): a formula of the
+    /// capacities. The geometry of each of the (at most two) parts of the line applied
+    /// ([`CutWork::bound`]), and the rebuild: one assembly with every tetrahedron's tangent and
+    /// every feature's spring, and one factorization whose multiply-adds are bounded by the
+    /// factor entries `L` and the unknowns `n` as `Σ c (c − 1) / 2 + 2 c ≤ L (n + 3) / 2` over
+    /// the column counts `c` (`Σ c = L`, `c < n`). The ordering and the symbolic analysis, run
+    /// once per event, are bounded by the same sizes and are not counted separately.
+    pub fn worst_case_cut_work(&self) -> (CutWork, WorkCount) {
+        let cap = self.live.mesh.capacity();
+        let features = self.features.capacity() as u64;
+        let segments = self.cut.pixels.len().saturating_sub(1) as u64;
+        let part = CutWork::bound(
+            cap.nodes as u64,
+            cap.tets as u64,
+            cap.surface_triangles as u64,
+            segments,
+            features,
+            self.live.targets.capacity() as u64,
+        );
+        let geometry = CutWork {
+            node_tests: 2 * part.node_tests,
+            element_tests: 2 * part.element_tests,
+            faces_sorted: 2 * part.faces_sorted,
+            star_entries: 2 * part.star_entries,
+            embed_tests: 2 * part.embed_tests,
+        };
+        let sym = self.live.symbolic.capacity();
+        let rebuild = WorkCount {
+            assemblies: 1,
+            element_tangents: cap.tets as u64,
+            feature_evaluations: features,
+            factorizations: 1,
+            factor_flops: sym.nnz_l as u64 * (sym.n as u64 + 3) / 2,
+            ..WorkCount::default()
+        };
+        (geometry, rebuild)
+    }
+
+    /// Stage 3: the residuals of the frame and the detector.
+    pub(super) fn detect(&mut self) -> DetectionReport<T> {
+        let n = self.features.len();
+        for slot in 0..n {
+            let t = self.features.targets()[slot];
+            self.cut.residuals[slot] = match self.projected_feature(slot) {
+                Ok(uv) => [t[0] - uv[0], t[1] - uv[1]],
+                Err(_) => {
+                    // A feature whose virtual point cannot be projected is unobserved in this
+                    // frame: its residual has no meaning and the detector must not read it.
+                    self.features.set_unobserved(slot);
+                    [T::zero(); 2]
+                }
+            };
+        }
+        self.cut.detector.update(
+            self.frame,
+            &self.cut.residuals[..n],
+            self.features.active(),
+            self.features.targets(),
+            &self.config.detection,
+        )
+    }
+
+    /// Stage 4: the cut line starts or advances. Where the mesh is already cut, the model
+    /// follows the opening and leaves no separation points there: the line's vertices then stay
+    /// anchored to the tracked features on both lips.
+    pub(super) fn grow_cut_line(&mut self) -> CutLineReport {
+        self.cut.line.update(
+            self.frame,
+            self.cut.detector.points(),
+            self.cut.detector.point_since(),
+            self.features.targets(),
+            self.features.active(),
+            &self.config.detection,
+            self.cut.detector.spacing(),
+            self.cut.pixels,
+        )
+    }
+
+    /// Stage 5: cuts the mesh along the separation surface of the cut line as it is seen now
+    /// (the line extruded along the camera rays, or the configured depth direction), where the
+    /// mesh is not cut yet. Nothing happens before the line has started or when the surface
+    /// crosses nothing new.
+    ///
+    /// The cut is built into the spare half of the storage — mesh, positions, embeddings,
+    /// stiffness pattern, ordering, symbolic analysis — then the Hessian at the current state
+    /// is factored with it, and only then is it put in service. Its work is reported in
+    /// [`CutReport::work`], apart from the steady frame.
+    ///
+    /// # Errors
+    /// [`Error::Capacity`] when the cut needs more nodes, tetrahedra, boundary triangles or
+    /// factor entries than the capacities hold; [`Error::NonManifold`] for a cut that would
+    /// leave a non-manifold surface; the factorization's errors. On any error the model is
+    /// exactly as before the call.
+    pub fn apply_cut(&mut self) -> Result<CutReport, Error> {
+        let m = self
+            .cut
+            .line
+            .project(self.features.targets(), self.cut.pixels);
+        let parts = self.cut.line.pending();
+        if m < 2 || parts.iter().all(Option::is_none) {
+            return Ok(CutReport::default());
+        }
+        let spacing = self.cut.detector.spacing();
+        let report = self.cut_pixels(parts, m, spacing)?;
+        // Applied, or crossing nothing new: that part of the line is done with.
+        self.cut.line.mark_applied();
+        Ok(report)
+    }
+
+    /// Cuts the mesh along a polyline given in the image (pixels, at least two vertices, at
+    /// most [`Capacities::cut_vertices`] or [`Capacities::features`], whichever is larger),
+    /// extruded along the camera rays (or the configured depth direction), as
+    /// [`Model::apply_cut`] does with the detected line: for a cut known from elsewhere (a
+    /// tracked instrument, a plan). Each end is extended by `extension_px` where that reaches
+    /// the model's silhouette, else by half of it.
+    ///
+    /// # Errors
+    /// [`Error::Capacity`] naming [`Resource::CutVertices`] for a polyline longer than the
+    /// storage; [`Error::NonFiniteInput`] for a non-finite vertex; otherwise as
+    /// [`Model::apply_cut`], and the model is then exactly as before the call.
+    pub fn cut_along(&mut self, polyline: &[[T; 2]], extension_px: T) -> Result<CutReport, Error> {
+        let m = polyline.len();
+        if m > self.cut.pixels.len() {
+            return Err(Error::Capacity {
+                resource: Resource::CutVertices,
+                needed: m,
+                available: self.cut.pixels.len(),
+            });
+        }
+        if let Some(position) = polyline
+            .iter()
+            .position(|p| !(p[0].finite() && p[1].finite()))
+        {
+            return Err(Error::NonFiniteInput {
+                resource: Resource::CutVertices,
+                position,
+            });
+        }
+        if m < 2 {
+            return Ok(CutReport::default());
+        }
+        self.cut.pixels[..m].copy_from_slice(polyline);
+        let whole = crate::cutline::PendingPart {
+            first: 0,
+            last: m - 1,
+            open: [true, true],
+        };
+        self.cut_pixels([Some(whole), None], m, extension_px)
+    }
+
+    /// Cuts along the parts of the polyline held in `cut.pixels[..m]`; the model changes only
+    /// if everything succeeds.
+    fn cut_pixels(
+        &mut self,
+        parts: [Option<crate::cutline::PendingPart>; 2],
+        m: usize,
+        spacing: T,
+    ) -> Result<CutReport, Error> {
+        self.spare.copy_state_from(&self.live);
+        let spare = &mut self.spare;
+        let mut event = CutEvent::default();
+        for part in parts.into_iter().flatten() {
+            let e = cut::apply(
+                &cut::Surface {
+                    polyline: &self.cut.pixels[part.first..=part.last.min(m - 1)],
+                    camera: &self.config.camera,
+                    depth: self.config.detection.depth,
+                    extension_px: spacing,
+                    extend: part.open,
+                },
+                self.features.targets(),
+                cut::Pieces {
+                    mesh: &mut spare.mesh,
+                    x: &mut spare.x[..],
+                    previous: &mut spare.previous[..],
+                    features: &mut spare.features,
+                    targets: &mut spare.targets,
+                    lips: &mut spare.lips,
+                },
+                self.cut.scratch,
+                self.work,
+            )?;
+            event.merge(&e);
+        }
+        let mut report = CutReport {
+            applied: false,
+            refused: None,
+            event,
+            work: WorkCount::default(),
+        };
+        if !event.changes_mesh() {
+            return Ok(report);
+        }
+        spare.compute_node_weights(&self.lame, &self.config.solver);
+        spare.rebuild_system(self.work)?;
+        let mut work = WorkCount::default();
+        assemble_on(
+            spare,
+            &self.features,
+            &self.lame,
+            &self.config,
+            &mut self.vectors.gradient[..],
+            Some(&mut self.hessian[..]),
+            &mut work,
+        )?;
+        factorize_on(
+            spare,
+            self.hessian,
+            &mut self.factor,
+            &mut self.vectors,
+            &mut work,
+        )?;
+        // Everything succeeded: the new topology goes into service with its factor.
+        core::mem::swap(&mut self.live, &mut self.spare);
+        self.holds = match self.config.solver.strategy {
+            Strategy::Frozen { .. } => FactorHolds::Frozen,
+            Strategy::Refactor | Strategy::FactorOnce { .. } => FactorHolds::Step,
+        };
+        report.applied = true;
+        report.work = work;
+        Ok(report)
+    }
+
+    /// The detected cut line in the image, as its anchoring features are seen now: writes its
+    /// vertices (pixels) to the front of `out`, returns how many (0 before a cut is detected).
+    /// [`Capacities::cut_vertices`] entries always suffice.
+    ///
+    /// # Errors
+    /// [`Error::Capacity`] naming [`Resource::CutVertices`] when `out` is shorter than the line
+    /// (nothing is written then: no silent truncation).
+    pub fn cut_polyline(&self, out: &mut [[T; 2]]) -> Result<usize, Error> {
+        ensure_len(out, self.cut.line.len(), Resource::CutVertices)?;
+        Ok(self.cut.line.project(self.features.targets(), out))
+    }
+
+    /// The separation surface of the detected cut: one quadrilateral (metres) per segment of
+    /// the cut line, extruded along the depth direction by the size of the model. Writes them
+    /// to the front of `out`, returns how many; [`Capacities::cut_vertices`] entries always
+    /// suffice.
+    ///
+    /// # Errors
+    /// [`Error::Capacity`] naming [`Resource::CutSegments`] when `out` is shorter than the
+    /// line has segments (nothing is written then).
+    pub fn separation_surface(&self, out: &mut [[[T; 3]; 4]]) -> Result<usize, Error> {
+        ensure_len(
+            out,
+            self.cut.line.len().saturating_sub(1),
+            Resource::CutSegments,
+        )?;
+        let x = self.positions();
+        // Long enough to pass through the whole model: its bounding-box diagonal.
+        let (mut lo, mut hi) = ([T::zero(); 3], [T::zero(); 3]);
+        for (k, p) in x.iter().enumerate() {
+            for c in 0..3 {
+                lo[c] = if k == 0 { p[c] } else { lo[c].min(p[c]) };
+                hi[c] = if k == 0 { p[c] } else { hi[c].max(p[c]) };
+            }
+        }
+        let diagonal = ((hi[0] - lo[0]) * (hi[0] - lo[0])
+            + (hi[1] - lo[1]) * (hi[1] - lo[1])
+            + (hi[2] - lo[2]) * (hi[2] - lo[2]))
+            .sqrt();
+        Ok(self.cut.line.separation_surface(
+            self.features.targets(),
+            &self.live.mesh,
+            x,
+            &self.config.camera,
+            &self.config.detection,
+            diagonal,
+            out,
+        ))
+    }
+
+    /// The cut detector (pairs, separation points).
+    pub fn detector(&self) -> &Detector<'a, T> {
+        &self.cut.detector
+    }
+
+    /// The cut line.
+    pub fn cut_line(&self) -> &CutLine<'a, T> {
+        &self.cut.line
+    }
+
+    /// The node pairs the cuts have separated (a node on the cut and its copy on the other
+    /// lip).
+    pub fn lips(&self) -> &[[u32; 2]] {
+        self.live.lips.pairs()
+    }
+}
