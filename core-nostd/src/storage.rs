@@ -100,6 +100,18 @@ pub fn ensure_len<X>(slice: &[X], needed: usize, resource: Resource) -> Result<(
     }
 }
 
+/// The first `len` entries of `slice`.
+///
+/// # Errors
+/// [`Error::Capacity`] naming `resource` if `slice` is shorter (as [`ensure_len`]).
+pub(crate) fn prefix<X>(slice: &[X], len: usize, resource: Resource) -> Result<&[X], Error> {
+    slice.get(..len).ok_or(Error::Capacity {
+        resource,
+        needed: len,
+        available: slice.len(),
+    })
+}
+
 /// Checks that `slice` has exactly `expected` entries.
 ///
 /// # Errors
