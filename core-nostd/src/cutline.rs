@@ -12,6 +12,8 @@
 //! on demand: each vertex is carried onto the model surface along its camera ray and the line is
 //! extruded along the camera direction, or a configured depth vector, through the model.
 
+#![cfg_attr(not(test), deny(clippy::indexing_slicing))]
+
 use nalgebra::Vector3;
 
 use crate::camera::Camera;
@@ -206,8 +208,8 @@ impl<'a, T: Real> CutLine<'a, T> {
 
     /// Hashes every buffer of the line's state.
     pub(crate) fn fingerprint_into(&self, h: &mut crate::storage::Fingerprint) {
-        h.words(self.anchors[..self.n].iter().flatten());
-        h.reals(self.weights[..self.n].iter().flatten());
+        h.words(self.anchors.iter().take(self.n).flatten());
+        h.reals(self.weights.iter().take(self.n).flatten());
         h.reals(self.direction.iter().flatten());
         let applied = self.applied.map_or([u32::MAX; 2], |r| r.map(|v| v as u32));
         let detected = self.detected_frame.unwrap_or(u32::MAX);
@@ -288,7 +290,7 @@ impl<'a, T: Real> CutLine<'a, T> {
             return None;
         }
         let mut p = [T::zero(); 2];
-        for (slot, w) in self.anchors[k].iter().zip(self.weights[k]) {
+        for (slot, w) in self.anchors.get(k)?.iter().zip(*self.weights.get(k)?) {
             let f = features.get(*slot as usize)?;
             p[0] += f[0] * w;
             p[1] += f[1] * w;
@@ -300,11 +302,11 @@ impl<'a, T: Real> CutLine<'a, T> {
     pub fn project(&self, features: &[[T; 2]], out: &mut [[T; 2]]) -> usize {
         let mut m = 0;
         for k in 0..self.n {
-            if m == out.len() {
+            let Some(slot) = out.get_mut(m) else {
                 break;
-            }
+            };
             if let Some(p) = self.vertex(k, features) {
-                out[m] = p;
+                *slot = p;
                 m += 1;
             }
         }
@@ -335,7 +337,7 @@ impl<'a, T: Real> CutLine<'a, T> {
         let n = mesh.n_nodes();
         let (mut near, mut far) = (T::zero(), T::zero());
         let mut centroid = Vector3::zeros();
-        for (k, p) in x[..n].iter().enumerate() {
+        for (k, p) in x.iter().take(n).enumerate() {
             let q = Vector3::new(p[0], p[1], p[2]);
             centroid += q;
             let z = (q - centre).dot(&view);
@@ -350,7 +352,8 @@ impl<'a, T: Real> CutLine<'a, T> {
         };
         let on_model = |uv: [T; 2]| -> Vector3<T> {
             if let Some((tet, w)) = first_hit(mesh, x, camera, uv)
-                && let Some(p) = crate::embed::interpolate(x, &mesh.tets()[tet as usize], &w)
+                && let Some(tet) = mesh.tets().get(tet as usize)
+                && let Some(p) = crate::embed::interpolate(x, tet, &w)
             {
                 return Vector3::new(p[0], p[1], p[2]);
             }
@@ -358,9 +361,9 @@ impl<'a, T: Real> CutLine<'a, T> {
         };
         let mut m = 0;
         for k in 1..self.n {
-            if m == out.len() {
+            let Some(slot) = out.get_mut(m) else {
                 break;
-            }
+            };
             let (Some(a), Some(b)) = (self.vertex(k - 1, features), self.vertex(k, features))
             else {
                 continue;
@@ -379,7 +382,7 @@ impl<'a, T: Real> CutLine<'a, T> {
                     [pa, pb, pb + e, pa + e]
                 }
             };
-            out[m] = quad.map(|p| [p.x, p.y, p.z]);
+            *slot = quad.map(|p| [p.x, p.y, p.z]);
             m += 1;
         }
         m
@@ -414,17 +417,28 @@ impl<'a, T: Real> CutLine<'a, T> {
                 added = self.start(frame, points, features, usable, &rules, &mut work);
             }
         } else {
+            // `project` writes at most `scratch.len()` vertices.
             let m = self.project(features, scratch);
             if m == self.n {
-                self.follow_points(points, features, usable, &rules, &scratch[..m], &mut work);
+                let projected = scratch.get(..m).unwrap_or_default();
+                self.follow_points(points, features, usable, &rules, projected, &mut work);
                 let m = self.project(features, scratch);
+                let projected = scratch.get(..m).unwrap_or_default();
                 for end in 0..2 {
-                    let v = if end == 0 { scratch[0] } else { scratch[m - 1] };
-                    let fresh = |k: usize| since.get(k).is_some_and(|&f| f >= self.moved[end]);
+                    let tip = if end == 0 {
+                        projected.first()
+                    } else {
+                        projected.last()
+                    };
+                    // `end` < 2, the length of `moved` and `direction`.
+                    let (Some(&v), Some(&moved), Some(&heading)) =
+                        (tip, self.moved.get(end), self.direction.get(end))
+                    else {
+                        continue;
+                    };
+                    let fresh = |k: usize| since.get(k).is_some_and(|&f| f >= moved);
                     work.point_visits += points.len() as u64;
-                    if let Some((p, dir)) =
-                        Self::advance(v, self.direction[end], points, fresh, &rules)
-                    {
+                    if let Some((p, dir)) = Self::advance(v, heading, points, fresh, &rules) {
                         if self.n == self.anchors.len() {
                             self.capped = true;
                             continue;
@@ -432,8 +446,12 @@ impl<'a, T: Real> CutLine<'a, T> {
                         work.anchor_visits += ANCHOR_COST * (features.len() as u64 + 20);
                         if let Some((anchor, w)) = anchor_across(p, dir, features, usable) {
                             self.insert(end, anchor, w);
-                            self.direction[end] = dir;
-                            self.moved[end] = frame;
+                            if let (Some(d), Some(m)) =
+                                (self.direction.get_mut(end), self.moved.get_mut(end))
+                            {
+                                *d = dir;
+                                *m = frame;
+                            }
                             added += 1;
                         }
                     }
@@ -462,31 +480,32 @@ impl<'a, T: Real> CutLine<'a, T> {
         // Of the lines through two separation points, the one with most points within the
         // tolerance: spurious clusters (a tracking failure, a region where the model is poor)
         // then do not tilt the line.
-        let pts = &points[..points.len().min(FIT_POINTS)];
+        let pts = points.get(..FIT_POINTS).unwrap_or(points);
         let tol = rules.tolerance;
         let f = pts.len() as u64;
         work.fit_tests += f * f.saturating_sub(1) / 2 * f + 3 * f;
-        let mut best = (0usize, 0usize, 0usize);
-        for i in 0..pts.len() {
-            for j in i + 1..pts.len() {
-                let d = sub(pts[j], pts[i]);
+        // The inlier count and the two points of the best line.
+        let mut best = (0usize, [T::zero(); 2], [T::zero(); 2]);
+        for (i, &p_i) in pts.iter().enumerate() {
+            for &p_j in pts.iter().skip(i + 1) {
+                let d = sub(p_j, p_i);
                 let len = length(d);
                 if !(len > T::EPS) {
                     continue;
                 }
                 let inliers = pts
                     .iter()
-                    .filter(|p| (cross(d, sub(**p, pts[i])) / len).abs() <= tol)
+                    .filter(|p| (cross(d, sub(**p, p_i)) / len).abs() <= tol)
                     .count();
                 if inliers > best.0 {
-                    best = (inliers, i, j);
+                    best = (inliers, p_i, p_j);
                 }
             }
         }
         if best.0 < rules.init_points {
             return 0;
         }
-        let (pi, d) = (pts[best.1], sub(pts[best.2], pts[best.1]));
+        let (pi, d) = (best.1, sub(best.2, best.1));
         let dl = length(d);
         let inlier = |p: &&[T; 2]| (cross(d, sub(**p, pi)) / dl).abs() <= tol;
         // Then total least squares on the inliers: the principal direction of their scatter.
@@ -526,10 +545,14 @@ impl<'a, T: Real> CutLine<'a, T> {
             anchor_across(b, e, features, usable),
         ) {
             (Some((aa, wa)), Some((ab, wb))) if hi > lo => {
-                self.anchors[0] = aa;
-                self.weights[0] = wa;
-                self.anchors[1] = ab;
-                self.weights[1] = wb;
+                // [`CutLine::update`] starts the line only with room for two vertices.
+                let ([a0, a1, ..], [w0, w1, ..]) = (&mut *self.anchors, &mut *self.weights) else {
+                    return 0;
+                };
+                *a0 = aa;
+                *w0 = wa;
+                *a1 = ab;
+                *w1 = wb;
                 self.n = 2;
                 self.direction = [[-e[0], -e[1]], e];
                 self.moved = [frame; 2];
@@ -560,18 +583,19 @@ impl<'a, T: Real> CutLine<'a, T> {
         if m < 2 {
             return;
         }
-        for k in 0..m {
-            let (a, b) = (
-                projected[k.saturating_sub(1)],
-                projected[(k + 1).min(m - 1)],
-            );
+        for (k, &v) in projected.iter().enumerate() {
+            let (Some(&a), Some(&b)) = (
+                projected.get(k.saturating_sub(1)),
+                projected.get((k + 1).min(m - 1)),
+            ) else {
+                continue;
+            };
             let t = sub(b, a);
             let len = length(t);
             if !(len > T::EPS) {
                 continue;
             }
             let normal = [-t[1] / len, t[0] / len];
-            let v = projected[k];
             let across = |p: &[T; 2], reach: T| -> Option<T> {
                 let w = sub(*p, v);
                 (length(w) <= reach).then(|| w[0] * normal[0] + w[1] * normal[1])
@@ -588,9 +612,12 @@ impl<'a, T: Real> CutLine<'a, T> {
             let shift = offset / T::of(f64::from(count));
             let target = [v[0] + normal[0] * shift, v[1] + normal[1] * shift];
             work.anchor_visits += ANCHOR_COST * (features.len() as u64 + 20);
-            if let Some((anchor, w)) = anchor_across(target, t, features, usable) {
-                self.anchors[k] = anchor;
-                self.weights[k] = w;
+            // `projected` holds one pixel per vertex (`k < n`).
+            if let Some((anchor, w)) = anchor_across(target, t, features, usable)
+                && let (Some(sa), Some(sw)) = (self.anchors.get_mut(k), self.weights.get_mut(k))
+            {
+                *sa = anchor;
+                *sw = w;
             }
         }
     }
@@ -638,20 +665,29 @@ impl<'a, T: Real> CutLine<'a, T> {
         Some(([v[0] + dir[0] * step, v[1] + dir[1] * step], dir))
     }
 
+    /// Adds a vertex at the start (`end == 0`) or the end of the line. The caller checks that
+    /// there is room (`n` below the capacity); without room nothing changes.
     fn insert(&mut self, end: usize, anchor: [u32; ANCHORS], w: [T; ANCHORS]) {
-        if end == 0 {
+        let n = self.n;
+        let (Some(anchors), Some(weights)) =
+            (self.anchors.get_mut(..=n), self.weights.get_mut(..=n))
+        else {
+            return;
+        };
+        let slots = if end == 0 {
             if let Some(r) = self.applied.as_mut() {
                 *r = [r[0] + 1, r[1] + 1];
             }
-            for k in (0..self.n).rev() {
-                self.anchors[k + 1] = self.anchors[k];
-                self.weights[k + 1] = self.weights[k];
-            }
-            self.anchors[0] = anchor;
-            self.weights[0] = w;
+            // Vertices `0..n` move to `1..=n`.
+            anchors.rotate_right(1);
+            weights.rotate_right(1);
+            (anchors.first_mut(), weights.first_mut())
         } else {
-            self.anchors[self.n] = anchor;
-            self.weights[self.n] = w;
+            (anchors.last_mut(), weights.last_mut())
+        };
+        if let (Some(sa), Some(sw)) = slots {
+            *sa = anchor;
+            *sw = w;
         }
         self.n += 1;
     }
@@ -742,21 +778,37 @@ fn anchor_where<T: Real>(
         }
         let d = length(sub(*f, p));
         if found < K || d < near[K - 1].0 {
+            // Into the last place in use (or the first free one), then down to its rank.
             let mut k = found.min(K - 1);
-            near[k] = (d, i as u32);
-            while k > 0 && near[k].0 < near[k - 1].0 {
-                near.swap(k, k - 1);
-                k -= 1;
+            if let Some(slot) = near.get_mut(k) {
+                *slot = (d, i as u32);
+            }
+            while k > 0 {
+                match (near.get(k - 1), near.get(k)) {
+                    (Some(lower), Some(this)) if this.0 < lower.0 => {
+                        near.swap(k, k - 1);
+                        k -= 1;
+                    }
+                    _ => break,
+                }
             }
             found = (found + 1).min(K);
         }
     }
+    let near = near.get(..found).unwrap_or_default();
     let mut best: Option<(T, [u32; 3], [T; 3])> = None;
-    for i in 0..found {
-        for j in i + 1..found {
-            for k in j + 1..found {
-                let idx = [near[i].1, near[j].1, near[k].1];
-                let [fa, fb, fc] = idx.map(|s| features[s as usize]);
+    for (i, &(_, si)) in near.iter().enumerate() {
+        for (j, &(_, sj)) in near.iter().enumerate().skip(i + 1) {
+            for &(_, sk) in near.iter().skip(j + 1) {
+                let idx = [si, sj, sk];
+                // The slots come from enumerating `features`.
+                let (Some(&fa), Some(&fb), Some(&fc)) = (
+                    features.get(si as usize),
+                    features.get(sj as usize),
+                    features.get(sk as usize),
+                ) else {
+                    continue;
+                };
                 let (ab, ac) = (sub(fb, fa), sub(fc, fa));
                 let det = cross(ab, ac);
                 let scale = (length(ab) + length(ac)) * (length(ab) + length(ac));

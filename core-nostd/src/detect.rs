@@ -16,6 +16,8 @@
 //!
 //! Cost per frame: bounded by [`DetectionWork::bound`] in the capacities.
 
+#![cfg_attr(not(test), deny(clippy::indexing_slicing))]
+
 use crate::error::Error;
 use crate::error::Parameter;
 use crate::real::Real;
@@ -304,6 +306,32 @@ mod detector {
         features_filtered: usize,
     }
 
+    /// Whether feature `f` is observed and not filtered out (`state` holds one word per slot).
+    fn usable(state: &[u32], f: u32) -> bool {
+        state
+            .get(f as usize)
+            .is_some_and(|&s| s & (OBSERVED | FILTERED) == OBSERVED)
+    }
+
+    /// Turns the per-cell counts `start[0..=cells]` (with `start[0] == 0`) into the end of
+    /// each cell: `start[c]` becomes the sum of the counts up to `c`.
+    fn accumulate(start: &mut [u32]) {
+        let mut total = 0;
+        for s in start.iter_mut() {
+            *s += total;
+            total = *s;
+        }
+    }
+
+    /// Shifts the ends `start[0..cells]` written by a counting sort back to starts: `start[c]`
+    /// becomes the old `start[c - 1]`, `start[0]` 0.
+    fn ends_to_starts(start: &mut [u32]) {
+        start.rotate_right(1);
+        if let Some(first) = start.first_mut() {
+            *first = 0;
+        }
+    }
+
     fn norm<T: Real>(a: [T; 2], b: [T; 2]) -> T {
         ((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1])).sqrt()
     }
@@ -366,9 +394,9 @@ mod detector {
 
         /// Hashes every buffer of the detector's state.
         pub(crate) fn fingerprint_into(&self, h: &mut crate::storage::Fingerprint) {
-            h.words(self.pairs[..self.n_pairs].iter().flatten());
-            h.words(&self.pair_state[..self.n_pairs]);
-            h.words(&self.split_since[..self.n_pairs]);
+            h.words(self.pairs.iter().take(self.n_pairs).flatten());
+            h.words(self.pair_state.iter().take(self.n_pairs));
+            h.words(self.split_since.iter().take(self.n_pairs));
             h.reals(self.previous.iter().flatten());
             h.reals(self.current.iter().flatten());
             h.words(self.feature_state.iter());
@@ -378,8 +406,8 @@ mod detector {
             h.reals(self.difference.iter());
             h.reals(self.length.iter());
             h.reals(self.slope.iter());
-            h.reals(self.points[..self.n_points].iter().flatten());
-            h.words(&self.point_since[..self.n_points]);
+            h.reals(self.points.iter().take(self.n_points).flatten());
+            h.words(self.point_since.iter().take(self.n_points));
             h.reals([self.radius, self.spacing].iter());
             h.words(
                 [
@@ -394,7 +422,7 @@ mod detector {
 
         /// The neighbour pairs (feature slots).
         pub fn pairs(&self) -> &[[u32; 2]] {
-            &self.pairs[..self.n_pairs]
+            self.pairs.get(..self.n_pairs).unwrap_or_default()
         }
 
         /// The most neighbour pairs the storage holds.
@@ -420,13 +448,13 @@ mod detector {
 
         /// The separation points of the last frame, pixels.
         pub fn points(&self) -> &[[T; 2]] {
-            &self.points[..self.n_points]
+            self.points.get(..self.n_points).unwrap_or_default()
         }
 
         /// For each separation point, the frame at which its pair became split (the paper's
         /// separation points "inserted" since then).
         pub fn point_since(&self) -> &[u32] {
-            &self.point_since[..self.n_points]
+            self.point_since.get(..self.n_points).unwrap_or_default()
         }
 
         /// Builds the neighbour pairs from the frame-0 projections `uv` of the virtual features
@@ -457,25 +485,32 @@ mod detector {
             apart: impl Fn(usize, usize, T) -> bool,
         ) -> Result<(), Error> {
             let n = uv.len();
-            if n > self.feature_state.len() || d.len() != n {
+            // Every per-feature buffer was carved for the same number of slots; checking them
+            // all here keeps the lookups below in range and the detector unchanged on error.
+            let slots = self
+                .feature_state
+                .len()
+                .min(self.previous.len())
+                .min(self.incident_start.len().saturating_sub(1));
+            if n > slots || d.len() != n {
                 return Err(Error::Capacity {
                     resource: Resource::Features,
                     needed: n,
-                    available: self.feature_state.len(),
+                    available: slots,
                 });
             }
-            if n == 0 {
+            let Some(&first) = uv.first() else {
                 self.n_pairs = 0;
                 self.n_points = 0;
                 self.pairs_lost = 0;
                 self.features_filtered = 0;
                 return Ok(());
-            }
-            let (mut lo, mut hi) = ([uv[0][0], uv[0][1]], [uv[0][0], uv[0][1]]);
+            };
+            let (mut lo, mut hi) = (first, first);
             for p in uv {
-                for c in 0..2 {
-                    lo[c] = lo[c].min(p[c]);
-                    hi[c] = hi[c].max(p[c]);
+                for ((l, h), &c) in lo.iter_mut().zip(hi.iter_mut()).zip(p) {
+                    *l = l.min(c);
+                    *h = h.max(c);
                 }
             }
             let (w, h) = (hi[0] - lo[0], hi[1] - lo[1]);
@@ -496,27 +531,39 @@ mod detector {
                 let cy = (libm::floor(((p[1] - lo[1]) / cell).to_f64()) as usize).min(ny - 1);
                 (cx, cy)
             };
-            // Counting sort of the features into cells.
-            let (start, items) = self.grid.split_at_mut(GRID_CELLS + 1);
+            // Counting sort of the features into cells. The grid was carved with
+            // `GRID_CELLS + 1` starts and a slot per feature; `nx · ny ≤ GRID_CELLS`, so no
+            // lookup below fails and nothing is skipped.
+            let grid_len = self.grid.len();
+            let (start, items) =
+                self.grid
+                    .split_at_mut_checked(GRID_CELLS + 1)
+                    .ok_or(Error::Capacity {
+                        resource: Resource::Workspace,
+                        needed: GRID_CELLS + 1,
+                        available: grid_len,
+                    })?;
             start.fill(0);
             for p in uv {
                 let (cx, cy) = cell_of(p);
-                start[cy * nx + cx + 1] += 1;
+                if let Some(c) = start.get_mut(cy * nx + cx + 1) {
+                    *c += 1;
+                }
             }
-            for c in 0..nx * ny {
-                start[c + 1] += start[c];
-            }
+            let start = start.get_mut(..=nx * ny).unwrap_or_default();
+            accumulate(start);
             for (i, p) in uv.iter().enumerate() {
                 let (cx, cy) = cell_of(p);
-                let slot = &mut start[cy * nx + cx];
-                items[*slot as usize] = i as u32;
-                *slot += 1;
+                if let Some(slot) = start.get_mut(cy * nx + cx) {
+                    if let Some(item) = items.get_mut(*slot as usize) {
+                        *item = i as u32;
+                    }
+                    *slot += 1;
+                }
             }
             // `start[c]` now ends cell c; shift back to starts.
-            for c in (1..=nx * ny).rev() {
-                start[c] = start[c - 1];
-            }
-            start[0] = 0;
+            ends_to_starts(start);
+            let (start, items) = (&*start, &*items);
             let r2 = r * r;
             // Every pair within the radius, in a fixed order: counted first, so that a capacity
             // error leaves the detector as it was, then stored.
@@ -526,11 +573,19 @@ mod detector {
                     for gy in cy.saturating_sub(1)..(cy + 2).min(ny) {
                         for gx in cx.saturating_sub(1)..(cx + 2).min(nx) {
                             let c = gy * nx + gx;
-                            for &j in &items[start[c] as usize..start[c + 1] as usize] {
+                            let cell = match (start.get(c), start.get(c + 1)) {
+                                (Some(&s), Some(&e)) => {
+                                    items.get(s as usize..e as usize).unwrap_or_default()
+                                }
+                                _ => &[],
+                            };
+                            for &j in cell {
                                 if (j as usize) <= i {
                                     continue;
                                 }
-                                let q = &uv[j as usize];
+                                let Some(q) = uv.get(j as usize) else {
+                                    continue;
+                                };
                                 let (dx, dy) = (q[0] - p[0], q[1] - p[1]);
                                 if dx * dx + dy * dy < r2
                                     && !apart(i, j as usize, (dx * dx + dy * dy).sqrt())
@@ -568,30 +623,38 @@ mod detector {
                     *n_pairs += 1;
                 }
             });
-            // Each feature's pairs, by counting sort.
-            let start = &mut self.incident_start[..=n];
+            // Each feature's pairs, by counting sort (`n` was checked against the buffers above,
+            // the pairs' slots are below `n`, and `incident` holds two per pair).
+            let start = self.incident_start.get_mut(..=n).unwrap_or_default();
             start.fill(0);
-            for &[i, j] in &self.pairs[..self.n_pairs] {
-                start[i as usize + 1] += 1;
-                start[j as usize + 1] += 1;
-            }
-            for f in 0..n {
-                start[f + 1] += start[f];
-            }
-            for (k, &[i, j]) in self.pairs[..self.n_pairs].iter().enumerate() {
+            let pairs = self.pairs.get(..self.n_pairs).unwrap_or_default();
+            for &[i, j] in pairs {
                 for f in [i, j] {
-                    let slot = &mut start[f as usize];
-                    self.incident[*slot as usize] = k as u32;
-                    *slot += 1;
+                    if let Some(c) = start.get_mut(f as usize + 1) {
+                        *c += 1;
+                    }
                 }
             }
-            for f in (1..=n).rev() {
-                start[f] = start[f - 1];
+            accumulate(start);
+            for (k, &[i, j]) in pairs.iter().enumerate() {
+                for f in [i, j] {
+                    if let Some(slot) = start.get_mut(f as usize) {
+                        if let Some(entry) = self.incident.get_mut(*slot as usize) {
+                            *entry = k as u32;
+                        }
+                        *slot += 1;
+                    }
+                }
             }
-            start[0] = 0;
-            for i in 0..n {
-                self.previous[i] = d[i];
-                self.feature_state[i] = HAS_PREVIOUS;
+            ends_to_starts(start);
+            for ((previous, state), &di) in self
+                .previous
+                .iter_mut()
+                .zip(self.feature_state.iter_mut())
+                .zip(d)
+            {
+                *previous = di;
+                *state = HAS_PREVIOUS;
             }
             Ok(())
         }
@@ -644,44 +707,58 @@ mod detector {
             config: &DetectionConfig<T>,
             work: &mut DetectionWork,
         ) -> bool {
+            // The first `n` slots of every buffer (`n` is at most each one's length, and the
+            // per-feature buffers all hold the same number of slots; `scratch` at least as
+            // many): the zips below stop at `n`.
             let eligible = OBSERVED | HAS_PREVIOUS;
             let mut count = 0usize;
-            for i in 0..n {
-                let s = &mut self.feature_state[i];
-                *s = (*s & !OBSERVED) | if observed[i] != 0 { OBSERVED } else { 0 };
-                self.current[i] = d[i];
-                if *s & (eligible | FILTERED) == eligible {
-                    self.scratch[count] = norm(d[i], self.previous[i]);
+            let slots = self
+                .feature_state
+                .iter_mut()
+                .zip(observed)
+                .zip(d.iter().zip(self.current.iter_mut()))
+                .zip(self.previous.iter());
+            for (((s, &o), (&di, current)), &previous) in slots.take(n) {
+                *s = (*s & !OBSERVED) | if o != 0 { OBSERVED } else { 0 };
+                *current = di;
+                if *s & (eligible | FILTERED) == eligible
+                    && let Some(slot) = self.scratch.get_mut(count)
+                {
+                    *slot = norm(di, previous);
                     count += 1;
                 }
             }
-            let (median, mad, comparisons) = median_mad(&mut self.scratch[..count]);
+            let (median, mad, comparisons) =
+                median_mad(self.scratch.get_mut(..count).unwrap_or_default());
             work.comparisons += comparisons;
             let limit = (median + config.temporal_sigmas * T::of(MAD_TO_SIGMA) * mad)
                 .max(config.min_difference_px);
             let mut newly_filtered = false;
-            for i in 0..n {
-                let s = self.feature_state[i];
-                if s & (eligible | FILTERED) == eligible && norm(d[i], self.previous[i]) > limit {
-                    self.feature_state[i] |= FILTERED;
+            let slots = self
+                .feature_state
+                .iter_mut()
+                .zip(d)
+                .zip(self.previous.iter());
+            for ((s, &di), &previous) in slots.take(n) {
+                if *s & (eligible | FILTERED) == eligible && norm(di, previous) > limit {
+                    *s |= FILTERED;
                     self.features_filtered += 1;
                     newly_filtered = true;
                 }
             }
-            for i in 0..n {
-                if self.feature_state[i] & OBSERVED != 0 {
-                    self.previous[i] = d[i];
-                    self.feature_state[i] |= HAS_PREVIOUS;
+            let slots = self
+                .feature_state
+                .iter_mut()
+                .zip(d)
+                .zip(self.previous.iter_mut());
+            for ((s, &di), previous) in slots.take(n) {
+                if *s & OBSERVED != 0 {
+                    *previous = di;
+                    *s |= HAS_PREVIOUS;
                 }
             }
             work.feature_visits += 3 * n as u64;
             newly_filtered
-        }
-
-        fn usable(&self, f: u32) -> bool {
-            self.feature_state
-                .get(f as usize)
-                .is_some_and(|&s| s & (OBSERVED | FILTERED) == OBSERVED)
         }
 
         /// Step 2, the differences: `μ_ij` of every pair whose features are both usable, their
@@ -696,54 +773,93 @@ mod detector {
             n: usize,
             work: &mut DetectionWork,
         ) -> (usize, T, T) {
+            // The pair buffers hold `n_pairs` entries, `scratch` at least as many; a measured
+            // pair's slots are below `n`, within `current` and `targets`. No lookup below
+            // fails.
             let mut active = 0usize;
-            for k in 0..self.n_pairs {
-                let [i, j] = self.pairs[k];
+            let feature_state = &*self.feature_state;
+            let pairs = self
+                .pairs
+                .iter()
+                .zip(self.pair_state.iter_mut())
+                .zip(self.difference.iter_mut().zip(self.length.iter_mut()));
+            for ((&[i, j], state), (difference, length)) in pairs.take(self.n_pairs) {
                 if newly_filtered
-                    && self.pair_state[k] & DROPPED == 0
+                    && *state & DROPPED == 0
                     && [i, j].iter().any(|&f| {
-                        self.feature_state
+                        feature_state
                             .get(f as usize)
                             .is_some_and(|s| s & FILTERED != 0)
                     })
                 {
-                    self.pair_state[k] |= DROPPED;
+                    *state |= DROPPED;
                     self.pairs_lost += 1;
                 }
-                self.difference[k] = if self.pair_state[k] & DROPPED == 0
-                    && self.usable(i)
-                    && self.usable(j)
+                let measured = if *state & DROPPED == 0
+                    && usable(feature_state, i)
+                    && usable(feature_state, j)
                     && (i as usize) < n
                     && (j as usize) < n
                 {
-                    let mu = norm(self.current[i as usize], self.current[j as usize]);
-                    self.length[k] = norm(targets[i as usize], targets[j as usize]);
-                    self.scratch[active] = mu;
-                    active += 1;
-                    mu
+                    let (i, j) = (i as usize, j as usize);
+                    match (
+                        self.current.get(i),
+                        self.current.get(j),
+                        targets.get(i),
+                        targets.get(j),
+                    ) {
+                        (Some(&ci), Some(&cj), Some(&ti), Some(&tj)) => Some((ci, cj, ti, tj)),
+                        _ => None,
+                    }
                 } else {
-                    T::of(UNMEASURED)
+                    None
+                };
+                *difference = match measured {
+                    Some((ci, cj, ti, tj)) => {
+                        let mu = norm(ci, cj);
+                        *length = norm(ti, tj);
+                        if let Some(slot) = self.scratch.get_mut(active) {
+                            *slot = mu;
+                            active += 1;
+                        }
+                        mu
+                    }
+                    None => T::of(UNMEASURED),
                 };
             }
-            let (median, mad, comparisons) = median_mad(&mut self.scratch[..active]);
+            let (median, mad, comparisons) =
+                median_mad(self.scratch.get_mut(..active).unwrap_or_default());
             work.comparisons += comparisons;
-            for f in 0..n {
+            // `incident_start` holds `n + 1` ascending starts into `incident`, whose entries
+            // are pair indices below `n_pairs`.
+            let starts = self
+                .incident_start
+                .iter()
+                .zip(self.incident_start.iter().skip(1));
+            for (slope, (&lo, &hi)) in self.slope.iter_mut().zip(starts).take(n) {
                 let mut m = 0;
-                let (lo, hi) = (
-                    self.incident_start[f] as usize,
-                    self.incident_start[f + 1] as usize,
-                );
-                for &k in &self.incident[lo..hi] {
-                    let mu = self.difference[k as usize];
-                    if mu >= T::zero() {
-                        self.scratch[m] = mu / self.length[k as usize].max(T::EPS);
+                let incident = self
+                    .incident
+                    .get(lo as usize..hi as usize)
+                    .unwrap_or_default();
+                for &k in incident {
+                    let (Some(&mu), Some(&length)) =
+                        (self.difference.get(k as usize), self.length.get(k as usize))
+                    else {
+                        continue;
+                    };
+                    if mu >= T::zero()
+                        && let Some(slot) = self.scratch.get_mut(m)
+                    {
+                        *slot = mu / length.max(T::EPS);
                         m += 1;
                     }
                 }
-                work.pair_visits += (hi - lo) as u64;
-                work.comparisons += sort(&mut self.scratch[..m]);
-                self.slope[f] = if m >= 3 {
-                    quantile_sorted(&self.scratch[..m], T::of(1.0 / 3.0))
+                work.pair_visits += incident.len() as u64;
+                let sorted = self.scratch.get_mut(..m).unwrap_or_default();
+                work.comparisons += sort(sorted);
+                *slope = if m >= 3 {
+                    quantile_sorted(sorted, T::of(1.0 / 3.0))
                 } else {
                     T::zero()
                 };
@@ -767,37 +883,51 @@ mod detector {
             config: &DetectionConfig<T>,
             work: &mut DetectionWork,
         ) -> usize {
-            for c in self.pair_counts[..n].iter_mut() {
+            for c in self.pair_counts.iter_mut().take(n) {
                 *c = [0, 0];
             }
             let margin = (config.outlier_sigmas * deviation).max(config.min_difference_px);
             let mut outliers = 0;
-            for k in 0..self.n_pairs {
-                let mu = self.difference[k];
+            // A measured pair (`μ ≥ 0`) has both slots below `n` ([`Detector::measure_pairs`]),
+            // so the lookups below do not fail.
+            let pairs = self
+                .pairs
+                .iter()
+                .zip(self.pair_state.iter_mut())
+                .zip(self.difference.iter().zip(self.length.iter()));
+            for ((&[i, j], state), (&mu, &len)) in pairs.take(self.n_pairs) {
                 if mu < T::zero() {
                     continue;
                 }
-                self.pair_state[k] &= !OUTLIER;
-                let [i, j] = self.pairs[k];
-                let (a, b) = (targets[i as usize], targets[j as usize]);
-                let len = self.length[k];
-                let smooth = self.slope[i as usize].min(self.slope[j as usize]) * len;
+                *state &= !OUTLIER;
+                let (i, j) = (i as usize, j as usize);
+                let (Some(&a), Some(&b), Some(&si), Some(&sj), Some(&di), Some(&dj)) = (
+                    targets.get(i),
+                    targets.get(j),
+                    self.slope.get(i),
+                    self.slope.get(j),
+                    self.current.get(i),
+                    self.current.get(j),
+                ) else {
+                    continue;
+                };
+                let smooth = si.min(sj) * len;
                 let mut out = mu > median.max(smooth) + margin;
                 if out && config.opening_only {
                     // An opening cut leaves the model behind on both lips: across it, the
                     // residuals diverge along the line joining the two features.
-                    let (di, dj) = (self.current[i as usize], self.current[j as usize]);
                     let (ux, uy) = (b[0] - a[0], b[1] - a[1]);
                     let opening = ((dj[0] - di[0]) * ux + (dj[1] - di[1]) * uy) / len.max(T::EPS);
                     out = opening >= T::of(0.5) * mu;
                 }
                 if out {
-                    self.pair_state[k] |= OUTLIER;
+                    *state |= OUTLIER;
                 }
                 for f in [i, j] {
-                    let c = &mut self.pair_counts[f as usize];
-                    c[0] += 1;
-                    c[1] += u32::from(out);
+                    if let Some(c) = self.pair_counts.get_mut(f) {
+                        c[0] += 1;
+                        c[1] += u32::from(out);
+                    }
                 }
                 outliers += usize::from(out);
             }
@@ -823,17 +953,22 @@ mod detector {
             };
             let mut split = 0;
             self.n_points = 0;
-            for k in 0..self.n_pairs {
+            let pair_counts = &*self.pair_counts;
+            let pairs = self
+                .pairs
+                .iter()
+                .zip(self.pair_state.iter_mut())
+                .zip(self.difference.iter().zip(self.split_since.iter_mut()));
+            for ((&[i, j], pair_state), (&difference, split_since)) in pairs.take(self.n_pairs) {
                 // Unmeasured pairs keep their streak (a dropped frame does not reset it).
-                if !(self.difference[k] >= T::zero()) {
+                if !(difference >= T::zero()) {
                     continue;
                 }
-                let out = self.pair_state[k] & OUTLIER != 0;
-                let [i, j] = self.pairs[k];
-                let state = self.pair_state[k];
+                let out = *pair_state & OUTLIER != 0;
+                let state = *pair_state;
                 // An outlier pair only counts between two features that agree with most of
                 // their other neighbours.
-                let counts = out && trusted(self.pair_counts, i) && trusted(self.pair_counts, j);
+                let counts = out && trusted(pair_counts, i) && trusted(pair_counts, j);
                 let streak = if counts {
                     ((state & STREAK) + 1).min(STREAK)
                 } else {
@@ -844,18 +979,22 @@ mod detector {
                     next |= SPLIT;
                     split += 1;
                     if streak == config.persistence {
-                        self.split_since[k] = frame;
+                        *split_since = frame;
                     }
-                    // The separation point: between the two tracked features, where the cut runs.
-                    if self.n_points < self.points.len() {
-                        let (a, b) = (targets[i as usize], targets[j as usize]);
-                        self.points[self.n_points] =
-                            [(a[0] + b[0]) * T::of(0.5), (a[1] + b[1]) * T::of(0.5)];
-                        self.point_since[self.n_points] = self.split_since[k];
+                    // The separation point: between the two tracked features, where the cut
+                    // runs (a measured pair's slots are within `targets`), while there is room.
+                    if let (Some(point), Some(since), Some(&a), Some(&b)) = (
+                        self.points.get_mut(self.n_points),
+                        self.point_since.get_mut(self.n_points),
+                        targets.get(i as usize),
+                        targets.get(j as usize),
+                    ) {
+                        *point = [(a[0] + b[0]) * T::of(0.5), (a[1] + b[1]) * T::of(0.5)];
+                        *since = *split_since;
                         self.n_points += 1;
                     }
                 }
-                self.pair_state[k] = next;
+                *pair_state = next;
             }
             work.pair_visits += self.n_pairs as u64;
             split

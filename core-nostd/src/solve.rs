@@ -28,6 +28,8 @@
 //! Every loop runs a number of times fixed by the configuration and the scene's sizes, so a
 //! frame's cost does not depend on the data.
 
+#![cfg_attr(not(test), deny(clippy::indexing_slicing))]
+
 mod newton;
 
 pub(crate) use newton::problem_of;
@@ -38,7 +40,7 @@ use nalgebra::{Matrix3, Vector3};
 
 use crate::camera::Camera;
 use crate::embed::Embedding;
-use crate::error::{Error, Parameter};
+use crate::error::{Error, Parameter, Resource};
 use crate::features::Features;
 use crate::material::{
     ElementRest, Lame, TangentProjection, element_energy, element_energy_gradient_tangent,
@@ -46,7 +48,8 @@ use crate::material::{
 };
 use crate::mesh::Mesh;
 use crate::real::Real;
-use crate::sparse::{NONE, UpperCsc};
+use crate::sparse::{NONE, UpperCsc, ux};
+use crate::storage::ensure_len;
 
 /// The default of [`SolverConfig::depth_prior`]: a tenth of the rest stiffness.
 pub const DEFAULT_DEPTH_PRIOR: f64 = 0.1;
@@ -255,24 +258,49 @@ pub(crate) const PAIRS: [(usize, usize); 10] = [
     (2, 3),
 ];
 
-fn node_of<T: Real>(x: &[[T; 3]], v: u32) -> Vector3<T> {
-    let p = x[v as usize];
+fn vec3<T: Real>(p: &[T; 3]) -> Vector3<T> {
     Vector3::new(p[0], p[1], p[2])
 }
 
+/// The compact (free) index of each node of `tet`, [`NONE`] for a fixed node. The mesh checks
+/// its tetrahedra's nodes against `free` when it is loaded or edited; a node out of range
+/// would count as fixed.
+fn free_of(free: &[u32], tet: &[u32; 4]) -> [u32; 4] {
+    tet.map(|v| free.get(ux(v)).copied().unwrap_or(NONE))
+}
+
+/// The column ends `col_ptr[3 f + 1 ..= 3 f + 3]` of free node `f`'s three columns (empty if
+/// out of range, which the pattern built for the mesh's free nodes never is).
+fn column_ends(col_ptr: &[u32], f: u32) -> &[u32] {
+    let first = 3 * ux(f) + 1;
+    col_ptr.get(first..first + 3).unwrap_or_default()
+}
+
 impl<T: Real> Problem<'_, '_, T> {
-    /// Displacements from rest of the nodes of tetrahedron `t`.
-    fn element_u(&self, t: usize, x: &[[T; 3]]) -> [[T; 3]; 4] {
+    /// Displacements from rest of the nodes `tet` of tetrahedron `t`.
+    ///
+    /// # Errors
+    /// [`Error::IndexOutOfRange`] for a node beyond `x` or the rest positions.
+    fn element_u(&self, t: usize, tet: &[u32; 4], x: &[[T; 3]]) -> Result<[[T; 3]; 4], Error> {
         let rest = self.mesh.rest();
-        self.mesh.tets()[t].map(|v| {
-            let (p, q) = (x[v as usize], rest[v as usize]);
-            [p[0] - q[0], p[1] - q[1], p[2] - q[2]]
-        })
+        let mut u = [[T::zero(); 3]; 4];
+        for (k, (ue, &v)) in u.iter_mut().zip(tet).enumerate() {
+            let (Some(p), Some(q)) = (x.get(ux(v)), rest.get(ux(v))) else {
+                return Err(Error::IndexOutOfRange {
+                    resource: Resource::Nodes,
+                    position: 4 * t + k,
+                    index: ux(v),
+                    bound: x.len().min(rest.len()),
+                });
+            };
+            *ue = [p[0] - q[0], p[1] - q[1], p[2] - q[2]];
+        }
+        Ok(u)
     }
 
     fn element_rest(&self, t: usize) -> Result<ElementRest<T>, Error> {
         self.mesh.element_rest(t).ok_or(Error::IndexOutOfRange {
-            resource: crate::error::Resource::Tetrahedra,
+            resource: Resource::Tetrahedra,
             position: t,
             index: t,
             bound: self.mesh.n_tets(),
@@ -287,10 +315,10 @@ impl<T: Real> Problem<'_, '_, T> {
     #[inline(never)]
     pub fn energy(&self, x: &[[T; 3]], work: &mut WorkCount) -> Result<Energies<T>, Error> {
         let mut e = Energies::default();
-        for t in 0..self.mesh.n_tets() {
+        for (t, tet) in self.mesh.tets().iter().enumerate() {
             let rest = self.element_rest(t)?;
             let g = rest.shape_gradients();
-            e.elastic += element_energy(&self.lame, &rest, &g, &self.element_u(t, x));
+            e.elastic += element_energy(&self.lame, &rest, &g, &self.element_u(t, tet, x)?);
         }
         work.element_evaluations += self.mesh.n_tets() as u64;
         e.spring = self.spring_energy(x, work)?;
@@ -303,8 +331,9 @@ impl<T: Real> Problem<'_, '_, T> {
     fn spring_energy(&self, x: &[[T; 3]], work: &mut WorkCount) -> Result<T, Error> {
         let half_k = T::of(0.5) * self.spring_stiffness;
         let mut sum = T::zero();
-        for slot in 0..self.features.len() {
-            if self.features.active()[slot] == 0 {
+        let observations = self.features.active().iter().zip(self.features.targets());
+        for (slot, (&active, target)) in observations.enumerate() {
+            if active == 0 {
                 continue;
             }
             let p = self
@@ -315,7 +344,6 @@ impl<T: Real> Problem<'_, '_, T> {
                 .camera
                 .project(&Vector3::from(p), slot)
                 .map_err(|_| self.features.behind_camera(slot))?;
-            let target = self.features.targets()[slot];
             let (du, dv) = (target[0] - uv.x, target[1] - uv.y);
             sum += half_k * (du * du + dv * dv);
             work.feature_evaluations += 1;
@@ -323,9 +351,9 @@ impl<T: Real> Problem<'_, '_, T> {
         Ok(sum)
     }
 
-    /// Unit direction of the camera ray through node `v`'s rest position.
-    fn ray_at_rest(&self, v: usize) -> Vector3<T> {
-        let r = node_of(self.mesh.rest(), v as u32) - self.camera.centre();
+    /// Unit direction of the camera ray through a node's rest position `q`.
+    fn ray_at_rest(&self, q: &[T; 3]) -> Vector3<T> {
+        let r = vec3(q) - self.camera.centre();
         let n = r.norm();
         if n > T::zero() { r / n } else { r }
     }
@@ -333,16 +361,13 @@ impl<T: Real> Problem<'_, '_, T> {
     fn depth_energy(&self, x: &[[T; 3]]) -> T {
         let rest = self.mesh.rest();
         let mut sum = T::zero();
-        for (v, &c) in self
-            .depth_weight
-            .iter()
-            .enumerate()
-            .take(self.mesh.n_nodes())
-        {
+        // `x` and the weights hold at least the `n_nodes()` nodes of `rest()`.
+        let nodes = self.depth_weight.iter().zip(x).zip(rest);
+        for ((&c, p), q) in nodes.take(self.mesh.n_nodes()) {
             if c == T::zero() {
                 continue;
             }
-            let s = (node_of(x, v as u32) - node_of(rest, v as u32)).dot(&self.ray_at_rest(v));
+            let s = (vec3(p) - vec3(q)).dot(&self.ray_at_rest(q));
             sum += T::of(0.5) * c * s * s;
         }
         sum
@@ -350,8 +375,10 @@ impl<T: Real> Problem<'_, '_, T> {
 
     fn damping_energy(&self, x: &[[T; 3]]) -> T {
         let mut sum = T::zero();
-        for (v, &c) in self.damping.iter().enumerate().take(self.mesh.n_nodes()) {
-            let d = node_of(x, v as u32) - node_of(self.anchor, v as u32);
+        // `x`, the weights and the anchor hold at least the `n_nodes()` nodes.
+        let nodes = self.damping.iter().zip(x).zip(self.anchor);
+        for ((&c, p), q) in nodes.take(self.mesh.n_nodes()) {
+            let d = vec3(p) - vec3(q);
             sum += T::of(0.5) * c * d.norm_squared();
         }
         sum
@@ -379,11 +406,11 @@ impl<T: Real> Problem<'_, '_, T> {
         }
         let mut e = Energies::default();
         let mut force_sum = T::zero();
-        for t in 0..self.mesh.n_tets() {
+        for (t, tet) in self.mesh.tets().iter().enumerate() {
             let rest = self.element_rest(t)?;
             let g = rest.shape_gradients();
-            let xe = self.element_u(t, x);
-            let tet = self.mesh.tets()[t];
+            let xe = self.element_u(t, tet, x)?;
+            let ft = free_of(free, tet);
             let gradient = match hessian.as_deref_mut() {
                 Some(h) => {
                     let eval = element_energy_gradient_tangent(
@@ -394,17 +421,13 @@ impl<T: Real> Problem<'_, '_, T> {
                         TangentProjection::PositiveDefinite,
                     );
                     e.elastic += eval.energy;
-                    for (p, &(a, b)) in PAIRS.iter().enumerate() {
-                        add_block(
-                            h,
-                            &self.scatter[t],
-                            p,
-                            free,
-                            &tet,
-                            a,
-                            b,
-                            &eval.tangent[a][b],
-                        );
+                    let scatter = self.scatter.get(t).ok_or(Error::SymbolicMismatch)?;
+                    for (&(a, b), starts) in PAIRS.iter().zip(scatter.as_chunks::<3>().0) {
+                        // `a`, `b` < 4 (the pairs of a tetrahedron's nodes).
+                        let block = eval.tangent.get(a).and_then(|row| row.get(b));
+                        if let (Some(m), Some(&fa), Some(&fb)) = (block, ft.get(a), ft.get(b)) {
+                            add_block(h, starts, a == b, fa >= fb, m);
+                        }
                     }
                     eval.gradient
                 }
@@ -413,8 +436,8 @@ impl<T: Real> Problem<'_, '_, T> {
                     element_gradient(&self.lame, &rest, &g, &xe)
                 }
             };
-            for (a, ga) in gradient.iter().enumerate() {
-                add_gradient(grad, free, tet[a], ga);
+            for (ga, &f) in gradient.iter().zip(&ft) {
+                add_gradient(grad, f, ga);
                 force_sum += ga.abs().sum();
             }
         }
@@ -426,13 +449,21 @@ impl<T: Real> Problem<'_, '_, T> {
 
         // Springs, Gauss–Newton through the projection.
         let k = self.spring_stiffness;
-        for slot in 0..self.features.len() {
-            if self.features.active()[slot] == 0 {
+        let observations = self.features.active().iter().zip(self.features.targets());
+        for (slot, (&active, target)) in observations.enumerate() {
+            if active == 0 {
                 continue;
             }
-            let t = self.embedding.tets()[slot] as usize;
-            let w = self.embedding.weights()[slot];
-            let tet = self.mesh.tets()[t];
+            // As in [`Embedding::position`], which fails the same way.
+            let (Some(&t), Some(w)) = (
+                self.embedding.tets().get(slot),
+                self.embedding.weights().get(slot),
+            ) else {
+                return Err(Error::NoFeatures);
+            };
+            let t = ux(t);
+            let tet = self.mesh.tets().get(t).ok_or(Error::NoFeatures)?;
+            let ft = free_of(free, tet);
             let p = self
                 .embedding
                 .position(slot, self.mesh, x)
@@ -441,65 +472,70 @@ impl<T: Real> Problem<'_, '_, T> {
                 .camera
                 .project_with_jacobian(&Vector3::from(p), slot)
                 .map_err(|_| self.features.behind_camera(slot))?;
-            let target = self.features.targets()[slot];
             let r = nalgebra::Vector2::new(target[0] - uv.x, target[1] - uv.y);
             e.spring += T::of(0.5) * k * r.norm_squared();
             let jr = j.transpose() * r * k;
             force_sum += jr.abs().sum();
-            for a in 0..4 {
-                add_gradient(grad, free, tet[a], &(-jr * w[a]));
+            for (&f, &wa) in ft.iter().zip(w) {
+                add_gradient(grad, f, &(-jr * wa));
             }
             if let Some(h) = hessian.as_deref_mut() {
                 let jtj = j.transpose() * j * k;
-                for (pi, &(a, b)) in PAIRS.iter().enumerate() {
-                    add_block(
-                        h,
-                        &self.scatter[t],
-                        pi,
-                        free,
-                        &tet,
-                        a,
-                        b,
-                        &(jtj * (w[a] * w[b])),
-                    );
+                let scatter = self.scatter.get(t).ok_or(Error::SymbolicMismatch)?;
+                for (&(a, b), starts) in PAIRS.iter().zip(scatter.as_chunks::<3>().0) {
+                    // `a`, `b` < 4 (the pairs of a tetrahedron's nodes).
+                    if let (Some(&wa), Some(&wb), Some(&fa), Some(&fb)) =
+                        (w.get(a), w.get(b), ft.get(a), ft.get(b))
+                    {
+                        add_block(h, starts, a == b, fa >= fb, &(jtj * (wa * wb)));
+                    }
                 }
             }
             work.feature_evaluations += 1;
         }
 
-        // Damping toward the previous frame.
-        for v in 0..self.mesh.n_nodes() {
-            let f = free[v];
+        // Damping toward the previous frame. `free` has the `n_nodes()` entries of the mesh,
+        // and `x`, the weights, the anchor and the rest positions at least as many. The pattern
+        // was built for these free nodes and its invariants ([`UpperCsc::new`]) end every
+        // column with its diagonal, so no entry below falls outside `col_ptr` or `h`.
+        let nodes = free
+            .iter()
+            .zip(self.damping.iter().zip(self.depth_weight))
+            .zip(x.iter().zip(self.anchor).zip(self.mesh.rest()));
+        for ((&f, (&c, &r)), ((p, p_anchor), p_rest)) in nodes {
             if f == NONE {
                 continue;
             }
-            let c = self.damping[v];
-            let d = node_of(x, v as u32) - node_of(self.anchor, v as u32);
+            let d = vec3(p) - vec3(p_anchor);
             e.damping += T::of(0.5) * c * d.norm_squared();
-            add_gradient(grad, free, v as u32, &(d * c));
+            add_gradient(grad, f, &(d * c));
             force_sum += (d * c).abs().sum();
             if let Some(h) = hessian.as_deref_mut() {
                 // The diagonal entry is the last of its column in the upper pattern.
-                for d in 0..3 {
-                    let end = self.col_ptr[3 * f as usize + d + 1] as usize;
-                    h[end - 1] += c;
+                for &end in column_ends(self.col_ptr, f) {
+                    if let Some(hd) = h.get_mut(ux(end).wrapping_sub(1)) {
+                        *hd += c;
+                    }
                 }
             }
             // The prior on depth: `r (d · e) e` and `r e eᵀ`.
-            let r = self.depth_weight[v];
             if r > T::zero() {
-                let e_ray = self.ray_at_rest(v);
-                let u = node_of(x, v as u32) - node_of(self.mesh.rest(), v as u32);
+                let e_ray = self.ray_at_rest(p_rest);
+                let u = vec3(p) - vec3(p_rest);
                 let s = u.dot(&e_ray);
                 e.depth += T::of(0.5) * r * s * s;
-                add_gradient(grad, free, v as u32, &(e_ray * (r * s)));
+                add_gradient(grad, f, &(e_ray * (r * s)));
                 force_sum += (e_ray * (r * s)).abs().sum();
                 if let Some(h) = hessian.as_deref_mut() {
                     // Column 3f + c of the diagonal block ends with its rows 3f ..= 3f + c.
-                    for col in 0..3 {
-                        let end = self.col_ptr[3 * f as usize + col + 1] as usize;
-                        for row in 0..=col {
-                            h[end - 1 - col + row] += r * e_ray[row] * e_ray[col];
+                    let e_arr = [e_ray.x, e_ray.y, e_ray.z];
+                    let ends = column_ends(self.col_ptr, f);
+                    for (col, (&end, &e_col)) in ends.iter().zip(&e_arr).enumerate() {
+                        let rows = ux(end).wrapping_sub(1 + col)..ux(end);
+                        if let Some(dst) = h.get_mut(rows) {
+                            for (hv, &e_row) in dst.iter_mut().zip(&e_arr) {
+                                *hv += r * e_row * e_col;
+                            }
                         }
                     }
                 }
@@ -514,48 +550,58 @@ impl<T: Real> Problem<'_, '_, T> {
     }
 }
 
-fn add_gradient<T: Real>(grad: &mut [T], free: &[u32], v: u32, g: &Vector3<T>) {
-    let f = free[v as usize];
+/// Adds `g` to the three unknowns of free node `f` (nothing for a fixed node, [`NONE`]). `grad`
+/// holds the `3 · n_free` unknowns of the free nodes.
+fn add_gradient<T: Real>(grad: &mut [T], f: u32, g: &Vector3<T>) {
     if f != NONE {
-        let base = 3 * f as usize;
-        grad[base] += g.x;
-        grad[base + 1] += g.y;
-        grad[base + 2] += g.z;
+        let base = 3 * ux(f);
+        if let Some([gx, gy, gz]) = grad.get_mut(base..base + 3) {
+            *gx += g.x;
+            *gy += g.y;
+            *gz += g.z;
+        }
     }
 }
 
-/// Adds the `3 × 3` block of local pair `(a, b)` (`a ≤ b`, pair index `p`) into the upper
-/// pattern: where the global order of the two nodes is reversed, the stored block is the
-/// transpose; on the diagonal only the upper triangle is stored.
-#[allow(clippy::too_many_arguments)]
+/// Adds the `3 × 3` block `m` of a local node pair into the upper pattern, at `starts` (the
+/// position of the block's first row in each of its three columns, [`NONE`] when a node of the
+/// pair is fixed): on the diagonal (`diagonal`) only the upper triangle is stored; where the
+/// global order of the two nodes is reversed (`transpose`), the stored block is the transpose.
+/// The scatter map was built against this pattern ([`build_scatter`]), so every entry lies in
+/// `h`.
 fn add_block<T: Real>(
     h: &mut [T],
-    scatter: &[u32; 30],
-    p: usize,
-    free: &[u32],
-    tet: &[u32; 4],
-    a: usize,
-    b: usize,
+    starts: &[u32; 3],
+    diagonal: bool,
+    transpose: bool,
     m: &Matrix3<T>,
 ) {
-    let starts = &scatter[3 * p..3 * p + 3];
     if starts[0] == NONE {
         return;
     }
-    let (fa, fb) = (free[tet[a] as usize], free[tet[b] as usize]);
-    for (c, &s) in starts.iter().enumerate() {
-        let s = s as usize;
-        if a == b {
-            for r in 0..=c {
-                h[s + r] += m[(r, c)];
+    // Column-major: `columns[c][r]` is `m[(r, c)]`.
+    let columns: &[[T; 3]; 3] = m.as_ref();
+    for (c, (&s, column)) in starts.iter().zip(columns).enumerate() {
+        let s = ux(s);
+        if diagonal {
+            // Rows `0..=c` of column `c`.
+            if let Some(dst) = h.get_mut(s..=s + c) {
+                for (hv, &v) in dst.iter_mut().zip(column) {
+                    *hv += v;
+                }
             }
-        } else if fa < fb {
-            for r in 0..3 {
-                h[s + r] += m[(r, c)];
-            }
-        } else {
-            for r in 0..3 {
-                h[s + r] += m[(c, r)];
+        } else if let Some(dst) = h.get_mut(s..s + 3) {
+            if transpose {
+                // Row `c` of `m`: `m[(c, r)]` is `columns[r][c]`.
+                for (hv, other) in dst.iter_mut().zip(columns) {
+                    if let Some(&v) = other.get(c) {
+                        *hv += v;
+                    }
+                }
+            } else {
+                for (hv, &v) in dst.iter_mut().zip(column) {
+                    *hv += v;
+                }
             }
         }
     }
@@ -571,11 +617,14 @@ pub(crate) fn build_scatter<T: Real>(
     scatter: &mut [[u32; 30]],
 ) -> Result<(), Error> {
     let free = mesh.free_index();
-    for (t, tet) in mesh.tets().iter().enumerate() {
-        for (p, &(la, lb)) in PAIRS.iter().enumerate() {
-            let (fa, fb) = (free[tet[la] as usize], free[tet[lb] as usize]);
-            for c in 0..3 {
-                scatter[t][3 * p + c] = if fa == NONE || fb == NONE {
+    ensure_len(scatter, mesh.n_tets(), Resource::Tetrahedra)?;
+    for (tet, map) in mesh.tets().iter().zip(scatter.iter_mut()) {
+        let ft = free_of(free, tet);
+        for (&(la, lb), starts) in PAIRS.iter().zip(map.as_chunks_mut::<3>().0) {
+            let fa = ft.get(la).copied().unwrap_or(NONE);
+            let fb = ft.get(lb).copied().unwrap_or(NONE);
+            for (c, start) in starts.iter_mut().enumerate() {
+                *start = if fa == NONE || fb == NONE {
                     NONE
                 } else {
                     let (lo, hi) = (fa.min(fb) as usize, fa.max(fb) as usize);

@@ -100,6 +100,35 @@ pub fn ensure_len<X>(slice: &[X], needed: usize, resource: Resource) -> Result<(
     }
 }
 
+/// The first `len` entries of `slice`.
+///
+/// # Errors
+/// [`Error::Capacity`] naming `resource` if `slice` is shorter (as [`ensure_len`]).
+pub(crate) fn prefix<X>(slice: &[X], len: usize, resource: Resource) -> Result<&[X], Error> {
+    slice.get(..len).ok_or(Error::Capacity {
+        resource,
+        needed: len,
+        available: slice.len(),
+    })
+}
+
+/// The first `len` entries of `slice`, mutable.
+///
+/// # Errors
+/// [`Error::Capacity`] naming `resource` if `slice` is shorter (as [`ensure_len`]).
+pub(crate) fn prefix_mut<X>(
+    slice: &mut [X],
+    len: usize,
+    resource: Resource,
+) -> Result<&mut [X], Error> {
+    let available = slice.len();
+    slice.get_mut(..len).ok_or(Error::Capacity {
+        resource,
+        needed: len,
+        available,
+    })
+}
+
 /// Checks that `slice` has exactly `expected` entries.
 ///
 /// # Errors

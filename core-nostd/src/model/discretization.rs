@@ -6,6 +6,8 @@
 //! one in service into the spare, cuts the spare, rebuilds its system and factors it; only when
 //! all of that succeeds are the two swapped, so a refused cut leaves the model as it was.
 
+#![cfg_attr(not(test), deny(clippy::indexing_slicing))]
+
 use crate::embed::Embedding;
 use crate::error::{Error, Resource};
 use crate::material::{Lame, TangentProjection, element_energy_gradient_tangent};
@@ -13,7 +15,7 @@ use crate::mesh::{Mesh, MeshInput};
 use crate::real::Real;
 use crate::solve::{SolverConfig, build_scatter};
 use crate::sparse::{Symbolic, UpperCsc};
-use crate::storage::{Slab, sum, times};
+use crate::storage::{Slab, prefix, sum, times};
 
 use super::size::{ModelSize, order_free_nodes};
 
@@ -91,9 +93,17 @@ impl<'a, T: Real> Discretization<'a, T> {
         work: &mut [u32],
     ) -> Result<(), Error> {
         self.mesh.load(input, work)?;
-        let n = self.mesh.n_nodes();
-        self.x[..n].copy_from_slice(self.mesh.rest());
-        self.previous[..n].copy_from_slice(self.mesh.rest());
+        // `rest()` holds the `n_nodes()` loaded nodes, at most the capacity `x` and `previous`
+        // were carved for.
+        for ((x, previous), rest) in self
+            .x
+            .iter_mut()
+            .zip(self.previous.iter_mut())
+            .zip(self.mesh.rest())
+        {
+            *x = *rest;
+            *previous = *rest;
+        }
         self.features.clear();
         self.targets.clear();
         #[cfg(feature = "cut")]
@@ -108,10 +118,10 @@ impl<'a, T: Real> Discretization<'a, T> {
     pub fn copy_state_from(&mut self, other: &Discretization<'_, T>) {
         self.mesh.copy_from(&other.mesh);
         let n = other.mesh.n_nodes();
-        self.x[..n].copy_from_slice(&other.x[..n]);
-        self.previous[..n].copy_from_slice(&other.previous[..n]);
-        self.damping[..n].copy_from_slice(&other.damping[..n]);
-        self.depth_weight[..n].copy_from_slice(&other.depth_weight[..n]);
+        copy_prefix(self.x, other.x, n);
+        copy_prefix(self.previous, other.previous, n);
+        copy_prefix(self.damping, other.damping, n);
+        copy_prefix(self.depth_weight, other.depth_weight, n);
         self.features.copy_from(&other.features);
         self.targets.copy_from(&other.targets);
         #[cfg(feature = "cut")]
@@ -123,7 +133,9 @@ impl<'a, T: Real> Discretization<'a, T> {
     /// node's diagonal block of the rest tangent.
     pub fn compute_node_weights(&mut self, lame: &Lame<T>, solver: &SolverConfig<T>) {
         let n = self.mesh.n_nodes();
-        let damping = &mut self.damping[..n];
+        // `damping` was carved for the node capacity, which `n_nodes()` never exceeds; the
+        // fallback (no node) is not reached.
+        let damping = self.damping.get_mut(..n).unwrap_or_default();
         damping.fill(T::zero());
         for (t, tet) in self.mesh.tets().iter().enumerate() {
             let Some(rest) = self.mesh.element_rest(t) else {
@@ -138,11 +150,15 @@ impl<'a, T: Real> Discretization<'a, T> {
                 &at_rest,
                 TangentProjection::Exact,
             );
-            for (l, &v) in tet.iter().enumerate() {
-                damping[v as usize] += eval.tangent[l][l].trace() / T::of(3.0);
+            // The mesh checked its tetrahedra's nodes against `n_nodes()` when it was loaded or
+            // edited, so `v` is in range and nothing is skipped.
+            for (l, (&v, row)) in tet.iter().zip(eval.tangent.iter()).enumerate() {
+                if let (Some(d), Some(block)) = (damping.get_mut(v as usize), row.get(l)) {
+                    *d += block.trace() / T::of(3.0);
+                }
             }
         }
-        for (r, c) in self.depth_weight[..n].iter_mut().zip(damping.iter_mut()) {
+        for (r, c) in self.depth_weight.iter_mut().zip(damping.iter_mut()) {
             *r = *c * solver.depth_prior;
             *c *= solver.damping;
         }
@@ -172,7 +188,11 @@ impl<'a, T: Real> Discretization<'a, T> {
             row_idx,
             &mut slab,
         )?;
-        let a = UpperCsc::new(n, &col_ptr[..n + 1], &row_idx[..ordered.nnz_a])?;
+        let a = UpperCsc::new(
+            n,
+            prefix(col_ptr, n + 1, Resource::ColumnPointers)?,
+            prefix(row_idx, ordered.nnz_a, Resource::MatrixEntries)?,
+        )?;
         symbolic.analyse(&a, ordered.perm, ordered.scratch)?;
         build_scatter(mesh, &a, scatter)?;
         *nnz_a = ordered.nnz_a;
@@ -182,11 +202,25 @@ impl<'a, T: Real> Discretization<'a, T> {
     /// The stiffness pattern in use.
     pub fn pattern(&self) -> Result<UpperCsc<'_>, Error> {
         let n = 3 * self.mesh.n_free();
-        UpperCsc::new(n, &self.col_ptr[..n + 1], &self.row_idx[..self.nnz_a])
+        UpperCsc::new(
+            n,
+            prefix(self.col_ptr, n + 1, Resource::ColumnPointers)?,
+            prefix(self.row_idx, self.nnz_a, Resource::MatrixEntries)?,
+        )
     }
 
     /// Unknowns in use: three per free node.
     pub fn n_unknowns(&self) -> usize {
         3 * self.mesh.n_free()
+    }
+}
+
+/// Copies the first `n` entries of `src` into `dst`. Both halves of a model are carved from
+/// the same [`ModelSize`], so their buffers have the same lengths, at least the `n` nodes in
+/// use; were either shorter, nothing would be copied.
+#[cfg_attr(not(feature = "cut"), allow(dead_code))]
+fn copy_prefix<X: Copy>(dst: &mut [X], src: &[X], n: usize) {
+    if let (Some(d), Some(s)) = (dst.get_mut(..n), src.get(..n)) {
+        d.copy_from_slice(s);
     }
 }

@@ -1,9 +1,11 @@
 //! Sparse patterns: the upper triangle of a symmetric matrix, and the adjacency graph of mesh
 //! nodes from which the stiffness pattern is built.
 
+#![cfg_attr(not(test), deny(clippy::indexing_slicing))]
+
 use super::{NONE, ux};
 use crate::error::{Error, PatternProblem, Resource};
-use crate::storage::{Slab, ensure_exact_len, ensure_len, sum, times};
+use crate::storage::{Slab, ensure_exact_len, ensure_len, prefix_mut, sum, times};
 
 /// Largest dimension or entry count the `u32` indices can hold (one value is kept for [`NONE`]).
 pub const MAX_INDEX: usize = (u32::MAX - 1) as usize;
@@ -42,16 +44,15 @@ impl<'a> UpperCsc<'a> {
                 problem: PatternProblem::ColumnPointers,
             });
         }
-        for (j, w) in col_ptr.windows(2).enumerate() {
-            let (start, end) = (ux(w[0]), ux(w[1]));
-            if start > end || end > row_idx.len() {
+        for (j, (&start, &end)) in col_ptr.iter().zip(col_ptr.iter().skip(1)).enumerate() {
+            // `None` when `start > end` or `end > row_idx.len()`.
+            let Some(rows) = row_idx.get(ux(start)..ux(end)) else {
                 return Err(Error::Pattern {
                     column: j,
                     problem: PatternProblem::ColumnPointers,
                 });
-            }
-            let rows = &row_idx[start..end];
-            if rows.windows(2).any(|r| r[0] >= r[1]) {
+            };
+            if increasing_pairs(rows).any(|(r0, r1)| r0 >= r1) {
                 return Err(Error::Pattern {
                     column: j,
                     problem: PatternProblem::Unsorted,
@@ -112,7 +113,9 @@ impl<'a> UpperCsc<'a> {
     pub fn find(&self, i: usize, j: usize) -> Option<usize> {
         let r = self.column_range(j);
         let start = r.start;
-        self.row_idx[r]
+        // The invariants keep the range inside `row_idx`.
+        self.row_idx
+            .get(r)?
             .binary_search(&(i as u32))
             .ok()
             .map(|k| start + k)
@@ -156,9 +159,9 @@ impl<'a> Graph<'a> {
                 problem: PatternProblem::ColumnPointers,
             });
         }
-        for v in 0..n {
-            let (s, e) = (ux(ptr[v]), ux(ptr[v + 1]));
-            if s > e || e > adj.len() {
+        for (v, (&s, &e)) in ptr.iter().zip(ptr.iter().skip(1)).enumerate() {
+            // `None` when `s > e` or `e > adj.len()`.
+            if adj.get(ux(s)..ux(e)).is_none() {
                 return Err(Error::Pattern {
                     column: v,
                     problem: PatternProblem::ColumnPointers,
@@ -168,7 +171,7 @@ impl<'a> Graph<'a> {
         let g = Graph { n, ptr, adj };
         for v in 0..n {
             let list = g.neighbours(v);
-            if list.windows(2).any(|w| w[0] >= w[1]) {
+            if increasing_pairs(list).any(|(a, b)| a >= b) {
                 return Err(Error::Pattern {
                     column: v,
                     problem: PatternProblem::Unsorted,
@@ -247,27 +250,34 @@ impl<'a> Graph<'a> {
         work: &mut [u32],
     ) -> Result<Graph<'a>, Error> {
         let n_free = check_free_map(tets, free, work)?;
-        ensure_len(ptr, n_free + 1, Resource::ColumnPointers)?;
+        let ptr = prefix_mut(ptr, n_free + 1, Resource::ColumnPointers)?;
         let (inc_ptr, inc, mark) = incidence(tets, free, n_free, work)?;
         // Count first so that a short `adj` is reported before anything is written.
         let mut total = 0usize;
-        ptr[0] = 0;
-        for j in 0..n_free {
-            total += for_each_neighbour(j, tets, free, inc_ptr, inc, mark, |_| {});
-            ptr[j + 1] = total as u32;
+        if let Some((first, rest)) = ptr.split_first_mut() {
+            *first = 0;
+            for (j, end) in rest.iter_mut().enumerate() {
+                total += for_each_neighbour(j, tets, free, inc_ptr, inc, mark, |_| {});
+                *end = total as u32;
+            }
         }
-        ensure_len(adj, total, Resource::GraphEntries)?;
+        let adj = prefix_mut(adj, total, Resource::GraphEntries)?;
         mark.fill(NONE);
-        for j in 0..n_free {
-            let mut at = ux(ptr[j]);
+        // The lists fill `adj` exactly as counted: every write is in range.
+        for (j, &start) in ptr.iter().take(n_free).enumerate() {
+            let mut at = ux(start);
             for_each_neighbour(j, tets, free, inc_ptr, inc, mark, |u| {
-                adj[at] = u;
+                if let Some(slot) = adj.get_mut(at) {
+                    *slot = u;
+                }
                 at += 1;
             });
-            adj[ux(ptr[j])..at].sort_unstable();
+            if let Some(list) = adj.get_mut(ux(start)..at) {
+                list.sort_unstable();
+            }
         }
-        let ptr: &'a [u32] = &ptr[..n_free + 1];
-        let adj: &'a [u32] = &adj[..total];
+        let ptr: &'a [u32] = ptr;
+        let adj: &'a [u32] = adj;
         Ok(Graph {
             n: n_free,
             ptr,
@@ -289,39 +299,56 @@ impl<'a> Graph<'a> {
     ) -> Result<Graph<'a>, Error> {
         let n = a.n();
         let off = a.nnz() - n; // every column stores its diagonal
-        ensure_len(ptr, n + 1, Resource::ColumnPointers)?;
-        ensure_len(adj, 2 * off, Resource::GraphEntries)?;
-        ensure_len(work, n, Resource::Workspace)?;
-        let count = &mut work[..n];
+        let ptr = prefix_mut(ptr, n + 1, Resource::ColumnPointers)?;
+        let adj = prefix_mut(adj, 2 * off, Resource::GraphEntries)?;
+        let count = prefix_mut(work, n, Resource::Workspace)?;
         count.fill(0);
+        // The pattern's invariants keep every row below `n` (rows never exceed their column),
+        // so no increment below is skipped.
+        let bump = |count: &mut [u32], v: usize| {
+            if let Some(c) = count.get_mut(v) {
+                *c += 1;
+            }
+        };
         for j in 0..n {
-            for &i in &a.row_idx()[a.column_range(j)] {
+            for &i in column_rows(a, j) {
                 if ux(i) != j {
-                    count[ux(i)] += 1;
-                    count[j] += 1;
+                    bump(count, ux(i));
+                    bump(count, j);
                 }
             }
         }
-        ptr[0] = 0;
-        for v in 0..n {
-            ptr[v + 1] = ptr[v] + count[v];
-            count[v] = ptr[v];
+        if let Some((first, rest)) = ptr.split_first_mut() {
+            *first = 0;
+            let mut start = 0;
+            for (end, c) in rest.iter_mut().zip(count.iter_mut()) {
+                *end = start + *c;
+                *c = start;
+                start = *end;
+            }
         }
         // Lower neighbours of `v` are appended while column `v` is read, upper ones later in
-        // increasing column order, so every list comes out sorted.
+        // increasing column order, so every list comes out sorted. The counts make the lists
+        // fill `adj` exactly: every write is in range.
+        let mut append = |count: &mut [u32], v: usize, u: usize| {
+            if let Some(c) = count.get_mut(v) {
+                if let Some(slot) = adj.get_mut(ux(*c)) {
+                    *slot = u as u32;
+                }
+                *c += 1;
+            }
+        };
         for j in 0..n {
-            for &i in &a.row_idx()[a.column_range(j)] {
+            for &i in column_rows(a, j) {
                 let i = ux(i);
                 if i != j {
-                    adj[ux(count[i])] = j as u32;
-                    count[i] += 1;
-                    adj[ux(count[j])] = i as u32;
-                    count[j] += 1;
+                    append(count, i, j);
+                    append(count, j, i);
                 }
             }
         }
-        let ptr: &'a [u32] = &ptr[..n + 1];
-        let adj: &'a [u32] = &adj[..2 * off];
+        let ptr: &'a [u32] = ptr;
+        let adj: &'a [u32] = adj;
         Ok(Graph { n, ptr, adj })
     }
 }
@@ -340,7 +367,7 @@ fn check_free_map(tets: &[[u32; 4]], free: &[u32], work: &mut [u32]) -> Result<u
         tet_graph_work_len(n_free, tets.len()),
         Resource::Workspace,
     )?;
-    let seen = &mut work[..n_free];
+    let seen = prefix_mut(work, n_free, Resource::Workspace)?;
     seen.fill(0);
     for (position, &f) in free.iter().enumerate() {
         if f == NONE {
@@ -386,25 +413,38 @@ fn incidence<'w>(
     let inc = slab.take(4 * tets.len())?;
     let mark = slab.take(n_free)?;
     inc_ptr.fill(0);
+    // [`check_free_map`] has checked every node against `free` and every compact index against
+    // `n_free`, and the counts make the lists fill `inc` exactly: no lookup below fails and no
+    // write is skipped.
+    let free_of = |v: u32| free.get(ux(v)).copied().unwrap_or(NONE);
     for tet in tets {
         for &v in tet {
-            let f = free[ux(v)];
-            if f != NONE {
-                inc_ptr[ux(f) + 1] += 1;
+            let f = free_of(v);
+            if f != NONE
+                && let Some(c) = inc_ptr.get_mut(ux(f) + 1)
+            {
+                *c += 1;
             }
         }
     }
-    for v in 0..n_free {
-        inc_ptr[v + 1] += inc_ptr[v];
+    let mut start = 0;
+    for c in inc_ptr.iter_mut() {
+        *c += start;
+        start = *c;
     }
     // `mark` doubles as the fill cursor here, then is reset.
-    mark.copy_from_slice(&inc_ptr[..n_free]);
+    for (m, &c) in mark.iter_mut().zip(inc_ptr.iter()) {
+        *m = c;
+    }
     for (t, tet) in tets.iter().enumerate() {
         for &v in tet {
-            let f = free[ux(v)];
-            if f != NONE {
-                let at = &mut mark[ux(f)];
-                inc[ux(*at)] = t as u32;
+            let f = free_of(v);
+            if f != NONE
+                && let Some(at) = mark.get_mut(ux(f))
+            {
+                if let Some(slot) = inc.get_mut(ux(*at)) {
+                    *slot = t as u32;
+                }
                 *at += 1;
             }
         }
@@ -424,19 +464,48 @@ fn for_each_neighbour(
     mark: &mut [u32],
     mut visit: impl FnMut(u32),
 ) -> usize {
+    // [`check_free_map`] and [`incidence`] keep every index below in range; were one not,
+    // it would be skipped.
     let mut count = 0;
-    mark[j] = j as u32;
-    for &t in &inc[ux(inc_ptr[j])..ux(inc_ptr[j + 1])] {
-        for &v in &tets[ux(t)] {
-            let f = free[ux(v)];
-            if f != NONE && mark[ux(f)] != j as u32 {
-                mark[ux(f)] = j as u32;
+    if let Some(m) = mark.get_mut(j) {
+        *m = j as u32;
+    }
+    let incident = match (inc_ptr.get(j), inc_ptr.get(j + 1)) {
+        (Some(&s), Some(&e)) => inc.get(ux(s)..ux(e)).unwrap_or_default(),
+        _ => &[],
+    };
+    for &t in incident {
+        for &v in tets.get(ux(t)).into_iter().flatten() {
+            let f = free.get(ux(v)).copied().unwrap_or(NONE);
+            if f != NONE
+                && let Some(m) = mark.get_mut(ux(f))
+                && *m != j as u32
+            {
+                *m = j as u32;
                 visit(f);
                 count += 1;
             }
         }
     }
     count
+}
+
+/// Writes `value` at `out[*at]` (if in range) and moves `at` on.
+fn push(out: &mut [u32], at: &mut usize, value: usize) {
+    if let Some(slot) = out.get_mut(*at) {
+        *slot = value as u32;
+    }
+    *at += 1;
+}
+
+/// Consecutive pairs `(s[k], s[k + 1])` of `s`.
+fn increasing_pairs(s: &[u32]) -> impl Iterator<Item = (u32, u32)> + '_ {
+    s.iter().copied().zip(s.iter().copied().skip(1))
+}
+
+/// The row indices of column `j` of `a` (the invariants keep them inside `row_idx`).
+fn column_rows<'a>(a: &UpperCsc<'a>, j: usize) -> &'a [u32] {
+    a.row_idx().get(a.column_range(j)).unwrap_or_default()
 }
 
 /// Entries of the upper triangle of the matrix with a dense `b × b` block on the diagonal and
@@ -475,29 +544,37 @@ pub fn block_upper_pattern<'a>(
             problem: PatternProblem::TooLarge,
         });
     }
-    ensure_len(col_ptr, n + 1, Resource::ColumnPointers)?;
-    ensure_len(row_idx, nnz, Resource::MatrixEntries)?;
+    let col_ptr = prefix_mut(col_ptr, n + 1, Resource::ColumnPointers)?;
+    let row_idx = prefix_mut(row_idx, nnz, Resource::MatrixEntries)?;
     let mut at = 0usize;
-    col_ptr[0] = 0;
-    for v in 0..graph.n() {
-        for c in 0..b {
-            // Neighbours below `v` (sorted, so rows increase), then `v`'s own block down to the
-            // diagonal.
-            for &u in graph.neighbours(v).iter().take_while(|&&u| ux(u) < v) {
-                for r in 0..b {
-                    row_idx[at] = (ux(u) * b + r) as u32;
-                    at += 1;
+    // `row_idx` holds the `nnz` entries [`block_upper_len`] counts, exactly what is written
+    // (`at` ends at `nnz`), so no write is skipped; were one, [`UpperCsc::new`] would refuse
+    // the pattern.
+    if let Some((first, rest)) = col_ptr.split_first_mut() {
+        *first = 0;
+        // Column `v·b + c` ends at `rest[v·b + c]`.
+        let mut ends = rest.iter_mut();
+        for v in 0..graph.n() {
+            for c in 0..b {
+                // Neighbours below `v` (sorted, so rows increase), then `v`'s own block down to
+                // the diagonal.
+                for &u in graph.neighbours(v).iter().take_while(|&&u| ux(u) < v) {
+                    for r in 0..b {
+                        push(row_idx, &mut at, ux(u) * b + r);
+                    }
+                }
+                for r in 0..=c {
+                    push(row_idx, &mut at, v * b + r);
+                }
+                if let Some(end) = ends.next() {
+                    *end = at as u32;
                 }
             }
-            for r in 0..=c {
-                row_idx[at] = (v * b + r) as u32;
-                at += 1;
-            }
-            col_ptr[v * b + c + 1] = at as u32;
         }
     }
-    let col_ptr: &'a [u32] = &col_ptr[..n + 1];
-    let row_idx: &'a [u32] = &row_idx[..at];
+    let col_ptr: &'a [u32] = col_ptr;
+    let row_idx: &'a [u32] = row_idx;
+    let row_idx = row_idx.get(..at).unwrap_or_default();
     UpperCsc::new(n, col_ptr, row_idx)
 }
 
