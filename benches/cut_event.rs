@@ -34,6 +34,7 @@ use faer::sparse::linalg::cholesky::{
 use incise::scene::{Scene, read_points_csv};
 use incise::storage::ModelStorage;
 use incise_core::{Material, MeshInput, Model, ModelConfig, Observation, StepReport, Strategy};
+use incise_validation::callgrind;
 use incise_validation::oracle::to_faer;
 
 const SCENES: [&str; 3] = ["band-side-cut", "band-middle-cut", "liver-lobe"];
@@ -198,19 +199,12 @@ fn instructions() {
     println!("| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |");
     for name in SCENES {
         let out = dir.join(format!("cg-{name}"));
-        let output = Command::new("valgrind")
-            .args(["--tool=callgrind", "--dump-after=*incise_core*Model*step*"])
-            .arg(format!("--callgrind-out-file={}", out.display()))
-            .arg(&exe)
-            .args(["--instructions", name])
-            .output()
-            .expect("valgrind runs");
-        assert!(
-            output.status.success(),
-            "{}",
-            String::from_utf8_lossy(&output.stderr)
+        let stdout = callgrind::run(
+            &exe,
+            "--dump-after=*incise_core*Model*step*",
+            &out,
+            &["--instructions", name],
         );
-        let stdout = String::from_utf8_lossy(&output.stdout);
         let cuts: Vec<Vec<u64>> = stdout
             .lines()
             .filter_map(|l| l.strip_prefix("CUT "))
@@ -307,19 +301,7 @@ fn stages_child(name: &str, strategy: &str) {
 /// lists a function once per source file its inlined code comes from, the whole function
 /// being the largest).
 fn counted(exe: &Path, out: &Path, toggle: &str, args: &[&str]) -> (f64, Vec<f64>) {
-    let output = Command::new("valgrind")
-        .arg("--tool=callgrind")
-        .arg(format!("--toggle-collect={toggle}"))
-        .arg(format!("--callgrind-out-file={}", out.display()))
-        .arg(exe)
-        .args(args)
-        .output()
-        .expect("valgrind runs");
-    assert!(
-        output.status.success(),
-        "{}",
-        String::from_utf8_lossy(&output.stderr)
-    );
+    callgrind::run(exe, &format!("--toggle-collect={toggle}"), out, args);
     let annotated = Command::new("callgrind_annotate")
         .args(["--inclusive=yes", "--threshold=100"])
         .arg(out)

@@ -25,6 +25,7 @@ use faer::sparse::linalg::cholesky::{
 use incise_core::{
     Material, MeshInput, Model, ModelConfig, Observation, SolverConfig, StepReport, Strategy,
 };
+use incise_validation::callgrind;
 use incise_validation::oracle::to_faer;
 use incise_validation::scene::{ModelStorage, camera, nodes_where, observe};
 use incise_validation::testmesh::{TetMesh, box_mesh};
@@ -252,19 +253,12 @@ fn instructions() {
     for (name, _) in CASES {
         for (sname, _) in STRATEGIES {
             let out = dir.join(format!("cg-{name}-{sname}"));
-            let output = Command::new("valgrind")
-                .args(["--tool=callgrind", "--dump-after=*incise_core*Model*step*"])
-                .arg(format!("--callgrind-out-file={}", out.display()))
-                .arg(&exe)
-                .args(["--instructions", name, sname])
-                .output()
-                .expect("valgrind runs");
-            assert!(
-                output.status.success(),
-                "{}",
-                String::from_utf8_lossy(&output.stderr)
+            let stdout = callgrind::run(
+                &exe,
+                "--dump-after=*incise_core*Model*step*",
+                &out,
+                &["--instructions", name, sname],
             );
-            let stdout = String::from_utf8_lossy(&output.stdout);
             let worst: Vec<u64> = stdout
                 .lines()
                 .find_map(|l| l.strip_prefix("WORST "))

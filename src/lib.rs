@@ -3,6 +3,7 @@
 //! `faer` oracle it is checked against. Not part of the product.
 
 pub mod bench_model;
+pub mod callgrind;
 pub mod oracle;
 pub use incise::rng;
 pub mod cutcheck;
