@@ -553,6 +553,7 @@ fn run_video_command(
     let options = RunOptions {
         out: out.clone(),
         progress: !json,
+        true_cut: false,
     };
     let (summary, _) = run_scene_with(
         &scene,
