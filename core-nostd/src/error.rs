@@ -207,6 +207,38 @@ pub enum PatternProblem {
     TooLarge,
 }
 
+/// What is wrong with a precomputed symbolic analysis, in [`Error::Precomputed`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[non_exhaustive]
+pub enum PrecomputedProblem {
+    /// An array's length does not follow from the stated sizes.
+    Lengths,
+    /// The checksum does not match the arrays: damaged or edited data.
+    Checksum,
+    /// It was computed for another matrix: another dimension, entry count or pattern (the mesh
+    /// it was generated from is not the one loaded).
+    Matrix,
+    /// An index out of range, a list out of order, or the trees, rows, columns or supernodes
+    /// disagree.
+    Structure,
+    /// The factor's pattern misses fill: a column's entries are not all in its parent's.
+    Fill,
+}
+
+impl fmt::Display for PrecomputedProblem {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            PrecomputedProblem::Lengths => "an array's length does not match the stated sizes",
+            PrecomputedProblem::Checksum => "its checksum does not match (damaged or edited)",
+            PrecomputedProblem::Matrix => {
+                "it was computed for another stiffness pattern (another mesh or fixed nodes)"
+            }
+            PrecomputedProblem::Structure => "its index arrays are inconsistent",
+            PrecomputedProblem::Fill => "the factor's pattern misses fill",
+        })
+    }
+}
+
 /// The error type of every fallible call in the core.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 #[non_exhaustive]
@@ -283,6 +315,12 @@ pub enum Error {
     NotFactored,
     /// The factor was computed for another symbolic analysis (different sizes).
     SymbolicMismatch,
+    /// A precomputed symbolic analysis ([`crate::sparse::PrecomputedAnalysis`]) does not fit
+    /// the matrix it is loaded for, or is damaged.
+    Precomputed {
+        /// What does not hold.
+        problem: PrecomputedProblem,
+    },
     /// A configuration parameter is out of its range.
     InvalidParameter {
         /// Which parameter.
@@ -409,6 +447,9 @@ impl fmt::Display for Error {
             Error::NotFactored => f.write_str("no successful factorization to solve with"),
             Error::SymbolicMismatch => {
                 f.write_str("factor storage was sized for another symbolic analysis")
+            }
+            Error::Precomputed { problem } => {
+                write!(f, "the precomputed symbolic analysis is refused: {problem}")
             }
             Error::InvalidParameter { parameter } => write!(f, "invalid parameter: {parameter}"),
             Error::DegenerateElement { tet } => {

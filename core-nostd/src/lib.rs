@@ -75,7 +75,7 @@ pub mod solve;
 pub mod sparse;
 pub mod storage;
 
-pub use error::{Error, Parameter, Resource};
+pub use error::{Error, Parameter, PrecomputedProblem, Resource};
 pub use real::Real;
 // The small matrices of the public API (camera pose) are nalgebra's; re-exported so that a user
 // needs no version of their own.

@@ -4,6 +4,7 @@
 use std::fmt;
 
 use incise_core::mesh::MeshCapacity;
+use incise_core::sparse::PrecomputedAnalysis;
 use incise_core::{
     Capacities, Error as CoreError, MeshAnalysis, MeshInput, Model, ModelBuffers, ModelConfig,
     ModelSize, Real, analyse_mesh, analyse_mesh_work_len,
@@ -168,6 +169,21 @@ impl<T: Real> OwnedStorage<T> {
     ) -> Result<Model<'a, T>, CoreError> {
         let buffers = ModelBuffers::new(&self.size, &mut self.reals, &mut self.indices)?;
         Model::new(mesh, config, &self.size, buffers)
+    }
+
+    /// Builds a model in this storage with the uncut mesh's ordering and symbolic analysis
+    /// taken from `analysis` ([`Model::from_precomputed`]).
+    ///
+    /// # Errors
+    /// The core's error.
+    pub fn model_from_precomputed<'a>(
+        &'a mut self,
+        mesh: &MeshInput<'_, T>,
+        config: &ModelConfig<T>,
+        analysis: &PrecomputedAnalysis<'_>,
+    ) -> Result<Model<'a, T>, CoreError> {
+        let buffers = ModelBuffers::new(&self.size, &mut self.reals, &mut self.indices)?;
+        Model::from_precomputed(mesh, config, &self.size, buffers, analysis)
     }
 
     /// Bytes of the storage (scalars and indices), what a firmware build would hold.

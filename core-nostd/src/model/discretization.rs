@@ -14,7 +14,9 @@ use crate::material::{Lame, TangentProjection, element_energy_gradient_tangent};
 use crate::mesh::{Mesh, MeshInput};
 use crate::real::Real;
 use crate::solve::{SolverConfig, build_scatter};
-use crate::sparse::{Symbolic, UpperCsc};
+use crate::sparse::{
+    Graph, PrecomputedAnalysis, Symbolic, UpperCsc, block_upper_len, block_upper_pattern,
+};
 use crate::storage::{Slab, prefix, sum, times};
 
 use super::size::{ModelSize, order_free_nodes};
@@ -92,6 +94,59 @@ impl<'a, T: Real> Discretization<'a, T> {
         solver: &SolverConfig<T>,
         work: &mut [u32],
     ) -> Result<(), Error> {
+        self.load_state(input, lame, solver, work)?;
+        self.rebuild_system(work)
+    }
+
+    /// As [`Discretization::load`], with the system's ordering and symbolic analysis taken
+    /// from `pre` (checked against the mesh's stiffness pattern) instead of computed.
+    pub fn load_precomputed(
+        &mut self,
+        input: &MeshInput<'_, T>,
+        lame: &Lame<T>,
+        solver: &SolverConfig<T>,
+        work: &mut [u32],
+        pre: &PrecomputedAnalysis<'_>,
+    ) -> Result<(), Error> {
+        self.load_state(input, lame, solver, work)?;
+        let Discretization {
+            mesh,
+            col_ptr,
+            row_idx,
+            nnz_a,
+            symbolic,
+            scatter,
+            ..
+        } = self;
+        let n_free = mesh.n_free();
+        let n = 3 * n_free;
+        let mut slab = Slab::new(work, Resource::Workspace);
+        let g_ptr = slab.take(sum(&[n_free, 1]))?;
+        let g_adj = slab.take(times(12, mesh.tets().len()))?;
+        let scratch = slab.take(slab.remaining())?;
+        let graph = Graph::from_tets(mesh.tets(), mesh.free_index(), g_ptr, g_adj, scratch)?;
+        let entries = block_upper_len(&graph, 3);
+        block_upper_pattern(&graph, 3, col_ptr, row_idx)?;
+        let a = UpperCsc::new(
+            n,
+            prefix(col_ptr, n + 1, Resource::ColumnPointers)?,
+            prefix(row_idx, entries, Resource::MatrixEntries)?,
+        )?;
+        symbolic.load(&a, pre, scratch)?;
+        build_scatter(mesh, &a, scatter)?;
+        *nnz_a = entries;
+        Ok(())
+    }
+
+    /// The part of loading that does not depend on how the system is analysed: the mesh, the
+    /// positions at rest, no feature or target, the node weights.
+    fn load_state(
+        &mut self,
+        input: &MeshInput<'_, T>,
+        lame: &Lame<T>,
+        solver: &SolverConfig<T>,
+        work: &mut [u32],
+    ) -> Result<(), Error> {
         self.mesh.load(input, work)?;
         // `rest()` holds the `n_nodes()` loaded nodes, at most the capacity `x` and `previous`
         // were carved for.
@@ -109,7 +164,7 @@ impl<'a, T: Real> Discretization<'a, T> {
         #[cfg(feature = "cut")]
         self.lips.clear();
         self.compute_node_weights(lame, solver);
-        self.rebuild_system(work)
+        Ok(())
     }
 
     /// Makes this half a copy of `other`'s mesh and state (not of its system, which a cut

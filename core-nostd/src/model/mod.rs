@@ -41,7 +41,7 @@ use crate::real::Real;
 use crate::solve::{Energies, SolverConfig, Strategy, WorkCount, problem_of};
 #[cfg(feature = "cut")]
 use crate::solve::{assemble_on, factorize_on};
-use crate::sparse::{LdlFactor, NONE, Symbolic, UpperCsc};
+use crate::sparse::{LdlFactor, NONE, PrecomputedAnalysis, Symbolic, UpperCsc};
 use crate::storage::{Fingerprint, Slab, ensure_exact_len, ensure_len};
 
 use discretization::Discretization;
@@ -207,6 +207,48 @@ impl<'a, T: Real> Model<'a, T> {
         size: &ModelSize,
         buffers: ModelBuffers<'a, T>,
     ) -> Result<Self, Error> {
+        Self::build(config, size, buffers, |live, lame, solver, work| {
+            live.load(input, lame, solver, work)
+        })
+    }
+
+    /// As [`Model::new`], with the ordering and symbolic analysis of the uncut mesh taken from
+    /// `analysis` (generated ahead of time by `incise codegen`, or
+    /// [`Symbolic::precomputed`] of a model built from the same mesh) instead of computed: a
+    /// firmware build that never cuts then links neither the minimum-degree ordering nor the
+    /// analysis. The analysis is checked against the mesh's stiffness pattern in time linear in
+    /// the factor's entries ([`crate::sparse::precomputed`]); the model is the same, bit for
+    /// bit, as [`Model::new`] builds. A cut (feature `cut`) still orders and analyses the cut
+    /// mesh itself.
+    ///
+    /// # Errors
+    /// As [`Model::new`]; [`Error::Precomputed`] when `analysis` is not that of this mesh's
+    /// pattern or is damaged.
+    pub fn from_precomputed(
+        input: &MeshInput<'_, T>,
+        config: &ModelConfig<T>,
+        size: &ModelSize,
+        buffers: ModelBuffers<'a, T>,
+        analysis: &PrecomputedAnalysis<'_>,
+    ) -> Result<Self, Error> {
+        Self::build(config, size, buffers, |live, lame, solver, work| {
+            live.load_precomputed(input, lame, solver, work, analysis)
+        })
+    }
+
+    /// Carves the model out of `buffers`, then loads the mesh with `load`: generic, so that
+    /// each constructor links only its own way of analysing the system.
+    fn build(
+        config: &ModelConfig<T>,
+        size: &ModelSize,
+        buffers: ModelBuffers<'a, T>,
+        load: impl FnOnce(
+            &mut Discretization<'a, T>,
+            &Lame<T>,
+            &SolverConfig<T>,
+            &mut [u32],
+        ) -> Result<(), Error>,
+    ) -> Result<Self, Error> {
         config.solver.validate()?;
         config.detection.validate()?;
         let lame = Lame::from_young_poisson(config.material.young, config.material.poisson)?;
@@ -255,7 +297,7 @@ impl<'a, T: Real> Model<'a, T> {
             scratch: rs.take(cut::real_len(caps.mesh.nodes, caps.cut_vertices))?,
         };
         let work = is.take(size.work_len())?;
-        live.load(input, &lame, &config.solver, work)?;
+        load(&mut live, &lame, &config.solver, work)?;
         Ok(Model {
             config: *config,
             lame,

@@ -18,6 +18,9 @@
 //!    solves over the supernodes. A failed factorization names its column and leaves the
 //!    previous factor in service.
 //!
+//! A firmware build can skip phases 2 and 3 at start-up: [`precomputed`] checks an analysis
+//! generated ahead of time and [`Symbolic::load`] takes it in.
+//!
 //! All indices are `u32` ([`NONE`] marks "no index"); dimensions and entry counts must fit.
 //!
 //! ```
@@ -54,12 +57,14 @@
 pub mod ldl;
 pub mod order;
 pub mod pattern;
+pub mod precomputed;
 pub mod supernodal;
 pub mod symbolic;
 
 pub use ldl::{LdlFactor, relative_residual, sym_matvec};
 pub use order::{expand_block_permutation, minimum_degree, minimum_degree_work_len};
 pub use pattern::{Graph, UpperCsc, block_upper_len, block_upper_pattern, tet_graph_work_len};
+pub use precomputed::{PrecomputedAnalysis, check_work_len};
 pub use symbolic::{Symbolic, SymbolicSize, analyse_work_len};
 
 /// The "no index" marker in `u32` index arrays.

@@ -77,6 +77,9 @@ struct Quotient<'w> {
 ///
 /// # Errors
 /// [`Error::Length`] if `perm` has the wrong length, [`Error::Capacity`] if `work` is too short.
+// Kept out of line so that a firmware build's symbols show whether it is linked
+// (tests/firmware.rs).
+#[inline(never)]
 pub fn minimum_degree(graph: &Graph<'_>, perm: &mut [u32], work: &mut [u32]) -> Result<(), Error> {
     let n = graph.n();
     ensure_exact_len(perm, n, Resource::Permutation)?;

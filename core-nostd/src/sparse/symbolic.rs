@@ -2,8 +2,9 @@
 //! patterns of the factor `L`, computed once per pattern.
 
 use super::pattern::{MAX_INDEX, UpperCsc};
+use super::precomputed::{PrecomputedAnalysis, check_work_len};
 use super::{NONE, ux};
-use crate::error::{Error, PatternProblem, Resource};
+use crate::error::{Error, PatternProblem, PrecomputedProblem, Resource};
 use crate::storage::{Slab, ensure_exact_len, ensure_len, sum, times};
 
 /// Sizes of a symbolic factorization: what the storage of [`Symbolic`] and of the numeric
@@ -188,6 +189,9 @@ impl<'a> Symbolic<'a> {
     /// As [`Symbolic::size`]; [`Error::Capacity`] naming [`Resource::Unknowns`],
     /// [`Resource::MatrixEntries`] or [`Resource::FactorEntries`] when the pattern exceeds the
     /// capacity.
+    // Kept out of line so that a firmware build's symbols show whether it is linked
+    // (tests/firmware.rs).
+    #[inline(never)]
     pub fn analyse(
         &mut self,
         a: &UpperCsc<'_>,
@@ -245,12 +249,10 @@ impl<'a> Symbolic<'a> {
         // numeric phase follows from them: row k of column j costs one multiply-add per entry
         // of column j above row k.
         l_ptr[0] = 0;
-        let mut flops = 0u64;
         for j in 0..n {
             l_ptr[j + 1] = l_ptr[j] + col_count[j];
-            let c = u64::from(col_count[j]);
-            flops += c * c.saturating_sub(1) / 2 + 2 * c;
         }
+        let flops = factor_flops(l_ptr);
         // Row patterns (sorted), then the column patterns by scattering rows in increasing
         // order, so every column comes out sorted too.
         for k in 0..n {
@@ -288,6 +290,98 @@ impl<'a> Symbolic<'a> {
         self.supernodes = supernodes;
         self.factor_flops = flops;
         Ok(())
+    }
+
+    /// Replaces the analysis with a precomputed one of `A` ([`PrecomputedAnalysis`], made by
+    /// [`Symbolic::precomputed`] ahead of time), checked against `a` but not recomputed: no
+    /// ordering and no analysis code runs, so a build that only loads links neither. `work`
+    /// needs [`check_work_len`]`(n, nnz_a)` entries (no meaning on return).
+    ///
+    /// Transactional: everything is checked before anything is written.
+    ///
+    /// # Errors
+    /// [`Error::Capacity`] as for [`Symbolic::analyse`] when it exceeds the capacity or `work`
+    /// is short; [`Error::Precomputed`] when it does not belong to `a` or is inconsistent
+    /// (see [`super::precomputed`]).
+    pub fn load(
+        &mut self,
+        a: &UpperCsc<'_>,
+        pre: &PrecomputedAnalysis<'_>,
+        work: &mut [u32],
+    ) -> Result<(), Error> {
+        let size = pre.size;
+        if size.n != a.n() || size.nnz_a != a.nnz() {
+            return Err(Error::Precomputed {
+                problem: PrecomputedProblem::Matrix,
+            });
+        }
+        let cap = self.capacity;
+        for (resource, needed, available) in [
+            (Resource::Unknowns, size.n, cap.n),
+            (Resource::MatrixEntries, size.nnz_a, cap.nnz_a),
+            (Resource::FactorEntries, size.nnz_l, cap.nnz_l),
+        ] {
+            if needed > available {
+                return Err(Error::Capacity {
+                    resource,
+                    needed,
+                    available,
+                });
+            }
+        }
+        ensure_len(
+            work,
+            check_work_len(size.n, size.nnz_a),
+            Resource::Workspace,
+        )?;
+        pre.check(a, work)?;
+        // Checked: every array has the length its size says, and the sizes fit the capacity.
+        let n = size.n;
+        let supernodes = pre.supernodes();
+        for (dst, src) in [
+            (&mut self.perm[..n], pre.perm),
+            (&mut self.iperm[..n], &work[..n]),
+            (&mut self.etree[..n], pre.etree),
+            (&mut self.c_ptr[..n + 1], pre.c_ptr),
+            (&mut self.c_row[..size.nnz_a], pre.c_row),
+            (&mut self.c_src[..size.nnz_a], pre.c_src),
+            (&mut self.c_dst[..size.nnz_a], pre.c_dst),
+            (&mut self.l_ptr[..n + 1], pre.l_ptr),
+            (&mut self.l_row[..size.nnz_l], pre.l_row),
+            (&mut self.lt_ptr[..n + 1], pre.lt_ptr),
+            (&mut self.lt_col[..size.nnz_l], pre.lt_col),
+            (&mut self.sn_ptr[..supernodes + 1], pre.sn_ptr),
+            (&mut self.col_sn[..n], pre.col_sn),
+        ] {
+            dst.copy_from_slice(src);
+        }
+        self.size = size;
+        self.supernodes = supernodes;
+        self.factor_flops = factor_flops(pre.l_ptr);
+        Ok(())
+    }
+
+    /// The current analysis as a [`PrecomputedAnalysis`] (checksum included), for code
+    /// generation: [`Symbolic::load`] takes it back.
+    pub fn precomputed(&self) -> PrecomputedAnalysis<'_> {
+        let mut pre = PrecomputedAnalysis {
+            size: self.size,
+            perm: self.perm(),
+            etree: self.etree(),
+            c_ptr: self.c_ptr(),
+            c_row: self.c_row(),
+            c_src: self.c_src(),
+            c_dst: self.c_dst(),
+            l_ptr: self.l_ptr(),
+            l_row: self.l_row(),
+            lt_ptr: self.lt_ptr(),
+            lt_col: self.lt_col(),
+            sn_ptr: self.sn_ptr(),
+            col_sn: self.col_sn(),
+            checksum: 0,
+        };
+        pre.checksum = pre.compute_checksum();
+        pre
     }
 
     /// The sizes of the current analysis.
@@ -371,6 +465,19 @@ impl<'a> Symbolic<'a> {
     pub fn solve_flops(&self) -> u64 {
         2 * self.size.nnz_l as u64 + self.size.n as u64
     }
+}
+
+/// Multiply-adds (and divisions) of the up-looking numeric factorization with the column
+/// pointers `l_ptr` of `L`: row k of column j costs one multiply-add per entry of column j
+/// above row k.
+fn factor_flops(l_ptr: &[u32]) -> u64 {
+    l_ptr
+        .windows(2)
+        .map(|w| {
+            let c = u64::from(w[1] - w[0]);
+            c * c.saturating_sub(1) / 2 + 2 * c
+        })
+        .sum()
 }
 
 /// Supernodes from the elimination tree and the column pointers of `L`: column `j` continues
