@@ -8,5 +8,6 @@ pub mod oracle;
 pub use incise::rng;
 pub mod cutcheck;
 pub mod scene;
+pub mod symbols;
 pub mod system;
 pub mod testmesh;

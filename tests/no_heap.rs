@@ -11,6 +11,8 @@
 //!    and checks that step 1 does see that heap, so the check cannot pass vacuously.
 
 use std::path::{Path, PathBuf};
+
+use incise_validation::symbols::allocator_symbols;
 use std::process::Command;
 
 fn root() -> PathBuf {
@@ -53,46 +55,6 @@ fn build(features: &[&str]) -> PathBuf {
     let status = cmd.status().expect("cargo runs");
     assert!(status.success(), "building nostd-check failed");
     target_dir.join("release").join("libincise_nostd_check.a")
-}
-
-/// Allocator symbols (defined or referenced) in a library, by name.
-fn allocator_symbols(lib: &Path) -> Vec<String> {
-    let out = Command::new("nm")
-        .arg("--format=posix")
-        .arg(lib)
-        .output()
-        .expect("nm (binutils) runs");
-    assert!(out.status.success(), "nm failed on {}", lib.display());
-    let text = String::from_utf8_lossy(&out.stdout);
-    const PARTS: [&str; 9] = [
-        "rust_alloc",
-        "rust_dealloc",
-        "rust_realloc",
-        "rg_alloc",
-        "rdl_alloc",
-        "alloc_error_handler",
-        "no_alloc_shim",
-        "5alloc7raw_vec",
-        "GlobalAlloc",
-    ];
-    const C_HEAP: [&str; 7] = [
-        "malloc",
-        "calloc",
-        "realloc",
-        "free",
-        "posix_memalign",
-        "aligned_alloc",
-        "memalign",
-    ];
-    let mut found: Vec<String> = text
-        .lines()
-        .filter_map(|line| line.split_whitespace().next())
-        .filter(|sym| PARTS.iter().any(|p| sym.contains(p)) || C_HEAP.contains(sym))
-        .map(str::to_owned)
-        .collect();
-    found.sort();
-    found.dedup();
-    found
 }
 
 /// Links the library with a C `main` that calls `checks` in order and runs it: 0 when every

@@ -114,6 +114,11 @@ impl<T: Real> Camera<T> {
         &self.translation
     }
 
+    /// Depth (metres along the optical axis) at or below which a point cannot be projected.
+    pub fn near(&self) -> T {
+        self.near
+    }
+
     /// Camera centre in world coordinates, metres.
     pub fn centre(&self) -> &Vector3<T> {
         &self.centre

@@ -115,7 +115,9 @@ impl<T: Real> Rules<T> {
             tolerance: config.line_tolerance * spacing,
             min_step: config.min_step * spacing,
             max_step: config.max_step * spacing,
-            cos_alpha: (config.alpha_degrees * T::pi() / T::of(180.0)).cos(),
+            cos_alpha: (config.alpha_degrees * T::pi() / T::of(180.0))
+                .libm_sin_cos()
+                .1,
             min_support: config.min_support,
             init_points: config.init_points as usize,
             max_line_spread: config.max_line_spread,
@@ -529,8 +531,9 @@ impl<'a, T: Real> CutLine<'a, T> {
         if !(major > T::zero()) || (minor / major).sqrt() > rules.max_line_spread {
             return 0;
         }
-        let angle = T::of(0.5) * (T::of(2.0) * sxy).atan2(sxx - syy);
-        let e = [angle.cos(), angle.sin()];
+        let angle = T::of(0.5) * (T::of(2.0) * sxy).libm_atan2(sxx - syy);
+        let (sin, cos) = angle.libm_sin_cos();
+        let e = [cos, sin];
         let (mut lo, mut hi) = (T::zero(), T::zero());
         for p in pts.iter().filter(inlier) {
             let t = sub(*p, c)[0] * e[0] + sub(*p, c)[1] * e[1];

@@ -91,6 +91,6 @@ pub use features::{EmbedReport, Observation};
 pub use mesh::{MeshCapacity, MeshInput};
 pub use model::{
     Capacities, Linearization, MAX_STORAGE_LEN, Material, MeshAnalysis, Model, ModelBuffers,
-    ModelConfig, ModelSize, StepReport, analyse_mesh, analyse_mesh_work_len,
+    ModelConfig, ModelSize, StepReport, StoragePart, analyse_mesh, analyse_mesh_work_len,
 };
 pub use solve::{Energies, SolverConfig, Strategy, WorkCount};

@@ -15,6 +15,16 @@ pub trait Real: nalgebra::RealField + Copy + Default {
     fn finite(self) -> bool;
     /// Machine epsilon.
     const EPS: Self;
+    /// Four-quadrant arctangent of `self / x`, computed by the `libm` crate in every build.
+    ///
+    /// Not nalgebra's `atan2`: a host that links `std` switches nalgebra (by feature
+    /// unification) to the platform's C library, whose transcendental functions may differ
+    /// from `libm`'s in the last bit, and a firmware build would no longer compute the same
+    /// bits as the host ([`crate::Model::from_precomputed`], `tests/firmware.rs`). Square
+    /// roots need no such care: they are correctly rounded everywhere.
+    fn libm_atan2(self, x: Self) -> Self;
+    /// Sine and cosine, by the `libm` crate in every build (see [`Real::libm_atan2`]).
+    fn libm_sin_cos(self) -> (Self, Self);
 }
 
 impl Real for f64 {
@@ -31,6 +41,14 @@ impl Real for f64 {
         self.is_finite()
     }
     const EPS: Self = f64::EPSILON;
+    #[inline]
+    fn libm_atan2(self, x: Self) -> Self {
+        libm::atan2(self, x)
+    }
+    #[inline]
+    fn libm_sin_cos(self) -> (Self, Self) {
+        libm::sincos(self)
+    }
 }
 
 impl Real for f32 {
@@ -47,4 +65,12 @@ impl Real for f32 {
         self.is_finite()
     }
     const EPS: Self = f32::EPSILON;
+    #[inline]
+    fn libm_atan2(self, x: Self) -> Self {
+        libm::atan2f(self, x)
+    }
+    #[inline]
+    fn libm_sin_cos(self) -> (Self, Self) {
+        libm::sincosf(self)
+    }
 }

@@ -116,6 +116,29 @@ pub enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Write one scene as a Rust module for a firmware build (`firmware/`): mesh, camera,
+    /// settings, capacities and `const` buffer lengths, the uncut mesh's precomputed ordering
+    /// and symbolic analysis, and the first frames of tracks. Nothing is written for a scene
+    /// that does not check out.
+    Codegen {
+        /// The scene directory (holding scene.toml).
+        scene: PathBuf,
+        /// The module to write.
+        #[arg(short, long)]
+        out: PathBuf,
+        /// Frames of tracks to include (frame 0 and the next ones).
+        #[arg(long, default_value_t = 5)]
+        frames: usize,
+        /// Then build the firmware program with the module, once per feature set of the core,
+        /// and print its static RAM and code size (needs this source tree, cargo, cc and
+        /// binutils).
+        #[arg(long)]
+        footprint: bool,
+        /// Refuse the scene (and write nothing) if its model's static RAM exceeds this many
+        /// KiB, saying which buffer is too large and by how much.
+        #[arg(long)]
+        ram_budget_kib: Option<u64>,
+    },
     /// Generate scenes: simulate each scenario's real object and write the scene beside it;
     /// or, with --family, every variant of a scene family.
     Gen {
@@ -257,6 +280,13 @@ pub fn run(cli: Cli) -> i32 {
             out,
             video,
         } => gen_command(&scenarios, out, video),
+        Command::Codegen {
+            scene,
+            out,
+            frames,
+            footprint,
+            ram_budget_kib,
+        } => codegen_command(&scene, &out, frames, footprint, ram_budget_kib),
         Command::Table { scenes, true_cut } => table_command(&scenes, true_cut),
         Command::Sweep { scene, out } => sweep_command(&scene, out.as_deref()),
     };
@@ -321,6 +351,72 @@ fn table_command(dirs: &[PathBuf], true_cut: bool) -> Result<(), Failure> {
     out!("{}", crate::report::markdown_table(&rows))?;
     if true_cut {
         out!("\n{}", crate::report::true_cut_table(&rows))?;
+    }
+    Ok(())
+}
+
+fn codegen_command(
+    dir: &Path,
+    out: &Path,
+    frames: usize,
+    footprint: bool,
+    ram_budget_kib: Option<u64>,
+) -> Result<(), Failure> {
+    use crate::codegen::{self, CodegenOptions, footprint as fp};
+    let scene = Scene::load(dir).map_err(|e| e.to_string())?;
+    let generated =
+        codegen::generate(&scene, &CodegenOptions { frames }).map_err(|e| e.to_string())?;
+    if let Some(kib) = ram_budget_kib {
+        codegen::check_budget(&generated, kib.saturating_mul(1024)).map_err(|e| e.to_string())?;
+    }
+    codegen::write(&generated, out).map_err(|e| e.to_string())?;
+    outln!(
+        "wrote {} ({} nodes, {} tetrahedra, {} frames of tracks)",
+        out.display(),
+        scene.rest.len(),
+        scene.tets.len(),
+        generated.frames
+    )?;
+    if footprint {
+        let w = &generated.worst_case;
+        outln!(
+            "\nWorst case of a steady frame (uncut, {} features): {} factorizations ({:.2e} \
+             flops), {} solves ({:.2e} flops), {} PCG products ({:.2e} flops), {} element \
+             tangents, {} element and {} feature energy evaluations.",
+            scene.frames[0].len(),
+            w.factorizations,
+            w.factor_flops as f64,
+            w.solves,
+            w.solve_flops as f64,
+            w.matvecs,
+            w.matvec_flops as f64,
+            w.element_tangents,
+            w.element_evaluations,
+            w.feature_evaluations
+        )?;
+        outln!(
+            "\n{}",
+            codegen::storage_table(&generated).map_err(|e| e.to_string())?
+        )?;
+        outln!(
+            "| feature set | static RAM, KiB | code (.text), KiB | constants (.rodata), KiB | leaves out |"
+        )?;
+        outln!("|---|---:|---:|---:|---|")?;
+        for set in &fp::FEATURE_SETS {
+            let target = fp::firmware_dir()
+                .join("target")
+                .join(set.name.replace(' ', "-"));
+            let built = fp::build(out, set, &target).map_err(|e| e.to_string())?;
+            let f = built.footprint;
+            outln!(
+                "| {} | {} | {} | {} | {} |",
+                set.name,
+                fp::kib(f.ram()),
+                fp::kib(f.text),
+                fp::kib(f.rodata),
+                set.leaves_out
+            )?;
+        }
     }
     Ok(())
 }

@@ -29,6 +29,8 @@
 //!   frame, `frames.csv`).
 //! - [`generate`]: the synthetic-scene generator (`incise gen`) (the "real" object, its motion
 //!   and its images).
+//! - [`codegen`]: `incise codegen`: one scene as a Rust module for a firmware build
+//!   (`codegen/mod.rs`), and the firmware program built and measured (`codegen/footprint.rs`).
 //! - [`eval`]: `incise eval`, scene families run end to end and summed up.
 //! - [`rng`]: a small seeded random generator, so that everything generated is reproducible.
 //! - [`cli`]: the `incise` command line.
@@ -41,6 +43,7 @@
 
 pub mod calibration;
 pub mod cli;
+pub mod codegen;
 pub mod eval;
 pub mod generate;
 pub mod limits;

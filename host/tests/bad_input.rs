@@ -336,3 +336,83 @@ fn every_shipped_scene_and_scenario_passes_the_checks() {
     }
     assert!(families >= 3, "{families} families");
 }
+
+/// `incise codegen` on the scene with `from` replaced by `to` (and `args`) is refused, naming
+/// `words`, and writes nothing.
+fn codegen_refuses(from: &str, to: &str, args: &[&str], words: &[&str]) -> String {
+    let tmp = scene_with(from, to);
+    let out = tmp.path().join("generated").join("scene.rs");
+    let output = incise()
+        .arg("codegen")
+        .arg(tmp.path())
+        .arg("-o")
+        .arg(&out)
+        .args(args)
+        .output()
+        .unwrap();
+    let e = refused(&output, words);
+    assert!(!out.exists(), "{} written: {e}", out.display());
+    assert!(!out.with_extension("rs.tmp").exists());
+    e
+}
+
+#[test]
+fn codegen_refuses_a_scene_that_does_not_check_out_and_writes_nothing() {
+    codegen_refuses(
+        "young = 30000.0",
+        "young = -1.0",
+        &[],
+        &["scene.toml:9:", "[model] young"],
+    );
+    codegen_refuses(
+        "cut_vertices = 64",
+        "cut_vertices = 64\nfactor_entries = 10",
+        &[],
+        &["factor entries"],
+    );
+    codegen_refuses("name = ", "name = ", &["--frames", "0"], &["--frames 0"]);
+    codegen_refuses(
+        "name = ",
+        "name = ",
+        &["--frames", "41"],
+        &["--frames 41", "40 frames"],
+    );
+    // The default capacities need megabytes: a 256 KiB budget says by how much it is over
+    // and which part is the largest.
+    let e = codegen_refuses(
+        "name = ",
+        "name = ",
+        &["--ram-budget-kib", "256"],
+        &["over the budget of 256.0 KiB", "largest", "grows with"],
+    );
+    assert!(e.contains("band-side-cut"), "{e}");
+}
+
+#[test]
+fn codegen_writes_a_module_within_its_budget() {
+    let tmp = scene_with("name = ", "name = ");
+    let out = tmp.path().join("scene.rs");
+    let output = incise()
+        .arg("codegen")
+        .arg(tmp.path())
+        .arg("-o")
+        .arg(&out)
+        .args(["--ram-budget-kib", "65536"])
+        .output()
+        .unwrap();
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let text = std::fs::read_to_string(&out).unwrap();
+    for item in [
+        "pub const CAPACITIES",
+        "pub const SIZE",
+        "pub const ANALYSIS",
+        "pub static FRAMES: [&[Observation<f64>]; 5]",
+        "pub fn config()",
+    ] {
+        assert!(text.contains(item), "{item} missing");
+    }
+}

@@ -18,7 +18,7 @@ pub(crate) mod discretization;
 mod size;
 
 pub use size::{
-    Capacities, MAX_STORAGE_LEN, MeshAnalysis, ModelBuffers, ModelSize, analyse_mesh,
+    Capacities, MAX_STORAGE_LEN, MeshAnalysis, ModelBuffers, ModelSize, StoragePart, analyse_mesh,
     analyse_mesh_work_len,
 };
 

@@ -47,6 +47,31 @@ pub struct Capacities {
     pub cut_vertices: usize,
 }
 
+/// One part of a model's storage ([`ModelSize::parts`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct StoragePart {
+    /// What it holds.
+    pub name: &'static str,
+    /// The capacities (and mesh sizes) it grows with.
+    pub grows_with: &'static str,
+    /// Scalars.
+    pub reals: usize,
+    /// Indices.
+    pub indices: usize,
+    /// Whether only a build with the `cut` feature has it (0 entries without).
+    pub cut: bool,
+}
+
+impl StoragePart {
+    /// Bytes for scalar type `T`, saturated.
+    pub const fn bytes<T>(&self) -> usize {
+        sum(&[
+            times(self.reals, core::mem::size_of::<T>()),
+            times(self.indices, 4),
+        ])
+    }
+}
+
 /// Storage sizes of a model, all functions of its [`Capacities`], which [`ModelSize::new`] has
 /// checked: every count fits the core's `u32` indices and every storage length fits a slice,
 /// so the lengths below are exact and a model built from them cannot overflow its indices.
@@ -220,34 +245,106 @@ impl ModelSize {
         0
     }
 
-    /// Scalars of storage a model needs (the same count for `f32` and `f64`).
-    pub const fn real_len(&self) -> usize {
+    /// The model's storage part by part: what a firmware budget is spent on. Each part names
+    /// the capacities it grows with; [`ModelSize::real_len`] and [`ModelSize::index_len`] are
+    /// the sums of the parts.
+    pub const fn parts(&self) -> [StoragePart; 8] {
         let c = &self.capacities;
-        sum(&[
-            times(HALVES, self.half_real_len()),
-            self.nnz_a, // Hessian values
-            LdlFactor::<f64>::storage_len(&self.symbolic_capacity()),
-            times(7, self.unknowns), // gradient, step, the PCG vectors, solve work
-            LdlFactor::<f64>::SUPERNODAL_WORK_LEN, // packed blocks of the factorization
-            times(3, c.mesh.nodes),  // trial positions of the line search
-            Features::<f64>::real_len(c.features),
-            Self::saved_real_len(c),
-            Self::detection_real_len(c),
-        ])
+        [
+            StoragePart {
+                name: "mesh and system in service (positions, boundary, pattern, analysis, scatter map, embeddings)",
+                grows_with: "the mesh's nodes and tetrahedra, cut_nodes, cut_tets, factor_entries, features, targets",
+                reals: self.half_real_len(),
+                indices: self.half_index_len(),
+                cut: false,
+            },
+            StoragePart {
+                name: "spare half a cut is built into (cut feature)",
+                grows_with: "the same capacities as the half in service",
+                reals: times(HALVES - 1, self.half_real_len()),
+                indices: times(HALVES - 1, self.half_index_len()),
+                cut: true,
+            },
+            StoragePart {
+                name: "stiffness matrix values",
+                grows_with: "the nodes and tetrahedra (6 n + 54 t entries)",
+                reals: self.nnz_a,
+                indices: 0,
+                cut: false,
+            },
+            StoragePart {
+                name: "factor values (L and D)",
+                grows_with: "factor_entries",
+                reals: LdlFactor::<f64>::storage_len(&self.symbolic_capacity()),
+                indices: 0,
+                cut: false,
+            },
+            StoragePart {
+                name: "solver vectors and factorization workspace",
+                grows_with: "the nodes",
+                reals: sum(&[
+                    times(7, self.unknowns), // gradient, step, the PCG vectors, solve work
+                    LdlFactor::<f64>::SUPERNODAL_WORK_LEN, // packed blocks of the factorization
+                    times(3, c.mesh.nodes),  // trial positions of the line search
+                ]),
+                indices: LdlFactor::<f64>::supernodal_index_work_len(self.unknowns),
+                cut: false,
+            },
+            StoragePart {
+                name: "features' observations and the copies a failed call restores",
+                grows_with: "features, the nodes",
+                reals: sum(&[
+                    Features::<f64>::real_len(c.features),
+                    Self::saved_real_len(c),
+                ]),
+                indices: sum(&[
+                    Features::<f64>::index_len(c.features),
+                    Features::<f64>::index_len(c.features), // saved copy
+                    Embedding::<f64>::index_len(c.features), // saved copy
+                ]),
+                cut: false,
+            },
+            StoragePart {
+                name: "cut detection, cut line and cut scratch (cut feature)",
+                grows_with: "features, pairs, cut_vertices, the nodes",
+                reals: Self::detection_real_len(c),
+                indices: Self::detection_index_len(c),
+                cut: true,
+            },
+            StoragePart {
+                name: "workspace (loading, ordering, analysis, cutting)",
+                grows_with: "the nodes and tetrahedra",
+                reals: 0,
+                indices: self.work_len(),
+                cut: false,
+            },
+        ]
     }
 
-    /// Indices of storage a model needs, its workspace included.
+    /// Scalars of storage a model needs (the same count for `f32` and `f64`): the sum of
+    /// [`ModelSize::parts`].
+    pub const fn real_len(&self) -> usize {
+        let parts = self.parts();
+        let mut total = 0usize;
+        let mut rest: &[StoragePart] = &parts;
+        while let [part, tail @ ..] = rest {
+            total = total.saturating_add(part.reals);
+            rest = tail;
+        }
+        total
+    }
+
+    /// Indices of storage a model needs, its workspace included: the sum of
+    /// [`ModelSize::parts`].
     pub const fn index_len(&self) -> usize {
-        let c = &self.capacities;
-        sum(&[
-            times(HALVES, self.half_index_len()),
-            LdlFactor::<f64>::supernodal_index_work_len(self.unknowns), // factorization
-            Features::<f64>::index_len(c.features),
-            Features::<f64>::index_len(c.features), // saved copy
-            Embedding::<f64>::index_len(c.features), // saved copy
-            Self::detection_index_len(c),
-            self.work_len(),
-        ])
+        let parts = self.parts();
+        let mut total = 0usize;
+        let mut rest: &[StoragePart] = &parts;
+        while let [part, tail @ ..] = rest {
+            total = total.saturating_add(part.indices);
+            rest = tail;
+        }
+        total
     }
 
     /// Indices of the workspace the model keeps for rebuilding its mesh and factor (part of

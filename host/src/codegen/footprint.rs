@@ -1,0 +1,253 @@
+//! The firmware program of a generated scene (`firmware/` in the source tree), built for a
+//! feature set of the core, linked into an executable with a small C `main`, and measured:
+//! static RAM (`.data` + `.bss`) and code (`.text`, `.rodata`), from binutils' `size`.
+//!
+//! The executable also holds the C start-up and `main`; a baseline linked from the same
+//! `main` without the firmware is measured too and taken off, so the figures are the
+//! firmware's own. Building needs the source tree (this host finds `firmware/` beside the
+//! sources it was built from), `cargo`, a C compiler (`cc`) and binutils.
+
+use std::fmt;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use super::CodegenError;
+
+/// A set of the core's features a firmware build is made with.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FeatureSet {
+    /// How the README and the footprint table name it.
+    pub name: &'static str,
+    /// Features of the `firmware` package.
+    pub features: &'static [&'static str],
+    /// What it leaves out.
+    pub leaves_out: &'static str,
+}
+
+/// The feature sets CI builds and the README lists.
+pub const FEATURE_SETS: [FeatureSet; 2] = [
+    FeatureSet {
+        name: "cut",
+        features: &["cut"],
+        leaves_out: "nothing: detection, the cut line and cutting the mesh (which orders and analyses the cut mesh again)",
+    },
+    FeatureSet {
+        name: "register only",
+        features: &[],
+        leaves_out: "cut detection, the cut line, cutting the mesh, the minimum-degree ordering and the symbolic analysis",
+    },
+];
+
+/// Section sizes of a firmware build, bytes.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Footprint {
+    /// Code.
+    pub text: u64,
+    /// Constants: the scene's mesh, analysis and tracks.
+    pub rodata: u64,
+    /// Initialised statics.
+    pub data: u64,
+    /// Zeroed statics: the model's storage.
+    pub bss: u64,
+}
+
+impl Footprint {
+    /// Static RAM: `.data` + `.bss`.
+    pub fn ram(&self) -> u64 {
+        self.data + self.bss
+    }
+
+    /// What the program's image holds: `.text` + `.rodata` + `.data`.
+    pub fn flash(&self) -> u64 {
+        self.text + self.rodata + self.data
+    }
+
+    fn minus(&self, base: &Footprint) -> Footprint {
+        Footprint {
+            text: self.text.saturating_sub(base.text),
+            rodata: self.rodata.saturating_sub(base.rodata),
+            data: self.data.saturating_sub(base.data),
+            bss: self.bss.saturating_sub(base.bss),
+        }
+    }
+}
+
+impl fmt::Display for Footprint {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "RAM {} KiB (.data {} B, .bss {} B), code {} KiB (.text), constants {} KiB (.rodata)",
+            kib(self.ram()),
+            self.data,
+            self.bss,
+            kib(self.text),
+            kib(self.rodata)
+        )
+    }
+}
+
+/// Bytes as KiB, one decimal.
+pub fn kib(bytes: u64) -> String {
+    format!("{:.1}", bytes as f64 / 1024.0)
+}
+
+/// The firmware program's sources, beside the sources this host was built from.
+pub fn firmware_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("..")
+        .join("firmware")
+}
+
+/// The C `main` of the firmware executable: runs the firmware and prints each node's position
+/// as `node x y z`, the coordinates as the hexadecimal bits of their `f64`. With `BASELINE`
+/// defined it stands alone (the firmware replaced by a stub), to measure what `main` and the C
+/// start-up take.
+const MAIN_C: &str = r#"#include <stdint.h>
+#include <stdio.h>
+#include <string.h>
+
+typedef void (*emit_fn)(uint32_t, double, double, double);
+#ifdef BASELINE
+int incise_firmware_run(emit_fn emit) { emit(0, 0.0, 0.0, 0.0); return 0; }
+#else
+int incise_firmware_run(emit_fn emit);
+#endif
+
+static void emit(uint32_t v, double x, double y, double z) {
+    uint64_t b[3];
+    memcpy(&b[0], &x, 8);
+    memcpy(&b[1], &y, 8);
+    memcpy(&b[2], &z, 8);
+    printf("%u %016llx %016llx %016llx\n", v, (unsigned long long)b[0],
+           (unsigned long long)b[1], (unsigned long long)b[2]);
+}
+
+int main(void) {
+    int r = incise_firmware_run(emit);
+    if (r != 0) fprintf(stderr, "the firmware stopped: %d\n", r);
+    return r;
+}
+"#;
+
+/// A built firmware executable.
+#[derive(Clone, Debug)]
+pub struct Firmware {
+    /// The executable.
+    pub exe: PathBuf,
+    /// Its sections, less the baseline's.
+    pub footprint: Footprint,
+}
+
+fn run(cmd: &mut Command, what: &str) -> Result<std::process::Output, CodegenError> {
+    let out = cmd
+        .output()
+        .map_err(|e| CodegenError(format!("{what}: cannot run: {e}")))?;
+    if !out.status.success() {
+        return Err(CodegenError(format!(
+            "{what} failed:\n{}",
+            String::from_utf8_lossy(&out.stderr)
+        )));
+    }
+    Ok(out)
+}
+
+/// Builds the firmware program for the generated module `module` with `set`'s features in
+/// `target_dir`, links it with the C `main` and measures it.
+///
+/// # Errors
+/// The build, link or measurement that failed, with its output.
+pub fn build(module: &Path, set: &FeatureSet, target_dir: &Path) -> Result<Firmware, CodegenError> {
+    let module = std::fs::canonicalize(module)
+        .map_err(|e| CodegenError(format!("{}: {e}", module.display())))?;
+    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+    let mut cmd = Command::new(cargo);
+    cmd.current_dir(firmware_dir())
+        .args(["build", "--release", "--locked", "--target-dir"])
+        .arg(target_dir)
+        .env("INCISE_FIRMWARE_SCENE", &module);
+    if !set.features.is_empty() {
+        cmd.arg("--features").arg(set.features.join(","));
+    }
+    // Nothing of an outer build may leak into this one.
+    for (key, _) in std::env::vars() {
+        if key.starts_with("CARGO_FEATURE_")
+            || key == "RUSTFLAGS"
+            || key == "CARGO_ENCODED_RUSTFLAGS"
+        {
+            cmd.env_remove(key);
+        }
+    }
+    run(&mut cmd, "building the firmware program")?;
+    let lib = target_dir.join("release").join("libincise_firmware.a");
+    let main_c = target_dir.join("main.c");
+    std::fs::write(&main_c, MAIN_C)
+        .map_err(|e| CodegenError(format!("{}: {e}", main_c.display())))?;
+    let exe = target_dir.join("firmware");
+    let base = target_dir.join("baseline");
+    // --gc-sections keeps only what the program reaches; no PIE, so that constants holding
+    // addresses stay in .rodata rather than in relocated data.
+    let link = |out: &Path, extra: &[&std::ffi::OsStr]| {
+        let mut cc = Command::new("cc");
+        cc.arg("-O2")
+            .arg("-no-pie")
+            .arg("-o")
+            .arg(out)
+            .arg(&main_c)
+            .arg("-Wl,--gc-sections")
+            .args(extra);
+        run(&mut cc, "linking the firmware program")
+    };
+    link(&exe, &[lib.as_os_str()])?;
+    link(&base, &[std::ffi::OsStr::new("-DBASELINE")])?;
+    let footprint = sections(&exe)?.minus(&sections(&base)?);
+    Ok(Firmware { exe, footprint })
+}
+
+/// Section sizes of an executable, from `size -A`.
+///
+/// # Errors
+/// `size` failing.
+pub fn sections(exe: &Path) -> Result<Footprint, CodegenError> {
+    let out = run(Command::new("size").arg("-A").arg(exe), "size")?;
+    let mut f = Footprint::default();
+    for line in String::from_utf8_lossy(&out.stdout).lines() {
+        let mut words = line.split_whitespace();
+        let (Some(name), Some(bytes)) = (words.next(), words.next()) else {
+            continue;
+        };
+        let Ok(bytes) = bytes.parse::<u64>() else {
+            continue;
+        };
+        match name {
+            ".text" => f.text += bytes,
+            ".rodata" | ".data.rel.ro" => f.rodata += bytes,
+            ".data" => f.data += bytes,
+            ".bss" => f.bss += bytes,
+            _ => {}
+        }
+    }
+    Ok(f)
+}
+
+/// The demangled names of an executable's symbols, from `nm -C`.
+///
+/// # Errors
+/// `nm` failing.
+pub fn symbols(exe: &Path) -> Result<Vec<String>, CodegenError> {
+    let out = run(Command::new("nm").arg("-C").arg(exe), "nm")?;
+    Ok(String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .filter_map(|l| {
+            // `address type name`, or `type name` for an undefined symbol.
+            let mut parts = l.split_whitespace();
+            let first = parts.next()?;
+            let rest: Vec<&str> = parts.collect();
+            let name = if first.len() == 1 {
+                rest.join(" ")
+            } else {
+                rest.get(1..)?.join(" ")
+            };
+            Some(name)
+        })
+        .collect())
+}

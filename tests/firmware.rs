@@ -1,0 +1,143 @@
+//! The firmware build of a generated scene (issue 15): `incise codegen` writes the scene as a
+//! module, `firmware/` (`#![no_std]`, `#![no_main]`, linking only incise-core) is built with it
+//! for each feature set the README lists, linked with a C `main` and run. The test checks
+//! - that no allocator symbol and no formatting machinery (`core::fmt`) is linked;
+//! - that without the `cut` feature neither the minimum-degree ordering nor the symbolic
+//!   analysis is linked, and that with it both are (so the check can see them);
+//! - that the firmware's node positions after the scene's frames are the host's, bit for bit,
+//!   with the same settings (the host's model built with `Model::new`, detection off for a
+//!   build without it);
+//! - that its static RAM is the storage the capacities give, and that leaving cutting out
+//!   shrinks code and RAM.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use incise::codegen::footprint::{self, FEATURE_SETS, FeatureSet, Firmware};
+use incise::codegen::{self, CodegenOptions};
+use incise::scene::Scene;
+use incise::storage::ModelStorage;
+use incise_validation::symbols::{allocator_symbols, names};
+
+const SCENES: [&str; 2] = ["band-side-cut", "liver-lobe"];
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// The node positions the host computes for the scene's first `frames` frames with the
+/// firmware's capacities and settings, as bits.
+fn host_positions(scene: &Scene, frames: usize, detection: bool) -> Vec<[u64; 3]> {
+    let input = scene.mesh_input();
+    let mut config = scene.model_config().unwrap();
+    config.detection.enabled &= detection;
+    let caps = codegen::firmware_capacities(scene).unwrap();
+    let mut storage = ModelStorage::<f64>::new(&input, &caps).unwrap();
+    let mut model = storage.model(&input, &config).unwrap();
+    model.embed_features(&scene.frames[0]).unwrap();
+    for frame in &scene.frames[1..frames] {
+        let known: Vec<_> = frame
+            .iter()
+            .copied()
+            .filter(|o| model.features().slot_of(o.id).is_some())
+            .collect();
+        // A refused frame leaves the model as it was, as in the firmware.
+        let _ = model.step(&known);
+    }
+    model
+        .positions()
+        .iter()
+        .map(|p| p.map(f64::to_bits))
+        .collect()
+}
+
+/// Runs the firmware executable and parses its `node x y z` lines (coordinates as bits).
+fn firmware_positions(exe: &Path) -> Vec<[u64; 3]> {
+    let out = Command::new(exe).output().expect("the firmware runs");
+    assert!(
+        out.status.success(),
+        "the firmware failed: {:?} {}",
+        out.status,
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8(out.stdout)
+        .unwrap()
+        .lines()
+        .enumerate()
+        .map(|(k, line)| {
+            let w: Vec<&str> = line.split_whitespace().collect();
+            assert_eq!(w.len(), 4, "line {k}: {line}");
+            assert_eq!(w[0].parse::<usize>().unwrap(), k);
+            [1, 2, 3].map(|i| u64::from_str_radix(w[i], 16).unwrap())
+        })
+        .collect()
+}
+
+/// Generates `name`'s module with all its frames, builds the firmware with `set` and checks it.
+fn check(name: &str, set: &FeatureSet) -> Firmware {
+    let scene = Scene::load(&root().join("fixtures").join(name)).unwrap();
+    let frames = scene.frames.len();
+    let dir = root()
+        .join("target")
+        .join("firmware")
+        .join(set.name.replace(' ', "-"));
+    let module = dir.join(format!("{name}.rs"));
+    let generated = codegen::generate(&scene, &CodegenOptions { frames }).unwrap();
+    codegen::write(&generated, &module).unwrap();
+    let firmware = footprint::build(&module, set, &dir).unwrap();
+    let lib = dir.join("release").join("libincise_firmware.a");
+    for file in [&lib, &firmware.exe] {
+        let heap = allocator_symbols(file);
+        assert!(
+            heap.is_empty(),
+            "{name}, {}: allocator symbols {heap:?}",
+            set.name
+        );
+    }
+    let symbols = footprint::symbols(&firmware.exe).unwrap();
+    let fmt: Vec<&String> = symbols.iter().filter(|s| s.contains("core::fmt")).collect();
+    assert!(
+        fmt.is_empty(),
+        "{name}, {}: formatting linked: {fmt:?}",
+        set.name
+    );
+    let cut = set.features.contains(&"cut");
+    for needle in ["sparse::order::minimum_degree", "Symbolic::analyse"] {
+        let linked = symbols.iter().any(|s| s.contains(needle));
+        assert_eq!(
+            linked, cut,
+            "{name}, {}: {needle} linked: {linked}",
+            set.name
+        );
+    }
+    assert!(!names(&firmware.exe).is_empty());
+    let host = host_positions(&scene, frames, cut);
+    let device = firmware_positions(&firmware.exe);
+    assert_eq!(device.len(), host.len(), "{name}, {}: node count", set.name);
+    for (v, (d, h)) in device.iter().zip(&host).enumerate() {
+        assert_eq!(d, h, "{name}, {}: node {v}", set.name);
+    }
+    if cut {
+        // The host's core has the `cut` feature: its storage is the firmware's.
+        let size = incise_core::ModelSize::new(&generated.capacities).unwrap();
+        let storage = size.bytes::<f64>() as u64;
+        let ram = firmware.footprint.ram();
+        assert!(
+            ram >= storage && ram <= storage + 64 * 1024,
+            "{name}: static RAM {ram} B, model storage {storage} B"
+        );
+    }
+    firmware
+}
+
+#[test]
+fn each_feature_set_runs_as_the_host_does_and_leaving_cutting_out_shrinks_the_build() {
+    for name in SCENES {
+        let [with, without] = FEATURE_SETS.map(|set| check(name, &set));
+        let (w, wo) = (with.footprint, without.footprint);
+        assert!(
+            wo.text * 10 < w.text * 8 && wo.ram() < w.ram(),
+            "{name}: leaving cutting out should shrink the build: {w} against {wo}"
+        );
+    }
+}
