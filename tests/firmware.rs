@@ -3,12 +3,13 @@
 //! for each feature set the README lists, linked with a C `main` and run. The test checks
 //! - that no allocator symbol and no formatting machinery (`core::fmt`) is linked;
 //! - that without the `cut` feature neither the minimum-degree ordering nor the symbolic
-//!   analysis is linked, and that with it both are (so the check can see them);
+//!   analysis is linked, and that with it both are (so the check can see them); that the
+//!   detector is linked exactly with `detect` (or `cut`);
 //! - that the firmware's node positions after the scene's frames are the host's, bit for bit,
 //!   with the same settings (the host's model built with `Model::new`, detection off for a
-//!   build without it);
-//! - that its static RAM is the storage the capacities give, and that leaving cutting out
-//!   shrinks code and RAM.
+//!   build that does not cut: detection alone moves no node);
+//! - that its static RAM is the storage the capacities give, and that leaving cutting out,
+//!   then detection, shrinks code and RAM.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -102,10 +103,15 @@ fn check(name: &str, set: &FeatureSet) -> Firmware {
         set.name
     );
     let cut = set.features.contains(&"cut");
-    for needle in ["sparse::order::minimum_degree", "Symbolic::analyse"] {
+    let detect = cut || set.features.contains(&"detect");
+    for (needle, expected) in [
+        ("sparse::order::minimum_degree", cut),
+        ("Symbolic::analyse", cut),
+        ("incise_core::detect::detector", detect),
+    ] {
         let linked = symbols.iter().any(|s| s.contains(needle));
         assert_eq!(
-            linked, cut,
+            linked, expected,
             "{name}, {}: {needle} linked: {linked}",
             set.name
         );
@@ -131,13 +137,17 @@ fn check(name: &str, set: &FeatureSet) -> Firmware {
 }
 
 #[test]
-fn each_feature_set_runs_as_the_host_does_and_leaving_cutting_out_shrinks_the_build() {
+fn each_feature_set_runs_as_the_host_does_and_leaving_stages_out_shrinks_the_build() {
     for name in SCENES {
-        let [with, without] = FEATURE_SETS.map(|set| check(name, &set));
-        let (w, wo) = (with.footprint, without.footprint);
-        assert!(
-            wo.text * 10 < w.text * 8 && wo.ram() < w.ram(),
-            "{name}: leaving cutting out should shrink the build: {w} against {wo}"
-        );
+        let builds = FEATURE_SETS.map(|set| check(name, &set));
+        // From everything to the least, each set leaves something out: less code (by a
+        // fifth at least) and less RAM.
+        for (more, less) in builds.iter().zip(&builds[1..]) {
+            let (m, l) = (more.footprint, less.footprint);
+            assert!(
+                l.text * 10 < m.text * 8 && l.ram() < m.ram(),
+                "{name}: each feature left out should shrink the build: {m} against {l}"
+            );
+        }
     }
 }

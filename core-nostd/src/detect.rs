@@ -243,10 +243,10 @@ impl DetectionWork {
     }
 }
 
-#[cfg(feature = "cut")]
+#[cfg(feature = "detect")]
 pub use detector::{Detector, GRID_CELLS};
 
-#[cfg(feature = "cut")]
+#[cfg(feature = "detect")]
 mod detector {
     use super::{DetectionConfig, DetectionReport, DetectionWork};
     use crate::error::{Error, Resource};

@@ -103,7 +103,7 @@ impl<'a, T: Real> Features<'a, T> {
     }
 
     /// Marks `slot` as not observed in this frame (its virtual point cannot be seen).
-    #[cfg_attr(not(feature = "cut"), allow(dead_code))]
+    #[cfg_attr(not(feature = "detect"), allow(dead_code))]
     pub(crate) fn set_unobserved(&mut self, slot: usize) {
         if slot < self.len
             && let Some(a) = self.active.get_mut(slot)

@@ -12,8 +12,9 @@
 //! The per-frame path, top to bottom, is [`model::Model::step`]: take the frame's observations
 //! ([`features`]), then a fixed number of Newton steps ([`solve`]) on the elastic energy of the
 //! mesh ([`mesh`], [`material`]) plus the springs to the observations through the camera
-//! ([`camera`]), each solved with the sparse factorization ([`sparse`]); with the `cut`
-//! feature, then detection, the cut line, and a cut of the mesh where the line has grown.
+//! ([`camera`]), each solved with the sparse factorization ([`sparse`]); with the `detect`
+//! feature, then detection and the cut line, and with the `cut` feature a cut of the mesh
+//! where the line has grown.
 //!
 //! Modules, one per concern:
 //! - [`model`]: the model built in caller storage, and the per-frame step.
@@ -22,9 +23,9 @@
 //! - [`features`]: virtual features embedded in the surface, and the frame's observations.
 //! - [`solve`]: the per-frame minimisation: assembly, the Newton loop with the `Refactor`,
 //!   `Frozen` and `FactorOnce` strategies, PCG and the line search.
-//! - [`detect`]: cut detection from motion discontinuities (the detector needs the `cut`
+//! - [`detect`]: cut detection from motion discontinuities (the detector needs the `detect`
 //!   feature; its configuration is always there).
-//! - `cutline` (`cut` feature): the cut polyline, its fronts, and the separation surface.
+//! - `cutline` (`detect` feature): the cut polyline, its fronts, and the separation surface.
 //! - `cut` (`cut` feature): cutting the volume mesh along the separation surface (snap, split,
 //!   separate, re-embed), on a spare copy of the model's storage swapped in on success.
 //! - [`material`]: Saint Venant–Kirchhoff elasticity on linear tetrahedra, in layers: the law
@@ -60,7 +61,7 @@
 pub mod camera;
 #[cfg(feature = "cut")]
 pub mod cut;
-#[cfg(feature = "cut")]
+#[cfg(feature = "detect")]
 pub mod cutline;
 pub mod detect;
 pub mod embed;
@@ -84,7 +85,7 @@ pub use nalgebra;
 pub use camera::{Camera, Intrinsics};
 #[cfg(feature = "cut")]
 pub use cut::{CutEvent, CutReport, CutWork};
-#[cfg(feature = "cut")]
+#[cfg(feature = "detect")]
 pub use cutline::LineWork;
 pub use detect::{DetectionConfig, DetectionWork};
 pub use features::{EmbedReport, Observation};

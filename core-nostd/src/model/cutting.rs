@@ -1,22 +1,10 @@
-//! The cut stages of [`Model::step`] (`cut` feature): detecting the cut, growing its line and
-//! cutting the mesh along it, and what a caller reads of them. One module behind one `cfg`, so
-//! that a build without the `cut` feature leaves all of it out.
+//! The last stage of [`Model::step`] (`cut` feature): cutting the mesh along the separation
+//! surface of the cut line, and what a caller reads of the cuts. One module behind one `cfg`,
+//! so that a build without the `cut` feature leaves all of it out.
 
 use super::*;
 
 impl<'a, T: Real> Model<'a, T> {
-    /// The worst-case work of the cut detection and the cut line in one [`Model::step`]: a
-    /// formula of the capacities ([`DetectionWork::bound`], [`LineWork::bound`]), whether the
-    /// frame starts the line (its robust fit) or grows it.
-    pub fn worst_case_detection_work(&self) -> (DetectionWork, LineWork) {
-        let features = self.features.capacity() as u64;
-        let pairs = self.cut.detector.pair_capacity() as u64;
-        (
-            DetectionWork::bound(features, pairs),
-            LineWork::bound(self.cut.line.capacity() as u64, pairs, features),
-        )
-    }
-
     /// The worst-case work of one cut event ([`Model::apply_cut`]): a formula of the
     /// capacities. The geometry of each of the (at most two) parts of the line applied
     /// ([`CutWork::bound`]), and the rebuild: one assembly with every tetrahedron's tangent and
@@ -53,46 +41,6 @@ impl<'a, T: Real> Model<'a, T> {
             ..WorkCount::default()
         };
         (geometry, rebuild)
-    }
-
-    /// Stage 3: the residuals of the frame and the detector.
-    pub(super) fn detect(&mut self) -> DetectionReport<T> {
-        let n = self.features.len();
-        for slot in 0..n {
-            let t = self.features.targets()[slot];
-            self.cut.residuals[slot] = match self.projected_feature(slot) {
-                Ok(uv) => [t[0] - uv[0], t[1] - uv[1]],
-                Err(_) => {
-                    // A feature whose virtual point cannot be projected is unobserved in this
-                    // frame: its residual has no meaning and the detector must not read it.
-                    self.features.set_unobserved(slot);
-                    [T::zero(); 2]
-                }
-            };
-        }
-        self.cut.detector.update(
-            self.frame,
-            &self.cut.residuals[..n],
-            self.features.active(),
-            self.features.targets(),
-            &self.config.detection,
-        )
-    }
-
-    /// Stage 4: the cut line starts or advances. Where the mesh is already cut, the model
-    /// follows the opening and leaves no separation points there: the line's vertices then stay
-    /// anchored to the tracked features on both lips.
-    pub(super) fn grow_cut_line(&mut self) -> CutLineReport {
-        self.cut.line.update(
-            self.frame,
-            self.cut.detector.points(),
-            self.cut.detector.point_since(),
-            self.features.targets(),
-            self.features.active(),
-            &self.config.detection,
-            self.cut.detector.spacing(),
-            self.cut.pixels,
-        )
     }
 
     /// Stage 5: cuts the mesh along the separation surface of the cut line as it is seen now
@@ -238,66 +186,6 @@ impl<'a, T: Real> Model<'a, T> {
         report.applied = true;
         report.work = work;
         Ok(report)
-    }
-
-    /// The detected cut line in the image, as its anchoring features are seen now: writes its
-    /// vertices (pixels) to the front of `out`, returns how many (0 before a cut is detected).
-    /// [`Capacities::cut_vertices`] entries always suffice.
-    ///
-    /// # Errors
-    /// [`Error::Capacity`] naming [`Resource::CutVertices`] when `out` is shorter than the line
-    /// (nothing is written then: no silent truncation).
-    pub fn cut_polyline(&self, out: &mut [[T; 2]]) -> Result<usize, Error> {
-        ensure_len(out, self.cut.line.len(), Resource::CutVertices)?;
-        Ok(self.cut.line.project(self.features.targets(), out))
-    }
-
-    /// The separation surface of the detected cut: one quadrilateral (metres) per segment of
-    /// the cut line, extruded along the depth direction by the size of the model. Writes them
-    /// to the front of `out`, returns how many; [`Capacities::cut_vertices`] entries always
-    /// suffice.
-    ///
-    /// # Errors
-    /// [`Error::Capacity`] naming [`Resource::CutSegments`] when `out` is shorter than the
-    /// line has segments (nothing is written then).
-    pub fn separation_surface(&self, out: &mut [[[T; 3]; 4]]) -> Result<usize, Error> {
-        ensure_len(
-            out,
-            self.cut.line.len().saturating_sub(1),
-            Resource::CutSegments,
-        )?;
-        let x = self.positions();
-        // Long enough to pass through the whole model: its bounding-box diagonal.
-        let (mut lo, mut hi) = ([T::zero(); 3], [T::zero(); 3]);
-        for (k, p) in x.iter().enumerate() {
-            for c in 0..3 {
-                lo[c] = if k == 0 { p[c] } else { lo[c].min(p[c]) };
-                hi[c] = if k == 0 { p[c] } else { hi[c].max(p[c]) };
-            }
-        }
-        let diagonal = ((hi[0] - lo[0]) * (hi[0] - lo[0])
-            + (hi[1] - lo[1]) * (hi[1] - lo[1])
-            + (hi[2] - lo[2]) * (hi[2] - lo[2]))
-            .sqrt();
-        Ok(self.cut.line.separation_surface(
-            self.features.targets(),
-            &self.live.mesh,
-            x,
-            &self.config.camera,
-            &self.config.detection,
-            diagonal,
-            out,
-        ))
-    }
-
-    /// The cut detector (pairs, separation points).
-    pub fn detector(&self) -> &Detector<'a, T> {
-        &self.cut.detector
-    }
-
-    /// The cut line.
-    pub fn cut_line(&self) -> &CutLine<'a, T> {
-        &self.cut.line
     }
 
     /// The node pairs the cuts have separated (a node on the cut and its copy on the other

@@ -14,6 +14,8 @@
 
 #[cfg(feature = "cut")]
 mod cutting;
+#[cfg(feature = "detect")]
+mod detecting;
 pub(crate) mod discretization;
 mod size;
 
@@ -27,10 +29,10 @@ use nalgebra::Vector3;
 use crate::camera::Camera;
 #[cfg(feature = "cut")]
 use crate::cut::{self, CutEvent, CutReport, CutWork};
-#[cfg(feature = "cut")]
+#[cfg(feature = "detect")]
 use crate::cutline::{CutLine, CutLineReport, LineWork};
 use crate::detect::DetectionConfig;
-#[cfg(feature = "cut")]
+#[cfg(feature = "detect")]
 use crate::detect::{DetectionReport, DetectionWork, Detector};
 use crate::embed::{Embedding, interpolate, locate_at_rest};
 use crate::error::{Error, Resource};
@@ -99,10 +101,10 @@ pub struct StepReport<T> {
     /// Work of the steady part of the frame (the solve), per stage.
     pub work: WorkCount,
     /// What the cut detection saw (zeros when it is switched off).
-    #[cfg(feature = "cut")]
+    #[cfg(feature = "detect")]
     pub detection: DetectionReport<T>,
     /// The cut line.
-    #[cfg(feature = "cut")]
+    #[cfg(feature = "detect")]
     pub cut_line: CutLineReport,
     /// The cut of the mesh in this frame, with its own work (apart from the steady frame).
     #[cfg(feature = "cut")]
@@ -162,7 +164,7 @@ pub struct Model<'a, T: Real> {
     pub(crate) features: Features<'a, T>,
     /// What a failing call gives back (no meaning between calls).
     pub(crate) saved: Saved<'a, T>,
-    #[cfg(feature = "cut")]
+    #[cfg(feature = "detect")]
     cut: CutState<'a, T>,
     pub(crate) frame: u32,
 }
@@ -179,7 +181,7 @@ pub(crate) struct Saved<'a, T> {
 }
 
 /// The detector, the cut line and their scratch.
-#[cfg(feature = "cut")]
+#[cfg(feature = "detect")]
 struct CutState<'a, T> {
     detector: Detector<'a, T>,
     line: CutLine<'a, T>,
@@ -189,6 +191,7 @@ struct CutState<'a, T> {
     /// each frame.
     pixels: &'a mut [[T; 2]],
     /// Scratch of the mesh cut ([`cut::real_len`]).
+    #[cfg(feature = "cut")]
     scratch: &'a mut [T],
 }
 
@@ -285,7 +288,7 @@ impl<'a, T: Real> Model<'a, T> {
             embedding: Embedding::with_capacity(caps.features, &mut rs, &mut is)?,
             previous: rs.take(3 * caps.mesh.nodes)?.as_chunks_mut::<3>().0,
         };
-        #[cfg(feature = "cut")]
+        #[cfg(feature = "detect")]
         let cut = CutState {
             detector: Detector::new(caps.features, caps.pairs, &mut rs, &mut is)?,
             line: CutLine::new(caps.cut_vertices, &mut rs, &mut is)?,
@@ -294,6 +297,7 @@ impl<'a, T: Real> Model<'a, T> {
                 .take(2 * caps.features.max(caps.cut_vertices))?
                 .as_chunks_mut::<2>()
                 .0,
+            #[cfg(feature = "cut")]
             scratch: rs.take(cut::real_len(caps.mesh.nodes, caps.cut_vertices))?,
         };
         let work = is.take(size.work_len())?;
@@ -312,7 +316,7 @@ impl<'a, T: Real> Model<'a, T> {
             work,
             features,
             saved,
-            #[cfg(feature = "cut")]
+            #[cfg(feature = "detect")]
             cut,
             frame: 0,
         })
@@ -514,7 +518,7 @@ impl<'a, T: Real> Model<'a, T> {
         if report.embedded == 0 {
             return Err(Error::NoFeatures);
         }
-        #[cfg(feature = "cut")]
+        #[cfg(feature = "detect")]
         {
             // Scratch: the projections and residuals at frame 0.
             for slot in 0..self.features.len() {
@@ -530,7 +534,7 @@ impl<'a, T: Real> Model<'a, T> {
         if let Strategy::Frozen { .. } = self.config.solver.strategy {
             self.prepare_frozen(&mut WorkCount::default())?;
         }
-        #[cfg(feature = "cut")]
+        #[cfg(feature = "detect")]
         {
             let n = self.features.len();
             let (live, camera) = (&self.live, &self.config.camera);
@@ -617,14 +621,17 @@ impl<'a, T: Real> Model<'a, T> {
         report.work.state_copies += (5 * self.features.len() + 3 * n_nodes) as u64;
         report.frame = self.frame;
         report.observed = observed;
-        #[cfg(feature = "cut")]
+        #[cfg(feature = "detect")]
         if self.config.detection.enabled {
             report.detection = self.detect();
             report.cut_line = self.grow_cut_line();
-            report.cut = match self.apply_cut() {
-                Ok(cut) => cut,
-                Err(e) => CutReport::refused(e),
-            };
+            #[cfg(feature = "cut")]
+            {
+                report.cut = match self.apply_cut() {
+                    Ok(cut) => cut,
+                    Err(e) => CutReport::refused(e),
+                };
+            }
         }
         self.frame = self.frame.wrapping_add(1);
         Ok(report)
@@ -809,7 +816,7 @@ impl<'a, T: Real> Model<'a, T> {
         };
         h.words(strategy.iter());
         h.words(core::iter::once(&(self.holds as u32)));
-        #[cfg(feature = "cut")]
+        #[cfg(feature = "detect")]
         {
             self.cut.detector.fingerprint_into(&mut h);
             self.cut.line.fingerprint_into(&mut h);

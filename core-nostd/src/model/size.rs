@@ -22,9 +22,9 @@ use crate::storage::{Slab, ensure_len, sum, times};
 
 #[cfg(feature = "cut")]
 use crate::cut;
-#[cfg(feature = "cut")]
+#[cfg(feature = "detect")]
 use crate::cutline::CutLine;
-#[cfg(feature = "cut")]
+#[cfg(feature = "detect")]
 use crate::detect::Detector;
 
 /// The most a model holds, fixed when it is built. A cut adds nodes, tetrahedra and fill; it
@@ -58,8 +58,9 @@ pub struct StoragePart {
     pub reals: usize,
     /// Indices.
     pub indices: usize,
-    /// Whether only a build with the `cut` feature has it (0 entries without).
-    pub cut: bool,
+    /// The feature of the core that brings it (`"detect"` or `"cut"`; 0 entries without
+    /// it), or `None` for a part every build has.
+    pub feature: Option<&'static str>,
 }
 
 impl StoragePart {
@@ -248,7 +249,7 @@ impl ModelSize {
     /// The model's storage part by part: what a firmware budget is spent on. Each part names
     /// the capacities it grows with; [`ModelSize::real_len`] and [`ModelSize::index_len`] are
     /// the sums of the parts.
-    pub const fn parts(&self) -> [StoragePart; 8] {
+    pub const fn parts(&self) -> [StoragePart; 9] {
         let c = &self.capacities;
         [
             StoragePart {
@@ -256,28 +257,28 @@ impl ModelSize {
                 grows_with: "the mesh's nodes and tetrahedra, cut_nodes, cut_tets, factor_entries, features, targets",
                 reals: self.half_real_len(),
                 indices: self.half_index_len(),
-                cut: false,
+                feature: None,
             },
             StoragePart {
                 name: "spare half a cut is built into (cut feature)",
                 grows_with: "the same capacities as the half in service",
                 reals: times(HALVES - 1, self.half_real_len()),
                 indices: times(HALVES - 1, self.half_index_len()),
-                cut: true,
+                feature: Some("cut"),
             },
             StoragePart {
                 name: "stiffness matrix values",
                 grows_with: "the nodes and tetrahedra (6 n + 54 t entries)",
                 reals: self.nnz_a,
                 indices: 0,
-                cut: false,
+                feature: None,
             },
             StoragePart {
                 name: "factor values (L and D)",
                 grows_with: "factor_entries",
                 reals: LdlFactor::<f64>::storage_len(&self.symbolic_capacity()),
                 indices: 0,
-                cut: false,
+                feature: None,
             },
             StoragePart {
                 name: "solver vectors and factorization workspace",
@@ -288,7 +289,7 @@ impl ModelSize {
                     times(3, c.mesh.nodes),  // trial positions of the line search
                 ]),
                 indices: LdlFactor::<f64>::supernodal_index_work_len(self.unknowns),
-                cut: false,
+                feature: None,
             },
             StoragePart {
                 name: "features' observations and the copies a failed call restores",
@@ -302,21 +303,28 @@ impl ModelSize {
                     Features::<f64>::index_len(c.features), // saved copy
                     Embedding::<f64>::index_len(c.features), // saved copy
                 ]),
-                cut: false,
+                feature: None,
             },
             StoragePart {
-                name: "cut detection, cut line and cut scratch (cut feature)",
-                grows_with: "features, pairs, cut_vertices, the nodes",
+                name: "cut detection and cut line (detect feature)",
+                grows_with: "features, pairs, cut_vertices",
                 reals: Self::detection_real_len(c),
                 indices: Self::detection_index_len(c),
-                cut: true,
+                feature: Some("detect"),
+            },
+            StoragePart {
+                name: "scratch of a cut (cut feature)",
+                grows_with: "the nodes, cut_vertices",
+                reals: Self::cut_scratch_len(c),
+                indices: 0,
+                feature: Some("cut"),
             },
             StoragePart {
                 name: "workspace (loading, ordering, analysis, cutting)",
                 grows_with: "the nodes and tetrahedra",
                 reals: 0,
                 indices: self.work_len(),
-                cut: false,
+                feature: None,
             },
         ]
     }
@@ -372,23 +380,32 @@ impl ModelSize {
         0
     }
 
-    #[cfg(feature = "cut")]
+    #[cfg(feature = "detect")]
     const fn detection_real_len(c: &Capacities) -> usize {
         sum(&[
             Detector::<f64>::real_len(c.features, c.pairs),
             CutLine::<f64>::real_len(c.cut_vertices),
             times(2, c.features),                      // residuals
             times(2, max(c.features, c.cut_vertices)), // projections
-            cut::real_len(c.mesh.nodes, c.cut_vertices),
         ])
     }
 
-    #[cfg(not(feature = "cut"))]
+    #[cfg(not(feature = "detect"))]
     const fn detection_real_len(_: &Capacities) -> usize {
         0
     }
 
     #[cfg(feature = "cut")]
+    const fn cut_scratch_len(c: &Capacities) -> usize {
+        cut::real_len(c.mesh.nodes, c.cut_vertices)
+    }
+
+    #[cfg(not(feature = "cut"))]
+    const fn cut_scratch_len(_: &Capacities) -> usize {
+        0
+    }
+
+    #[cfg(feature = "detect")]
     const fn detection_index_len(c: &Capacities) -> usize {
         sum(&[
             Detector::<f64>::index_len(c.features, c.pairs),
@@ -396,7 +413,7 @@ impl ModelSize {
         ])
     }
 
-    #[cfg(not(feature = "cut"))]
+    #[cfg(not(feature = "detect"))]
     const fn detection_index_len(_: &Capacities) -> usize {
         0
     }

@@ -11,9 +11,9 @@
 
 #[cfg(feature = "cut")]
 use crate::cut::CutReport;
-#[cfg(feature = "cut")]
+#[cfg(feature = "detect")]
 use crate::cutline::CutLineReport;
-#[cfg(feature = "cut")]
+#[cfg(feature = "detect")]
 use crate::detect::DetectionReport;
 use crate::error::Error;
 use crate::features::Features;
@@ -78,9 +78,9 @@ impl<'a, T: Real> Model<'a, T> {
             gradient_norm_after,
             min_step_length: min_step,
             work,
-            #[cfg(feature = "cut")]
+            #[cfg(feature = "detect")]
             detection: DetectionReport::default(),
-            #[cfg(feature = "cut")]
+            #[cfg(feature = "detect")]
             cut_line: CutLineReport::default(),
             #[cfg(feature = "cut")]
             cut: CutReport::default(),

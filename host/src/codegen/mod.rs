@@ -25,6 +25,7 @@ use incise_core::{
 
 use crate::scene::Scene;
 use crate::storage::{ModelStorage, SceneCapacities};
+use footprint::FeatureSet;
 
 /// What `incise codegen` is asked for.
 #[derive(Clone, Debug)]
@@ -48,8 +49,11 @@ pub struct Generated {
     /// The capacities the module sizes its buffers for in a build with the `cut` feature:
     /// the scene's, with its cut room.
     pub capacities: Capacities,
-    /// The capacities of a build without it: exactly the uncut mesh, its factor and the
-    /// features of frame 0, no room for cuts or detection.
+    /// The capacities of a build with the `detect` feature and without `cut`: exactly the
+    /// uncut mesh and its factor, the features of frame 0, and the scene's room for the
+    /// detection's pairs and the cut line.
+    pub detect_capacities: Capacities,
+    /// The capacities of a build with neither: no room for detection either.
     pub register_capacities: Capacities,
     /// The module's source.
     pub source: String,
@@ -129,16 +133,19 @@ pub fn generate(scene: &Scene, options: &CodegenOptions) -> Result<Generated, Co
     let worst_case = model.worst_case_work();
     let analysis = model.symbolic().precomputed();
     let mesh = model.mesh();
-    let register_capacities = Capacities {
+    let detect_capacities = Capacities {
         mesh: MeshCapacity {
             nodes: mesh.n_nodes(),
             tets: mesh.n_tets(),
             surface_triangles: mesh.surface().len(),
         },
         factor_entries: analysis.size.nnz_l,
+        ..capacities
+    };
+    let register_capacities = Capacities {
         pairs: 0,
         cut_vertices: 0,
-        ..capacities
+        ..detect_capacities
     };
     let mut s = String::new();
     emit(
@@ -147,6 +154,7 @@ pub fn generate(scene: &Scene, options: &CodegenOptions) -> Result<Generated, Co
             scene,
             config: &config,
             capacities: &capacities,
+            detect_capacities: &detect_capacities,
             register_capacities: &register_capacities,
             analysis: &analysis,
             frames: &scene.frames[..options.frames],
@@ -155,6 +163,7 @@ pub fn generate(scene: &Scene, options: &CodegenOptions) -> Result<Generated, Co
     Ok(Generated {
         name,
         capacities,
+        detect_capacities,
         register_capacities,
         source: s,
         frames: options.frames,
@@ -185,6 +194,7 @@ struct Emit<'e> {
     scene: &'e Scene,
     config: &'e ModelConfig<f64>,
     capacities: &'e Capacities,
+    detect_capacities: &'e Capacities,
     register_capacities: &'e Capacities,
     analysis: &'e PrecomputedAnalysis<'e>,
     frames: &'e [Vec<Observation<f64>>],
@@ -265,9 +275,16 @@ fn emit(s: &mut String, e: &Emit<'_>) {
     );
     emit_capacities(
         s,
-        "Without the `cut` feature: the uncut mesh, its factor and the features tracked at\n\
+        "With the `detect` feature but not `cut`: the uncut mesh, its factor, the features\n\
+         /// tracked at frame 0 and the detection's room; none for cuts.",
+        "all(feature = \"detect\", not(feature = \"cut\"))",
+        e.detect_capacities,
+    );
+    emit_capacities(
+        s,
+        "Without the `detect` feature: the uncut mesh, its factor and the features tracked at\n\
          /// frame 0; no room for cuts or detection.",
-        "not(feature = \"cut\")",
+        "not(feature = \"detect\")",
         e.register_capacities,
     );
     s.push_str(
@@ -431,61 +448,77 @@ fn emit(s: &mut String, e: &Emit<'_>) {
     s.push_str("];\n");
 }
 
-/// The model's static storage in a firmware build with the `cut` feature (`cut`) or without
-/// it, part by part ([`incise_core::ModelSize::parts`]), and its total, in bytes. The host's
-/// core has the feature, so the sizes without it are the parts it does not mark `cut`, of the
-/// capacities without cut room: a slight over-estimate (the workspace of a cut and the record
-/// of cut nodes stay counted), which `--footprint` replaces with the measured figure.
+/// The model's static storage in a firmware build with the features `set`, part by part
+/// ([`incise_core::ModelSize::parts`]), and its total, in bytes. The host's core has every
+/// feature, so the sizes of a smaller set are the parts it brings, of its capacities: a slight
+/// over-estimate (the workspace of a cut and the record of cut nodes stay counted), which
+/// `--footprint` replaces with the measured figure.
 fn storage_parts(
     generated: &Generated,
-    cut: bool,
+    set: &FeatureSet,
 ) -> Result<(Vec<StoragePart>, u64), CodegenError> {
-    let capacities = if cut {
+    let has =
+        |f: &str| set.features.contains(&f) || (f == "detect" && set.features.contains(&"cut"));
+    let capacities = if has("cut") {
         &generated.capacities
+    } else if has("detect") {
+        &generated.detect_capacities
     } else {
         &generated.register_capacities
     };
     let size = ModelSize::new(capacities).map_err(|e| CodegenError(e.to_string()))?;
-    let parts: Vec<StoragePart> = size.parts().into_iter().filter(|p| cut || !p.cut).collect();
+    let parts: Vec<StoragePart> = size
+        .parts()
+        .into_iter()
+        .filter(|p| p.feature.is_none_or(has))
+        .collect();
     let total = parts.iter().map(|p| p.bytes::<f64>() as u64).sum();
     Ok((parts, total))
 }
 
-/// A Markdown table of the model's static storage by part, with the `cut` feature and without
-/// it.
+/// A Markdown table of the model's static storage by part, for each feature set
+/// ([`footprint::FEATURE_SETS`]).
 ///
 /// # Errors
 /// Capacities the core cannot hold.
 pub fn storage_table(generated: &Generated) -> Result<String, CodegenError> {
-    let (with, total_with) = storage_parts(generated, true)?;
-    let (without, total_without) = storage_parts(generated, false)?;
+    let sets = footprint::FEATURE_SETS;
+    let mut columns = Vec::new();
+    for set in &sets {
+        columns.push(storage_parts(generated, set)?);
+    }
     let mut s = format!(
-        "Static storage of the model of {} (f64), KiB:\n\n\
-         | part | with cut | without (estimate) | grows with |\n|---|---:|---:|---|\n",
+        "Static storage of the model of {} (f64), KiB, by feature set (estimates; the \
+         footprint below is measured):\n\n| part |",
         generated.name
     );
-    for p in &with {
-        let other = without
-            .iter()
-            .find(|q| q.name == p.name)
-            .map_or("–".to_string(), |q| {
-                footprint::kib(q.bytes::<f64>() as u64)
-            });
-        let _ = writeln!(
-            s,
-            "| {} | {} | {} | {} |",
-            p.name,
-            footprint::kib(p.bytes::<f64>() as u64),
-            other,
-            p.grows_with
-        );
+    for set in &sets {
+        let _ = write!(s, " {} |", set.name);
     }
-    let _ = writeln!(
-        s,
-        "| total | {} | {} | |",
-        footprint::kib(total_with),
-        footprint::kib(total_without)
-    );
+    s.push_str(" grows with |\n|---|");
+    for _ in &sets {
+        s.push_str("---:|");
+    }
+    s.push_str("---|\n");
+    let (all, _) = &columns[0];
+    for p in all {
+        let _ = write!(s, "| {} |", p.name);
+        for (parts, _) in &columns {
+            let cell = parts
+                .iter()
+                .find(|q| q.name == p.name)
+                .map_or("–".to_string(), |q| {
+                    footprint::kib(q.bytes::<f64>() as u64)
+                });
+            let _ = write!(s, " {cell} |");
+        }
+        let _ = writeln!(s, " {} |", p.grows_with);
+    }
+    s.push_str("| total |");
+    for (_, total) in &columns {
+        let _ = write!(s, " {} |", footprint::kib(*total));
+    }
+    s.push_str(" |\n");
     Ok(s)
 }
 
@@ -497,7 +530,12 @@ pub fn storage_table(generated: &Generated) -> Result<String, CodegenError> {
 /// so the scene's `[capacities]` can be lowered where it matters.
 pub fn check_budget(generated: &Generated, budget: u64) -> Result<(), CodegenError> {
     let cut = generated.needs_cut;
-    let (mut parts, total) = storage_parts(generated, cut)?;
+    let set = if cut {
+        &footprint::FEATURE_SETS[0]
+    } else {
+        &footprint::FEATURE_SETS[footprint::FEATURE_SETS.len() - 1]
+    };
+    let (mut parts, total) = storage_parts(generated, set)?;
     if total <= budget {
         return Ok(());
     }
@@ -543,7 +581,8 @@ pub fn check_budget(generated: &Generated, budget: u64) -> Result<(), CodegenErr
                  capacities{}.",
                 largest.name,
                 if cut {
-                    ", or build without the cut feature, which leaves out the parts marked so"
+                    ", or build without the cut feature (or without detection), which leaves \
+                     out the parts marked so"
                 } else {
                     ""
                 }
