@@ -104,6 +104,9 @@ pub enum Parameter {
     NewtonIterations,
     /// Line-search trials per Newton step (1 to [`crate::solve::MAX_LINE_SEARCH_STEPS`]).
     LineSearchSteps,
+    /// The linear strategy: this core was built without it (features `refactor`, `frozen`,
+    /// `factor-once`).
+    Strategy,
     /// PCG iterations of [`crate::Strategy::Frozen`] (1 to [`crate::solve::MAX_PCG_ITERATIONS`]).
     PcgIterations,
     /// Image margin beyond which an observation is rejected (non-negative).
@@ -158,6 +161,9 @@ impl fmt::Display for Parameter {
                 "newton_iterations must lie in 1..=MAX_NEWTON_ITERATIONS"
             }
             Parameter::LineSearchSteps => "line_search_steps must lie in 1..=MAX_LINE_SEARCH_STEPS",
+            Parameter::Strategy => {
+                "this strategy is not built into the core: enable its feature (refactor, frozen, factor-once)"
+            }
             Parameter::PcgIterations => "pcg_iterations must lie in 1..=MAX_PCG_ITERATIONS",
             Parameter::ImageMargin => "image margin must be non-negative and finite",
             Parameter::RadiusPx => {

@@ -58,6 +58,12 @@
 // `!(x > 0)` is deliberate: it is true for NaN, which is exactly when we want to stop.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+#[cfg(not(any(feature = "refactor", feature = "frozen", feature = "factor-once")))]
+compile_error!(
+    "incise-core needs at least one linear strategy: enable `refactor`, `frozen`, \
+     `factor-once` or all of them (`strategies`, a default feature)"
+);
+
 pub mod camera;
 #[cfg(feature = "cut")]
 pub mod cut;

@@ -85,6 +85,16 @@ pub enum Strategy {
 }
 
 impl Strategy {
+    /// Whether this core was built with the strategy (features `refactor`, `frozen`,
+    /// `factor-once`).
+    pub const fn is_built(&self) -> bool {
+        match self {
+            Strategy::Refactor => cfg!(feature = "refactor"),
+            Strategy::Frozen { .. } => cfg!(feature = "frozen"),
+            Strategy::FactorOnce { .. } => cfg!(feature = "factor-once"),
+        }
+    }
+
     /// PCG iterations per Newton step, if the strategy runs any.
     pub const fn pcg_iterations(&self) -> Option<u32> {
         match *self {
@@ -128,6 +138,7 @@ impl<T: Real> SolverConfig<T> {
             .pcg_iterations()
             .is_none_or(|k| (1..=MAX_PCG_ITERATIONS).contains(&k));
         for (parameter, ok) in [
+            (Parameter::Strategy, self.strategy.is_built()),
             (
                 Parameter::NewtonIterations,
                 (1..=MAX_NEWTON_ITERATIONS).contains(&self.newton_iterations),
@@ -639,4 +650,51 @@ pub(crate) fn build_scatter<T: Real>(
 /// Dot product.
 pub(crate) fn dot<T: Real>(a: &[T], b: &[T]) -> T {
     a.iter().zip(b).fold(T::zero(), |s, (&x, &y)| s + x * y)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn config(strategy: Strategy) -> SolverConfig<f64> {
+        SolverConfig {
+            strategy,
+            newton_iterations: 2,
+            line_search_steps: 3,
+            spring_stiffness: 1e-4,
+            damping: 0.01,
+            depth_prior: 0.0,
+            image_margin: 50.0,
+        }
+    }
+
+    /// Every strategy is accepted exactly when it is built; one left out of the build is
+    /// refused naming the strategy (CI runs this in a build with one strategy only).
+    #[test]
+    fn strategy_is_accepted_exactly_when_built() {
+        for (strategy, built) in [
+            (Strategy::Refactor, cfg!(feature = "refactor")),
+            (
+                Strategy::Frozen { pcg_iterations: 4 },
+                cfg!(feature = "frozen"),
+            ),
+            (
+                Strategy::FactorOnce { pcg_iterations: 4 },
+                cfg!(feature = "factor-once"),
+            ),
+        ] {
+            assert_eq!(strategy.is_built(), built);
+            let result = config(strategy).validate();
+            if built {
+                assert_eq!(result, Ok(()));
+            } else {
+                assert_eq!(
+                    result,
+                    Err(Error::InvalidParameter {
+                        parameter: Parameter::Strategy
+                    })
+                );
+            }
+        }
+    }
 }

@@ -531,7 +531,9 @@ impl<'a, T: Real> Model<'a, T> {
         // The frozen factor is part of setting up, not of the first frame, so that every frame
         // costs the same.
         self.holds = FactorHolds::Nothing;
-        if let Strategy::Frozen { .. } = self.config.solver.strategy {
+        if cfg!(feature = "frozen")
+            && let Strategy::Frozen { .. } = self.config.solver.strategy
+        {
             self.prepare_frozen(&mut WorkCount::default())?;
         }
         #[cfg(feature = "detect")]

@@ -15,7 +15,7 @@ use crate::cut::CutReport;
 use crate::cutline::CutLineReport;
 #[cfg(feature = "detect")]
 use crate::detect::DetectionReport;
-use crate::error::Error;
+use crate::error::{Error, Parameter};
 use crate::features::Features;
 use crate::material::Lame;
 use crate::model::discretization::Discretization;
@@ -31,7 +31,8 @@ impl<'a, T: Real> Model<'a, T> {
         let newton = self.config.solver.newton_iterations;
         let trials = self.config.solver.line_search_steps;
 
-        if let Strategy::Frozen { .. } = self.config.solver.strategy
+        if cfg!(feature = "frozen")
+            && let Strategy::Frozen { .. } = self.config.solver.strategy
             && self.holds != FactorHolds::Frozen
         {
             // Only after a switch of strategy: a one-off cost, counted in this frame's work.
@@ -48,11 +49,29 @@ impl<'a, T: Real> Model<'a, T> {
                 energy_before = e;
                 gradient_norm_before = dot(&v.gradient[..n], &v.gradient[..n]).sqrt();
             }
+            // The guards are constants: a strategy left out of the build leaves its code out.
+            let (refactor, frozen, once) = (
+                cfg!(feature = "refactor"),
+                cfg!(feature = "frozen"),
+                cfg!(feature = "factor-once"),
+            );
             match self.config.solver.strategy {
-                Strategy::Refactor => self.refactor_and_solve(&mut work)?,
-                Strategy::FactorOnce { .. } if it == 0 => self.refactor_and_solve(&mut work)?,
-                Strategy::Frozen { pcg_iterations } | Strategy::FactorOnce { pcg_iterations } => {
+                Strategy::Refactor if refactor => self.refactor_and_solve(&mut work)?,
+                Strategy::FactorOnce { .. } if once && it == 0 => {
+                    self.refactor_and_solve(&mut work)?;
+                }
+                Strategy::Frozen { pcg_iterations } if frozen => {
                     self.pcg(pcg_iterations, &mut work)?;
+                }
+                Strategy::FactorOnce { pcg_iterations } if once => {
+                    self.pcg(pcg_iterations, &mut work)?;
+                }
+                // Not built: `SolverConfig::validate`, which every way of setting a strategy
+                // runs, refuses it before a frame can reach here.
+                _ => {
+                    return Err(Error::InvalidParameter {
+                        parameter: Parameter::Strategy,
+                    });
                 }
             }
             let v = &self.vectors;

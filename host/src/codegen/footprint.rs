@@ -11,6 +11,8 @@ use std::fmt;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+use incise_core::Strategy;
+
 use super::CodegenError;
 
 /// A set of the core's features a firmware build is made with.
@@ -24,24 +26,58 @@ pub struct FeatureSet {
     pub leaves_out: &'static str,
 }
 
+impl FeatureSet {
+    /// A directory name for its build: the name, letters and digits kept, `-` between words.
+    pub fn dir_name(&self) -> String {
+        self.name
+            .split(|c: char| !c.is_ascii_alphanumeric())
+            .filter(|w| !w.is_empty())
+            .collect::<Vec<_>>()
+            .join("-")
+    }
+}
+
 /// The feature sets CI builds and the README lists, from everything to the least.
 pub const FEATURE_SETS: [FeatureSet; 3] = [
     FeatureSet {
         name: "cut",
-        features: &["cut"],
+        features: &["cut", "strategies"],
         leaves_out: "nothing: detection, the cut line, and cutting the mesh (which orders and analyses each cut mesh)",
     },
     FeatureSet {
         name: "detect",
-        features: &["detect"],
+        features: &["detect", "strategies"],
         leaves_out: "cutting the mesh: its spare topology, the mesh surgery, the minimum-degree ordering and the symbolic analysis",
     },
     FeatureSet {
         name: "register",
-        features: &[],
+        features: &["strategies"],
         leaves_out: "also the cut detection and the cut line",
     },
 ];
+
+/// [`FEATURE_SETS`] and, last, registration with only the scene's linear strategy.
+pub fn feature_sets(strategy: Strategy) -> [FeatureSet; 4] {
+    let [cut, detect, register] = FEATURE_SETS;
+    let one = match strategy {
+        Strategy::Refactor => FeatureSet {
+            name: "register, refactor only",
+            features: &["refactor"],
+            leaves_out: "also the frozen and factor-once strategies (their PCG)",
+        },
+        Strategy::Frozen { .. } => FeatureSet {
+            name: "register, frozen only",
+            features: &["frozen"],
+            leaves_out: "also the refactor and factor-once strategies",
+        },
+        Strategy::FactorOnce { .. } => FeatureSet {
+            name: "register, factor-once only",
+            features: &["factor-once"],
+            leaves_out: "also the refactor and frozen strategies (the frozen factor's set-up)",
+        },
+    };
+    [cut, detect, register, one]
+}
 
 /// Section sizes of a firmware build, bytes.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -167,7 +203,13 @@ pub fn build(module: &Path, set: &FeatureSet, target_dir: &Path) -> Result<Firmw
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
     let mut cmd = Command::new(cargo);
     cmd.current_dir(firmware_dir())
-        .args(["build", "--release", "--locked", "--target-dir"])
+        .args([
+            "build",
+            "--release",
+            "--locked",
+            "--no-default-features",
+            "--target-dir",
+        ])
         .arg(target_dir)
         .env("INCISE_FIRMWARE_SCENE", &module);
     if !set.features.is_empty() {

@@ -64,6 +64,8 @@ pub struct Generated {
     pub worst_case: WorkCount,
     /// Whether the scene's detection is on, so its firmware needs the `cut` feature.
     pub needs_cut: bool,
+    /// The scene's linear strategy.
+    pub strategy: Strategy,
 }
 
 /// Why `incise codegen` refused a scene.
@@ -169,6 +171,7 @@ pub fn generate(scene: &Scene, options: &CodegenOptions) -> Result<Generated, Co
         frames: options.frames,
         worst_case,
         needs_cut: config.detection.enabled,
+        strategy: config.solver.strategy,
     })
 }
 
