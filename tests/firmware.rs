@@ -7,9 +7,9 @@
 //!   detector is linked exactly with `detect` (or `cut`);
 //! - that the firmware's node positions after the scene's frames are the host's, bit for bit,
 //!   with the same settings (the host's model built with `Model::new`, detection off for a
-//!   build that does not cut: detection alone moves no node);
-//! - that its static RAM is the storage the capacities give, and that leaving cutting out,
-//!   then detection, shrinks code and RAM.
+//!   build that does not cut: detection alone moves no node); in `f32`, within a micrometre;
+//! - that its static RAM is the storage the capacities give, that leaving cutting out, then
+//!   detection, shrinks code and RAM, and that `f32` saves 4 bytes of RAM per scalar.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -117,10 +117,22 @@ fn check(name: &str, set: &FeatureSet) -> Firmware {
     let host = host_positions(&scene, frames, cut);
     let device = firmware_positions(&firmware.exe);
     assert_eq!(device.len(), host.len(), "{name}, {}: node count", set.name);
+    let f32 = set.features.contains(&"f32");
     for (v, (d, h)) in device.iter().zip(&host).enumerate() {
-        assert_eq!(d, h, "{name}, {}: node {v}", set.name);
+        if f32 {
+            // Within a micrometre of the f64 run (the scenes are centimetres across).
+            let (d, h) = (d.map(f64::from_bits), h.map(f64::from_bits));
+            let distance = (0..3).map(|k| (d[k] - h[k]).powi(2)).sum::<f64>().sqrt();
+            assert!(
+                distance < 1e-6,
+                "{name}, {}: node {v} {distance} m away",
+                set.name
+            );
+        } else {
+            assert_eq!(d, h, "{name}, {}: node {v}", set.name);
+        }
     }
-    if cut {
+    if cut && !f32 {
         // The host's core has the `cut` feature: its storage is the firmware's.
         let size = incise_core::ModelSize::new(&generated.capacities).unwrap();
         let storage = size.bytes::<f64>() as u64;
@@ -138,17 +150,41 @@ fn each_feature_set_runs_as_the_host_does_and_leaving_stages_out_shrinks_the_bui
     for name in SCENES {
         let scene = Scene::load(&root().join("fixtures").join(name)).unwrap();
         let strategy = scene.model_config().unwrap().solver.strategy;
-        let builds = feature_sets(strategy).map(|set| check(name, &set));
+        let builds: Vec<(FeatureSet, Firmware)> = feature_sets(strategy)
+            .into_iter()
+            .map(|set| (set, check(name, &set)))
+            .collect();
+        let footprint = |set: &str| {
+            builds
+                .iter()
+                .find(|(s, _)| s.name == set)
+                .map(|(_, f)| f.footprint)
+                .unwrap()
+        };
         // Each stage left out (cutting, then detection) takes a fifth of the code at least,
         // and RAM. Keeping one strategy of three saves next to nothing (they share assembly,
         // factorization and solves; the README's table shows it), so only the stages are held
         // to a saving.
-        for (more, less) in builds.iter().zip(&builds[1..3]) {
-            let (m, l) = (more.footprint, less.footprint);
+        for (more, less) in [("cut", "detect"), ("detect", "register")] {
+            let (m, l) = (footprint(more), footprint(less));
             assert!(
                 l.text * 10 < m.text * 8 && l.ram() < m.ram(),
-                "{name}: each stage left out should shrink the build: {m} against {l}"
+                "{name}: leaving out {more} should shrink the build: {m} against {l}"
             );
         }
+        // In f32 each scalar of the storage takes 4 bytes fewer; the indices stay.
+        let scalars = incise_core::ModelSize::new(
+            &codegen::generate(&scene, &CodegenOptions::default())
+                .unwrap()
+                .capacities,
+        )
+        .unwrap()
+        .real_len() as u64;
+        let (f64, f32) = (footprint("cut"), footprint("cut, f32"));
+        let saved = f64.ram() - f32.ram();
+        assert!(
+            saved.abs_diff(4 * scalars) < 64 * 1024,
+            "{name}: f32 {f32} against f64 {f64}: {saved} B saved for {scalars} scalars"
+        );
     }
 }

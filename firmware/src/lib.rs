@@ -11,7 +11,9 @@
 use core::cell::UnsafeCell;
 use core::sync::atomic::{AtomicBool, Ordering};
 
-use incise_core::{Error, Model, ModelBuffers, Observation};
+use incise_core::{Error, Model, ModelBuffers, Observation, Real};
+
+use scene::Scalar;
 
 /// The scene, as generated.
 #[allow(dead_code, clippy::all)]
@@ -26,7 +28,7 @@ fn panic(_: &core::panic::PanicInfo<'_>) -> ! {
 
 /// The model's storage: `static`, of the lengths the scene's capacities give at compile time.
 struct Storage {
-    reals: UnsafeCell<[f64; scene::REAL_LEN]>,
+    reals: UnsafeCell<[Scalar; scene::REAL_LEN]>,
     indices: UnsafeCell<[u32; scene::INDEX_LEN]>,
 }
 
@@ -40,7 +42,7 @@ static STORAGE: Storage = Storage {
 static TAKEN: AtomicBool = AtomicBool::new(false);
 
 /// The static buffers, the first time only.
-fn take_storage() -> Option<(&'static mut [f64], &'static mut [u32])> {
+fn take_storage() -> Option<(&'static mut [Scalar], &'static mut [u32])> {
     if TAKEN.swap(true, Ordering::AcqRel) {
         return None;
     }
@@ -89,7 +91,7 @@ pub extern "C" fn incise_firmware_run(emit: extern "C" fn(u32, f64, f64, f64)) -
         let _: Result<_, Error> = model.step(&known[..n]);
     }
     for (v, p) in (0u32..).zip(model.positions()) {
-        emit(v, p[0], p[1], p[2]);
+        emit(v, p[0].to_f64(), p[1].to_f64(), p[2].to_f64());
     }
     0
 }
@@ -97,9 +99,9 @@ pub extern "C" fn incise_firmware_run(emit: extern "C" fn(u32, f64, f64, f64)) -
 /// Copies the observations of features the model carries (those placed at frame 0) into
 /// `known`; returns how many.
 fn observed(
-    model: &Model<'_, f64>,
-    frame: &[Observation<f64>],
-    known: &mut [Observation<f64>],
+    model: &Model<'_, Scalar>,
+    frame: &[Observation<Scalar>],
+    known: &mut [Observation<Scalar>],
 ) -> usize {
     let mut n = 0;
     for o in frame {

@@ -56,8 +56,16 @@ pub const FEATURE_SETS: [FeatureSet; 3] = [
     },
 ];
 
-/// [`FEATURE_SETS`] and, last, registration with only the scene's linear strategy.
-pub fn feature_sets(strategy: Strategy) -> [FeatureSet; 4] {
+/// Everything, computing in `f32`.
+pub const CUT_F32: FeatureSet = FeatureSet {
+    name: "cut, f32",
+    features: &["cut", "strategies", "f32"],
+    leaves_out: "nothing, but computes in f32: half the scalar storage (the core needs no feature for this: a build holds only the scalar types it instantiates)",
+};
+
+/// [`FEATURE_SETS`] with [`CUT_F32`] after the first, and, last, registration with only the
+/// scene's linear strategy.
+pub fn feature_sets(strategy: Strategy) -> [FeatureSet; 5] {
     let [cut, detect, register] = FEATURE_SETS;
     let one = match strategy {
         Strategy::Refactor => FeatureSet {
@@ -76,7 +84,7 @@ pub fn feature_sets(strategy: Strategy) -> [FeatureSet; 4] {
             leaves_out: "also the refactor and frozen strategies (the frozen factor's set-up)",
         },
     };
-    [cut, detect, register, one]
+    [cut, CUT_F32, detect, register, one]
 }
 
 /// Section sizes of a firmware build, bytes.

@@ -269,6 +269,14 @@ fn emit(s: &mut String, e: &Emit<'_>) {
         "/// The scene's name.\npub const NAME: &str = {:?};\n",
         scene.file.name
     );
+    s.push_str(
+        "/// The scalar the model computes in: `f64`, or `f32` in a build with the `f32` feature.\n\
+         /// The values below are written as decimals that read back to the scene's `f64` bits,\n\
+         /// so an `f32` build rounds each once.\n\
+         #[cfg(not(feature = \"f32\"))]\npub type Scalar = f64;\n\
+         /// The scalar the model computes in.\n\
+         #[cfg(feature = \"f32\")]\npub type Scalar = f32;\n\n",
+    );
     emit_capacities(
         s,
         "With the `cut` feature: the mesh plus the cut room the scene asks for, and the\n\
@@ -303,7 +311,11 @@ fn emit(s: &mut String, e: &Emit<'_>) {
 
     // The mesh.
     let _ = writeln!(s, "/// Rest positions of the nodes, metres.");
-    let _ = writeln!(s, "pub static REST: [[f64; 3]; {}] = [", scene.rest.len());
+    let _ = writeln!(
+        s,
+        "pub static REST: [[Scalar; 3]; {}] = [",
+        scene.rest.len()
+    );
     for p in &scene.rest {
         let _ = writeln!(s, "    [{}, {}, {}],", real(p[0]), real(p[1]), real(p[2]));
     }
@@ -317,7 +329,7 @@ fn emit(s: &mut String, e: &Emit<'_>) {
     u32_array(s, "FIXED", "Fixed nodes.", &scene.file.model.fixed);
     s.push_str(
         "/// The model mesh as the core takes it.\n\
-         pub static MESH: MeshInput<'static, f64> = MeshInput {\n    \
+         pub static MESH: MeshInput<'static, Scalar> = MeshInput {\n    \
          rest: &REST,\n    tets: &TETS,\n    fixed: &FIXED,\n};\n\n",
     );
 
@@ -342,7 +354,7 @@ fn emit(s: &mut String, e: &Emit<'_>) {
         "/// Material, camera, solver and detection settings.\n\
          ///\n/// # Errors\n/// None for the generated values, which the host checked; the camera's\n\
          /// constructor checks them again.\n\
-         pub fn config() -> Result<ModelConfig<f64>, Error> {{\n    \
+         pub fn config() -> Result<ModelConfig<Scalar>, Error> {{\n    \
          let camera = Camera::new(\n        Intrinsics {{\n            fx: {},\n            fy: {},\n            \
          cx: {},\n            cy: {},\n            width: {},\n            height: {},\n        }},\n        \
          Matrix3::new({}, {}, {}, {}, {}, {}, {}, {}, {}),\n        Vector3::new({}, {}, {}),\n        {},\n    )?;\n    \
@@ -432,7 +444,7 @@ fn emit(s: &mut String, e: &Emit<'_>) {
     );
     let _ = writeln!(
         s,
-        "pub static FRAMES: [&[Observation<f64>]; {}] = [",
+        "pub static FRAMES: [&[Observation<Scalar>]; {}] = [",
         e.frames.len()
     );
     for frame in e.frames {
