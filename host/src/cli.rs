@@ -380,9 +380,9 @@ fn codegen_command(
     if footprint {
         let w = &generated.worst_case;
         outln!(
-            "\nWorst case of a steady frame (uncut, {} features): {} factorizations ({:.2e} \
-             flops), {} solves ({:.2e} flops), {} PCG products ({:.2e} flops), {} element \
-             tangents, {} element and {} feature energy evaluations.",
+            "\nWorst case of a steady frame (uncut, {} features): factorizations {} ({:.2e} \
+             flops), solves {} ({:.2e} flops), PCG products {} ({:.2e} flops), element \
+             tangents {}, element energies {}, feature energies {}.",
             scene.frames[0].len(),
             w.factorizations,
             w.factor_flops as f64,

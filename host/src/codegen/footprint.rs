@@ -60,7 +60,7 @@ pub const FEATURE_SETS: [FeatureSet; 3] = [
 pub const CUT_F32: FeatureSet = FeatureSet {
     name: "cut, f32",
     features: &["cut", "strategies", "f32"],
-    leaves_out: "nothing, but computes in f32: half the scalar storage (the core needs no feature for this: a build holds only the scalar types it instantiates)",
+    leaves_out: "nothing, but computes in f32: 4 bytes less per scalar of the storage (the core needs no feature for this: a build holds only the scalar types it instantiates)",
 };
 
 /// [`FEATURE_SETS`] with [`CUT_F32`] after the first, and, last, registration with only the
