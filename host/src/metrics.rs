@@ -128,6 +128,29 @@ pub fn paired_rms(a: &[[f64; 3]], b: &[[f64; 3]]) -> f64 {
     (sum / a.len() as f64).sqrt()
 }
 
+/// The centroid of `points` and the unit direction of their principal axis, the line that
+/// fits them best in total least squares (from the angle of their 2 × 2 scatter matrix); `None`
+/// for fewer than two points. The direction's sign is the angle's.
+pub fn principal_axis(points: &[[f64; 2]]) -> Option<([f64; 2], [f64; 2])> {
+    if points.len() < 2 {
+        return None;
+    }
+    let n = points.len() as f64;
+    let mean = [
+        points.iter().map(|p| p[0]).sum::<f64>() / n,
+        points.iter().map(|p| p[1]).sum::<f64>() / n,
+    ];
+    let (mut sxx, mut sxy, mut syy) = (0.0, 0.0, 0.0);
+    for p in points {
+        let (dx, dy) = (p[0] - mean[0], p[1] - mean[1]);
+        sxx += dx * dx;
+        sxy += dx * dy;
+        syy += dy * dy;
+    }
+    let angle = 0.5 * (2.0 * sxy).atan2(sxx - syy);
+    Some((mean, [angle.cos(), angle.sin()]))
+}
+
 /// Distance from `p` to the segment `a–b` in the image plane.
 pub fn point_segment_distance_2d(p: [f64; 2], a: [f64; 2], b: [f64; 2]) -> f64 {
     let (dx, dy) = (b[0] - a[0], b[1] - a[1]);

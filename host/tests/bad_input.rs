@@ -410,7 +410,7 @@ fn codegen_writes_a_module_within_its_budget() {
         "pub const CAPACITIES",
         "pub const SIZE",
         "pub const ANALYSIS",
-        "pub static FRAMES: [&[Observation<f64>]; 5]",
+        "pub static FRAMES: [&[Observation<Scalar>]; 5]",
         "pub fn config()",
     ] {
         assert!(text.contains(item), "{item} missing");

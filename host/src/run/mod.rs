@@ -433,25 +433,10 @@ impl Pass {
     }
 }
 
-/// The straight segment through `points` (total least squares), from the first point's
-/// projection on it to the last's extreme: `None` for fewer than two distinct points.
+/// The straight segment through `points` (total least squares), between the smallest and the
+/// largest projection of the points on it: `None` for fewer than two distinct points.
 fn straight_line(points: &[[f64; 2]]) -> Option<[[f64; 2]; 2]> {
-    let n = points.len() as f64;
-    if points.len() < 2 {
-        return None;
-    }
-    let c = points
-        .iter()
-        .fold([0.0; 2], |a, p| [a[0] + p[0] / n, a[1] + p[1] / n]);
-    let (mut sxx, mut sxy, mut syy) = (0.0, 0.0, 0.0);
-    for p in points {
-        let d = [p[0] - c[0], p[1] - c[1]];
-        sxx += d[0] * d[0];
-        sxy += d[0] * d[1];
-        syy += d[1] * d[1];
-    }
-    let angle = 0.5 * (2.0 * sxy).atan2(sxx - syy);
-    let e = [angle.cos(), angle.sin()];
+    let (c, e) = crate::metrics::principal_axis(points)?;
     let t = |p: &[f64; 2]| (p[0] - c[0]) * e[0] + (p[1] - c[1]) * e[1];
     let lo = points.iter().map(t).fold(f64::INFINITY, f64::min);
     let hi = points.iter().map(t).fold(f64::NEG_INFINITY, f64::max);

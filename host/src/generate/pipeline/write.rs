@@ -302,23 +302,9 @@ fn order_along_image_line(lips: &mut [(u32, u32)], nodes: &[[f64; 3]], camera: &
                 .map_or([0.0, 0.0], |p| [p.x, p.y])
         })
         .collect();
-    if uv.len() < 2 {
+    let Some((mean, dir)) = crate::metrics::principal_axis(&uv) else {
         return;
-    }
-    let n = uv.len() as f64;
-    let mean = [
-        uv.iter().map(|p| p[0]).sum::<f64>() / n,
-        uv.iter().map(|p| p[1]).sum::<f64>() / n,
-    ];
-    let (mut sxx, mut sxy, mut syy) = (0.0, 0.0, 0.0);
-    for p in &uv {
-        let (dx, dy) = (p[0] - mean[0], p[1] - mean[1]);
-        sxx += dx * dx;
-        sxy += dx * dy;
-        syy += dy * dy;
-    }
-    let angle = 0.5 * (2.0 * sxy).atan2(sxx - syy);
-    let dir = [angle.cos(), angle.sin()];
+    };
     let mut keyed: Vec<(f64, (u32, u32))> = lips
         .iter()
         .zip(&uv)
