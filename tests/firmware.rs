@@ -27,11 +27,15 @@ fn root() -> PathBuf {
 }
 
 /// The node positions the host computes for the scene's first `frames` frames with the
-/// firmware's capacities and settings, as bits.
-fn host_positions(scene: &Scene, frames: usize, detection: bool) -> Vec<[u64; 3]> {
+/// firmware's capacities and the settings of feature set `set`, as bits.
+fn host_positions(scene: &Scene, frames: usize, set: &FeatureSet) -> Vec<[u64; 3]> {
     let input = scene.mesh_input();
     let mut config = scene.model_config().unwrap();
-    config.detection.enabled &= detection;
+    // Detection moves nodes only through the cuts it makes: off, unless the build cuts.
+    config.detection.enabled &= set.features.contains(&"cut");
+    if !set.features.contains(&"temporal-filter") {
+        config.detection.temporal_sigmas = f64::INFINITY;
+    }
     let caps = codegen::firmware_capacities(scene).unwrap();
     let mut storage = ModelStorage::<f64>::new(&input, &caps).unwrap();
     let mut model = storage.model(&input, &config).unwrap();
@@ -76,7 +80,12 @@ fn firmware_positions(exe: &Path) -> Vec<[u64; 3]> {
 
 /// Generates `name`'s module with all its frames, builds the firmware with `set` and checks it.
 fn check(name: &str, set: &FeatureSet) -> Firmware {
-    let scene = Scene::load(&root().join("fixtures").join(name)).unwrap();
+    check_scene(&root().join("fixtures").join(name), name, set)
+}
+
+/// As [`check`], for the scene in `dir`.
+fn check_scene(dir: &Path, name: &str, set: &FeatureSet) -> Firmware {
+    let scene = Scene::load(dir).unwrap();
     let frames = scene.frames.len();
     let dir = root().join("target").join("firmware").join(set.dir_name());
     let module = dir.join(format!("{name}.rs"));
@@ -114,7 +123,7 @@ fn check(name: &str, set: &FeatureSet) -> Firmware {
         );
     }
     assert!(!names(&firmware.exe).is_empty());
-    let host = host_positions(&scene, frames, cut);
+    let host = host_positions(&scene, frames, set);
     let device = firmware_positions(&firmware.exe);
     assert_eq!(device.len(), host.len(), "{name}, {}: node count", set.name);
     let f32 = set.features.contains(&"f32");
@@ -149,11 +158,12 @@ fn check(name: &str, set: &FeatureSet) -> Firmware {
 fn each_feature_set_runs_as_the_host_does_and_leaving_stages_out_shrinks_the_build() {
     for name in SCENES {
         let scene = Scene::load(&root().join("fixtures").join(name)).unwrap();
-        let strategy = scene.model_config().unwrap().solver.strategy;
-        let builds: Vec<(FeatureSet, Firmware)> = feature_sets(strategy)
-            .into_iter()
-            .map(|set| (set, check(name, &set)))
-            .collect();
+        let config = scene.model_config().unwrap();
+        let builds: Vec<(FeatureSet, Firmware)> =
+            feature_sets(config.solver.strategy, config.camera.projection())
+                .into_iter()
+                .map(|set| (set, check(name, &set)))
+                .collect();
         let footprint = |set: &str| {
             builds
                 .iter()
@@ -186,5 +196,38 @@ fn each_feature_set_runs_as_the_host_does_and_leaving_stages_out_shrinks_the_bui
             saved.abs_diff(4 * scalars) < 64 * 1024,
             "{name}: f32 {f32} against f64 {f64}: {saved} B saved for {scalars} scalars"
         );
+    }
+    an_orthographic_scene_runs_as_the_host_does();
+}
+
+/// `band-side-cut` seen by an orthographic camera (the scene's camera, its focal lengths taken
+/// to pixels per metre at the band's depth): the firmware with both projections and the one
+/// with the orthographic projection only run as the host does. (Called from the test above:
+/// builds of one feature set share a directory, so they run one after the other.)
+fn an_orthographic_scene_runs_as_the_host_does() {
+    let tmp = tempfile::tempdir().unwrap();
+    let src = root().join("fixtures").join("band-side-cut");
+    for f in ["model.msh", "tracks.csv"] {
+        std::fs::copy(src.join(f), tmp.path().join(f)).unwrap();
+    }
+    let toml = std::fs::read_to_string(src.join("scene.toml")).unwrap();
+    assert!(
+        toml.contains("fx = 4500.0\nfy = 4500.0\n")
+            && toml.contains("translation = [-0.055, 0.015, 0.5]")
+    );
+    let toml = toml.replace(
+        "fx = 4500.0\nfy = 4500.0\n",
+        "projection = \"orthographic\"\nfx = 9000.0\nfy = 9000.0\n",
+    );
+    std::fs::write(tmp.path().join("scene.toml"), toml).unwrap();
+    let scene = Scene::load(tmp.path()).unwrap();
+    let config = scene.model_config().unwrap();
+    assert_eq!(
+        config.camera.projection(),
+        incise_core::Projection::Orthographic
+    );
+    let sets = feature_sets(config.solver.strategy, config.camera.projection());
+    for set in [&sets[0], &sets[sets.len() - 1]] {
+        check_scene(tmp.path(), "band-side-cut-orthographic", set);
     }
 }

@@ -3,7 +3,7 @@
 //! solves, and the registration of a box to a deformation made by the same model.
 
 use incise_core::{
-    Material, MeshInput, ModelConfig, Observation, SolverConfig, StepReport, Strategy,
+    Material, MeshInput, ModelConfig, Observation, Projection, SolverConfig, StepReport, Strategy,
 };
 use incise_validation::oracle::faer_solve;
 use incise_validation::scene::{ModelStorage, camera, nodes_where, observe};
@@ -280,6 +280,10 @@ fn target_deformation(
 }
 
 fn registration(strategy: Strategy) {
+    registration_seen_by(strategy, Projection::Perspective);
+}
+
+fn registration_seen_by(strategy: Strategy, projection: Projection) {
     let size = [0.06, 0.02, 0.02];
     let mesh = box_mesh([12, 4, 4], size);
     let fixed = nodes_where(&mesh, 0, 0.0);
@@ -290,6 +294,21 @@ fn registration(strategy: Strategy) {
         2000.0,
         (640, 480),
     );
+    // The orthographic camera at the same pose, at the pinhole's scale on the top face.
+    let cam = match projection {
+        Projection::Perspective => cam,
+        Projection::Orthographic => {
+            let i = cam.intrinsics();
+            let scale = 1.0 / (0.3 - size[2]);
+            let intrinsics = incise_core::Intrinsics {
+                fx: i.fx * scale,
+                fy: i.fy * scale,
+                ..*i
+            };
+            incise_core::Camera::orthographic(intrinsics, *cam.rotation(), *cam.translation(), 1e-4)
+                .unwrap()
+        }
+    };
     let target = target_deformation(&mesh, &fixed, cam, size);
 
     // Observed: the nodes of the top face (facing the camera, never occluded), moving from
@@ -374,7 +393,7 @@ fn registration(strategy: Strategy) {
         .map(|(a, b)| (Vector3::from(*a) - Vector3::from(*b)).norm())
         .fold(0.0, f64::max);
     eprintln!(
-        "{strategy:?}: surface RMS error {:.3} mm ({:.2}% of the box), largest target displacement {:.2} mm",
+        "{strategy:?}, {projection:?}: surface RMS error {:.3} mm ({:.2}% of the box), largest target displacement {:.2} mm",
         rms * 1e3,
         100.0 * rms / size[0],
         max_disp * 1e3
@@ -399,6 +418,14 @@ fn registration_follows_a_deformation_with_frozen() {
 #[test]
 fn registration_follows_a_deformation_with_one_factorization_per_frame() {
     registration(Strategy::FactorOnce { pcg_iterations: 3 });
+}
+
+#[test]
+fn registration_follows_a_deformation_seen_by_an_orthographic_camera() {
+    registration_seen_by(
+        Strategy::FactorOnce { pcg_iterations: 3 },
+        Projection::Orthographic,
+    );
 }
 
 /// The whole model in single precision: the box of the registration test, a few frames, every

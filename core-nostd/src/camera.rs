@@ -1,10 +1,14 @@
-//! The pinhole camera: projection of model points into the image, its Jacobian, and the rays
-//! through pixels that place virtual features at frame 0.
+//! The camera: projection of model points into the image, its Jacobian, and the rays through
+//! pixels that place virtual features at frame 0.
 //!
 //! Conventions (OpenCV's): a world point `x` (metres) has camera coordinates `x_c = R x + t`,
-//! with `z_c` pointing away from the camera, `x_c` to the right and `y_c` down the image; its
-//! pixel is `u = fx·x_c/z_c + cx`, `v = fy·y_c/z_c + cy`. Lens distortion is the host's concern
-//! (it undistorts tracked points before they reach the core).
+//! with `z_c` pointing away from the camera, `x_c` to the right and `y_c` down the image. A
+//! pinhole camera ([`Projection::Perspective`], feature `perspective`) puts it at pixel
+//! `u = fx·x_c/z_c + cx`, `v = fy·y_c/z_c + cy`; an orthographic one
+//! ([`Projection::Orthographic`], feature `orthographic`: a telecentric lens, or a camera far
+//! from a small scene) at `u = fx·x_c + cx`, `v = fy·y_c + cy`, with `fx`, `fy` in pixels per
+//! metre and every ray parallel to the optical axis. Lens distortion is the host's concern (it
+//! undistorts tracked points before they reach the core).
 
 #![cfg_attr(not(test), deny(clippy::indexing_slicing))]
 
@@ -30,36 +34,105 @@ pub struct Intrinsics<T> {
     pub height: u32,
 }
 
-/// A calibrated pinhole camera with its pose.
+/// How a camera maps camera coordinates to pixels.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Projection {
+    /// The pinhole: rays through the camera centre (feature `perspective`).
+    Perspective,
+    /// Parallel rays along the optical axis; `fx`, `fy` in pixels per metre (feature
+    /// `orthographic`).
+    Orthographic,
+}
+
+impl Projection {
+    /// Whether this core was built with the projection (features `perspective`,
+    /// `orthographic`).
+    pub const fn is_built(&self) -> bool {
+        match self {
+            Projection::Perspective => cfg!(feature = "perspective"),
+            Projection::Orthographic => cfg!(feature = "orthographic"),
+        }
+    }
+}
+
+/// A calibrated camera with its pose.
 ///
-/// Built by [`Camera::new`], which checks the parameters once; projection then only fails for a
-/// point at or behind the near plane.
+/// Built by [`Camera::new`] (pinhole) or [`Camera::orthographic`], which check the parameters
+/// once; projection then only fails for a point at or behind the near plane.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Camera<T: Real> {
+    projection: Projection,
     intrinsics: Intrinsics<T>,
     rotation: Matrix3<T>,
     translation: Vector3<T>,
-    /// Camera centre in world coordinates, `−Rᵀ t`.
+    /// Camera centre in world coordinates, `−Rᵀ t` (for an orthographic camera, the origin of
+    /// its frame, on the plane the rays start from).
     centre: Vector3<T>,
     /// Points with `z_c` at or below this depth (metres) are "behind" the camera.
     near: T,
 }
 
 impl<T: Real> Camera<T> {
-    /// A camera with intrinsics, world-to-camera rotation `R` and translation `t` (metres).
-    /// Points closer than `near` metres along the optical axis cannot be projected.
+    /// A pinhole camera with intrinsics, world-to-camera rotation `R` and translation `t`
+    /// (metres). Points closer than `near` metres along the optical axis cannot be projected.
     ///
     /// # Errors
     /// [`Error::InvalidParameter`] with [`Parameter::Intrinsics`] for non-positive or non-finite
     /// focal lengths, a non-finite principal point or an empty image; with [`Parameter::Pose`]
     /// for a non-finite pose, a rotation that is not orthonormal with determinant 1, or a
-    /// negative or non-finite `near`.
+    /// negative or non-finite `near`; with [`Parameter::Projection`] in a core built without
+    /// the `perspective` feature.
     pub fn new(
         intrinsics: Intrinsics<T>,
         rotation: Matrix3<T>,
         translation: Vector3<T>,
         near: T,
     ) -> Result<Self, Error> {
+        Self::with_projection(
+            Projection::Perspective,
+            intrinsics,
+            rotation,
+            translation,
+            near,
+        )
+    }
+
+    /// An orthographic camera: as [`Camera::new`], with `fx`, `fy` in pixels per metre.
+    ///
+    /// # Errors
+    /// As [`Camera::new`]; [`Parameter::Projection`] in a core built without the
+    /// `orthographic` feature.
+    pub fn orthographic(
+        intrinsics: Intrinsics<T>,
+        rotation: Matrix3<T>,
+        translation: Vector3<T>,
+        near: T,
+    ) -> Result<Self, Error> {
+        Self::with_projection(
+            Projection::Orthographic,
+            intrinsics,
+            rotation,
+            translation,
+            near,
+        )
+    }
+
+    /// A camera of either projection ([`Camera::new`], [`Camera::orthographic`]).
+    ///
+    /// # Errors
+    /// As [`Camera::new`].
+    pub fn with_projection(
+        projection: Projection,
+        intrinsics: Intrinsics<T>,
+        rotation: Matrix3<T>,
+        translation: Vector3<T>,
+        near: T,
+    ) -> Result<Self, Error> {
+        if !projection.is_built() {
+            return Err(Error::InvalidParameter {
+                parameter: Parameter::Projection,
+            });
+        }
         let Intrinsics {
             fx,
             fy,
@@ -91,12 +164,25 @@ impl<T: Real> Camera<T> {
             });
         }
         Ok(Camera {
+            projection,
             intrinsics,
             rotation,
             translation,
             centre: -(rotation.transpose() * translation),
             near,
         })
+    }
+
+    /// The projection.
+    pub fn projection(&self) -> Projection {
+        self.projection
+    }
+
+    /// Whether the camera is orthographic; a constant `false` in a core built without the
+    /// `orthographic` feature, so that its branches leave the build.
+    #[inline]
+    fn is_orthographic(&self) -> bool {
+        cfg!(feature = "orthographic") && self.projection == Projection::Orthographic
     }
 
     /// The intrinsics.
@@ -119,7 +205,8 @@ impl<T: Real> Camera<T> {
         self.near
     }
 
-    /// Camera centre in world coordinates, metres.
+    /// Camera centre in world coordinates, metres (for an orthographic camera, the origin of its
+    /// frame).
     pub fn centre(&self) -> &Vector3<T> {
         &self.centre
     }
@@ -141,10 +228,12 @@ impl<T: Real> Camera<T> {
     pub fn project(&self, x: &Vector3<T>, index: usize) -> Result<Vector2<T>, Error> {
         let xc = self.to_camera(x);
         let z = self.depth(&xc, index)?;
-        Ok(Vector2::new(
-            self.intrinsics.fx * xc.x / z + self.intrinsics.cx,
-            self.intrinsics.fy * xc.y / z + self.intrinsics.cy,
-        ))
+        let i = &self.intrinsics;
+        Ok(if self.is_orthographic() {
+            Vector2::new(i.fx * xc.x + i.cx, i.fy * xc.y + i.cy)
+        } else {
+            Vector2::new(i.fx * xc.x / z + i.cx, i.fy * xc.y / z + i.cy)
+        })
     }
 
     /// Pixel of `x` and the Jacobian `∂(u, v)/∂x` (pixels per metre, `2 × 3`).
@@ -159,6 +248,14 @@ impl<T: Real> Camera<T> {
         let xc = self.to_camera(x);
         let z = self.depth(&xc, index)?;
         let (fx, fy) = (self.intrinsics.fx, self.intrinsics.fy);
+        if self.is_orthographic() {
+            let uv = Vector2::new(
+                fx * xc.x + self.intrinsics.cx,
+                fy * xc.y + self.intrinsics.cy,
+            );
+            let jc = Matrix2x3::new(fx, T::zero(), T::zero(), T::zero(), fy, T::zero());
+            return Ok((uv, jc * self.rotation));
+        }
         let uv = Vector2::new(
             fx * xc.x / z + self.intrinsics.cx,
             fy * xc.y / z + self.intrinsics.cy,
@@ -175,9 +272,18 @@ impl<T: Real> Camera<T> {
         Ok((uv, jc * self.rotation))
     }
 
-    /// The ray through pixel `(u, v)`: origin (the camera centre) and unit direction, world
-    /// coordinates.
+    /// The ray through pixel `(u, v)`: origin (the camera centre; for an orthographic camera,
+    /// the pixel's point on the plane `z_c = 0`) and unit direction, world coordinates.
     pub fn ray(&self, u: T, v: T) -> (Vector3<T>, Vector3<T>) {
+        if self.is_orthographic() {
+            let on_plane = Vector3::new(
+                (u - self.intrinsics.cx) / self.intrinsics.fx,
+                (v - self.intrinsics.cy) / self.intrinsics.fy,
+                T::zero(),
+            );
+            let origin = self.rotation.transpose() * (on_plane - self.translation);
+            return (origin, self.view_direction());
+        }
         let dc = Vector3::new(
             (u - self.intrinsics.cx) / self.intrinsics.fx,
             (v - self.intrinsics.cy) / self.intrinsics.fy,
@@ -185,6 +291,27 @@ impl<T: Real> Camera<T> {
         );
         let d = self.rotation.transpose() * dc;
         (self.centre, d / d.norm())
+    }
+
+    /// Unit direction of the ray through world point `q`, away from the camera.
+    pub fn ray_direction_through(&self, q: &Vector3<T>) -> Vector3<T> {
+        if self.is_orthographic() {
+            return self.view_direction();
+        }
+        let r = q - self.centre;
+        let n = r.norm();
+        if n > T::zero() { r / n } else { r }
+    }
+
+    /// A point the camera sees `p` from, to tell which side of a surface through `p` faces it:
+    /// the centre of a pinhole camera, or a point one metre back along the optical axis for an
+    /// orthographic one.
+    pub fn viewpoint_for(&self, p: &Vector3<T>) -> Vector3<T> {
+        if self.is_orthographic() {
+            p - self.view_direction()
+        } else {
+            self.centre
+        }
     }
 
     /// Whether pixel `(u, v)` lies within `margin` pixels of the image rectangle.
@@ -208,26 +335,48 @@ mod tests {
     use super::*;
 
     fn camera() -> Camera<f64> {
-        // Looking down the world −z axis from 0.3 m above the origin, tilted about x.
+        camera_of(Projection::Perspective)
+    }
+
+    /// Both projections, in a core that has them.
+    fn cameras() -> impl Iterator<Item = Camera<f64>> {
+        [Projection::Perspective, Projection::Orthographic]
+            .into_iter()
+            .filter(Projection::is_built)
+            .map(camera_of)
+    }
+
+    fn camera_of(projection: Projection) -> Camera<f64> {
+        // Looking down the world −z axis from 0.3 m above the origin, tilted about x; the
+        // orthographic camera sees the scene at the pinhole's scale at 0.3 m.
         let a: f64 = 0.2;
         let tilt = Matrix3::new(1.0, 0.0, 0.0, 0.0, a.cos(), -a.sin(), 0.0, a.sin(), a.cos());
         let flip = Matrix3::new(1.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, -1.0);
         let r = tilt * flip;
         let centre = Vector3::new(0.01, -0.02, 0.3);
+        let scale = match projection {
+            Projection::Perspective => 1.0,
+            Projection::Orthographic => 1.0 / 0.3,
+        };
         let intr = Intrinsics {
-            fx: 800.0,
-            fy: 780.0,
+            fx: 800.0 * scale,
+            fy: 780.0 * scale,
             cx: 320.0,
             cy: 240.0,
             width: 640,
             height: 480,
         };
-        Camera::new(intr, r, -(r * centre), 1e-4).unwrap()
+        Camera::with_projection(projection, intr, r, -(r * centre), 1e-4).unwrap()
     }
 
     #[test]
     fn jacobian_matches_finite_differences() {
-        let cam = camera();
+        for cam in cameras() {
+            jacobian_of(&cam);
+        }
+    }
+
+    fn jacobian_of(cam: &Camera<f64>) {
         let x = Vector3::new(0.02, 0.01, 0.03);
         let (_, j) = cam.project_with_jacobian(&x, 0).unwrap();
         let h = 1e-7;
@@ -247,18 +396,79 @@ mod tests {
 
     #[test]
     fn ray_through_a_projection_passes_through_the_point() {
-        let cam = camera();
-        let x = Vector3::new(-0.03, 0.02, 0.01);
-        let uv = cam.project(&x, 0).unwrap();
-        let (o, d) = cam.ray(uv.x, uv.y);
-        let along = (x - o).dot(&d);
-        assert!((o + d * along - x).norm() < 1e-12);
-        assert!(along > 0.0);
-        assert!((cam.centre() - Vector3::new(0.01, -0.02, 0.3)).norm() < 1e-15);
+        for cam in cameras() {
+            let x = Vector3::new(-0.03, 0.02, 0.01);
+            let uv = cam.project(&x, 0).unwrap();
+            let (o, d) = cam.ray(uv.x, uv.y);
+            let along = (x - o).dot(&d);
+            assert!((o + d * along - x).norm() < 1e-12);
+            assert!(along > 0.0);
+            assert!((cam.centre() - Vector3::new(0.01, -0.02, 0.3)).norm() < 1e-15);
+            // The ray through the point is the one `ray_direction_through` gives, and the
+            // viewpoint lies back along it.
+            assert!((cam.ray_direction_through(&x) - d).norm() < 1e-12);
+            let eye = cam.viewpoint_for(&x);
+            assert!(((x - eye).normalize() - d).norm() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn the_orthographic_camera_maps_metres_to_pixels_at_any_depth() {
+        if !Projection::Orthographic.is_built() {
+            return;
+        }
+        let cam = camera_of(Projection::Orthographic);
+        // Two points on one ray, at different depths: one pixel; a step across the ray of a
+        // millimetre moves it by fx · 1 mm.
+        let x = Vector3::new(0.01, 0.02, 0.0);
+        let d = cam.view_direction();
+        let a = cam.project(&x, 0).unwrap();
+        let b = cam.project(&(x + d * 0.05), 0).unwrap();
+        assert!((a - b).norm() < 1e-9);
+        let right = cam.rotation().row(0).transpose();
+        let c = cam.project(&(x + right * 1e-3), 0).unwrap();
+        assert!((c.x - a.x - cam.intrinsics().fx * 1e-3).abs() < 1e-9);
+    }
+
+    #[test]
+    fn a_projection_not_built_is_refused() {
+        let intr = Intrinsics {
+            fx: 1.0,
+            fy: 1.0,
+            cx: 0.0,
+            cy: 0.0,
+            width: 1,
+            height: 1,
+        };
+        for projection in [Projection::Perspective, Projection::Orthographic] {
+            let camera = Camera::with_projection(
+                projection,
+                intr,
+                Matrix3::identity(),
+                Vector3::zeros(),
+                0.0,
+            );
+            assert_eq!(
+                camera.is_ok(),
+                projection.is_built(),
+                "{projection:?}: {camera:?}"
+            );
+            if !projection.is_built() {
+                assert_eq!(
+                    camera,
+                    Err(Error::InvalidParameter {
+                        parameter: Parameter::Projection
+                    })
+                );
+            }
+        }
     }
 
     #[test]
     fn points_behind_are_an_error() {
+        if !Projection::Perspective.is_built() {
+            return;
+        }
         let cam = camera();
         assert_eq!(
             cam.project(&Vector3::new(0.0, 0.0, 0.5), 7),
@@ -280,20 +490,32 @@ mod tests {
             width: 1,
             height: 1,
         };
-        let err = Camera::new(intr, Matrix3::identity(), Vector3::zeros(), 0.0);
-        assert_eq!(
-            err,
-            Err(Error::InvalidParameter {
-                parameter: Parameter::Intrinsics
-            })
-        );
+        let err = Camera::orthographic(intr, Matrix3::identity(), Vector3::zeros(), 0.0)
+            .and_then(|_| Camera::new(intr, Matrix3::identity(), Vector3::zeros(), 0.0));
+        assert!(matches!(err, Err(Error::InvalidParameter { .. })));
+        let both = |intr, r| {
+            [Projection::Perspective, Projection::Orthographic]
+                .into_iter()
+                .filter(Projection::is_built)
+                .map(move |p| Camera::with_projection(p, intr, r, Vector3::zeros(), 0.0))
+        };
+        for err in both(intr, Matrix3::identity()) {
+            assert_eq!(
+                err,
+                Err(Error::InvalidParameter {
+                    parameter: Parameter::Intrinsics
+                })
+            );
+        }
         let intr = Intrinsics { fx: 1.0, ..intr };
         let skew = Matrix3::new(1.0, 0.1, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0);
-        assert_eq!(
-            Camera::new(intr, skew, Vector3::zeros(), 0.0),
-            Err(Error::InvalidParameter {
-                parameter: Parameter::Pose
-            })
-        );
+        for err in both(intr, skew) {
+            assert_eq!(
+                err,
+                Err(Error::InvalidParameter {
+                    parameter: Parameter::Pose
+                })
+            );
+        }
     }
 }

@@ -51,6 +51,8 @@ pub struct DetectionConfig<T> {
     pub outlier_sigmas: T,
     /// A feature is a tracking failure when its residual changes from one frame to the next by
     /// more than the median change plus this many robust standard deviations of the changes.
+    /// Infinite turns the temporal filter off (what a build without the `temporal-filter`
+    /// feature always does).
     pub temporal_sigmas: T,
     /// Differences below this many pixels are never outliers: the floor for scenes without
     /// noise, where the robust deviation is near zero (a tracker localises to a few tenths of a
@@ -132,7 +134,10 @@ impl<T: Real> DetectionConfig<T> {
                     && (self.max_surface_ratio == T::zero() || self.max_surface_ratio >= T::one()),
             ),
             (Parameter::OutlierSigmas, pos(self.outlier_sigmas)),
-            (Parameter::TemporalSigmas, pos(self.temporal_sigmas)),
+            (
+                Parameter::TemporalSigmas,
+                self.temporal_sigmas > T::zero(), // +∞ included: the filter off
+            ),
             (
                 Parameter::MinDifferencePx,
                 self.min_difference_px.finite() && self.min_difference_px >= T::zero(),
@@ -728,22 +733,26 @@ mod detector {
                     count += 1;
                 }
             }
-            let (median, mad, comparisons) =
-                median_mad(self.scratch.get_mut(..count).unwrap_or_default());
-            work.comparisons += comparisons;
-            let limit = (median + config.temporal_sigmas * T::of(MAD_TO_SIGMA) * mad)
-                .max(config.min_difference_px);
+            // A constant in a build without the feature, which then leaves the filter out.
+            let filtering = cfg!(feature = "temporal-filter") && config.temporal_sigmas.finite();
             let mut newly_filtered = false;
-            let slots = self
-                .feature_state
-                .iter_mut()
-                .zip(d)
-                .zip(self.previous.iter());
-            for ((s, &di), &previous) in slots.take(n) {
-                if *s & (eligible | FILTERED) == eligible && norm(di, previous) > limit {
-                    *s |= FILTERED;
-                    self.features_filtered += 1;
-                    newly_filtered = true;
+            if filtering {
+                let (median, mad, comparisons) =
+                    median_mad(self.scratch.get_mut(..count).unwrap_or_default());
+                work.comparisons += comparisons;
+                let limit = (median + config.temporal_sigmas * T::of(MAD_TO_SIGMA) * mad)
+                    .max(config.min_difference_px);
+                let slots = self
+                    .feature_state
+                    .iter_mut()
+                    .zip(d)
+                    .zip(self.previous.iter());
+                for ((s, &di), &previous) in slots.take(n) {
+                    if *s & (eligible | FILTERED) == eligible && norm(di, previous) > limit {
+                        *s |= FILTERED;
+                        self.features_filtered += 1;
+                        newly_filtered = true;
+                    }
                 }
             }
             let slots = self
@@ -1134,6 +1143,7 @@ mod detector {
         }
 
         #[test]
+        #[cfg(feature = "temporal-filter")]
         fn a_single_jumping_feature_is_filtered_and_cuts_nothing() {
             let mut s = store();
             let mut det = detector(&mut s, 400, 2000);

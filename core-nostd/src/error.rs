@@ -100,6 +100,9 @@ pub enum Parameter {
     Intrinsics,
     /// Camera pose (finite, rotation orthonormal with determinant 1).
     Pose,
+    /// Camera projection: this core was built without it (features `perspective`,
+    /// `orthographic`).
+    Projection,
     /// Newton iterations per frame (1 to [`crate::solve::MAX_NEWTON_ITERATIONS`]).
     NewtonIterations,
     /// Line-search trials per Newton step (1 to [`crate::solve::MAX_LINE_SEARCH_STEPS`]).
@@ -119,7 +122,7 @@ pub enum Parameter {
     MaxSurfaceRatio,
     /// Cut detection, `outlier_sigmas`: outlier threshold of a pair, robust deviations (positive, finite).
     OutlierSigmas,
-    /// Cut detection, `temporal_sigmas`: threshold of the temporal filter, robust deviations (positive, finite).
+    /// Cut detection, `temporal_sigmas`: threshold of the temporal filter, robust deviations (positive; infinite turns the filter off).
     TemporalSigmas,
     /// Cut detection, `min_difference_px`: floor of an outlier difference, pixels (finite, non-negative).
     MinDifferencePx,
@@ -157,6 +160,9 @@ impl fmt::Display for Parameter {
                 "camera intrinsics need positive focal lengths, a finite centre and a positive image size"
             }
             Parameter::Pose => "camera pose must be finite with an orthonormal rotation",
+            Parameter::Projection => {
+                "this camera projection is not built into the core: enable its feature (perspective, orthographic)"
+            }
             Parameter::NewtonIterations => {
                 "newton_iterations must lie in 1..=MAX_NEWTON_ITERATIONS"
             }
@@ -174,7 +180,9 @@ impl fmt::Display for Parameter {
                 "detection max_surface_ratio must be 0 or finite and at least 1"
             }
             Parameter::OutlierSigmas => "detection outlier_sigmas must be positive and finite",
-            Parameter::TemporalSigmas => "detection temporal_sigmas must be positive and finite",
+            Parameter::TemporalSigmas => {
+                "detection temporal_sigmas must be positive (infinite turns the temporal filter off)"
+            }
             Parameter::MinDifferencePx => {
                 "detection min_difference_px must be finite and non-negative"
             }

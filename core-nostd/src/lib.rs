@@ -64,6 +64,18 @@ compile_error!(
      `factor-once` or all of them (`strategies`, a default feature)"
 );
 
+#[cfg(not(any(feature = "f32", feature = "f64")))]
+compile_error!(
+    "incise-core needs at least one scalar type: enable `f32`, `f64` or both (`scalars`, a \
+     default feature)"
+);
+
+#[cfg(not(any(feature = "perspective", feature = "orthographic")))]
+compile_error!(
+    "incise-core needs at least one camera projection: enable `perspective`, `orthographic` or \
+     both (`cameras`, a default feature)"
+);
+
 pub mod camera;
 #[cfg(feature = "cut")]
 pub mod cut;
@@ -88,7 +100,7 @@ pub use real::Real;
 // needs no version of their own.
 pub use nalgebra;
 
-pub use camera::{Camera, Intrinsics};
+pub use camera::{Camera, Intrinsics, Projection};
 #[cfg(feature = "cut")]
 pub use cut::{CutEvent, CutReport, CutWork};
 #[cfg(feature = "detect")]

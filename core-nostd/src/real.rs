@@ -1,8 +1,11 @@
-//! The scalar type of the core: `f32` or `f64`.
+//! The scalar type of the core: `f32` (feature `f32`) or `f64` (feature `f64`).
+//!
+//! The core is generic over it, and a build holds only the types it instantiates; the features
+//! make the choice a guarantee: a build with `f32` alone cannot compute in `f64` by mistake.
 
 #![cfg_attr(not(test), deny(clippy::indexing_slicing))]
 
-/// A real scalar the core computes in. Implemented for `f32` and `f64`.
+/// A real scalar the core computes in. Implemented for `f32` and `f64` (features `f32`, `f64`).
 ///
 /// It is nalgebra's [`RealField`](nalgebra::RealField) (so small fixed-size matrices work) plus
 /// the few conversions and checks the core needs without `std`.
@@ -27,6 +30,7 @@ pub trait Real: nalgebra::RealField + Copy + Default {
     fn libm_sin_cos(self) -> (Self, Self);
 }
 
+#[cfg(feature = "f64")]
 impl Real for f64 {
     #[inline]
     fn of(x: f64) -> Self {
@@ -51,6 +55,7 @@ impl Real for f64 {
     }
 }
 
+#[cfg(feature = "f32")]
 impl Real for f32 {
     #[inline]
     fn of(x: f64) -> Self {

@@ -364,9 +364,7 @@ impl<T: Real> Problem<'_, '_, T> {
 
     /// Unit direction of the camera ray through a node's rest position `q`.
     fn ray_at_rest(&self, q: &[T; 3]) -> Vector3<T> {
-        let r = vec3(q) - self.camera.centre();
-        let n = r.norm();
-        if n > T::zero() { r / n } else { r }
+        self.camera.ray_direction_through(&vec3(q))
     }
 
     fn depth_energy(&self, x: &[[T; 3]]) -> T {

@@ -402,7 +402,7 @@ fn codegen_command(
             "| feature set | static RAM, KiB | code (.text), KiB | constants (.rodata), KiB | leaves out |"
         )?;
         outln!("|---|---:|---:|---:|---|")?;
-        for set in &fp::feature_sets(generated.strategy) {
+        for set in &fp::feature_sets(generated.strategy, generated.projection) {
             let target = fp::firmware_dir().join("target").join(set.dir_name());
             let built = fp::build(out, set, &target).map_err(|e| e.to_string())?;
             let f = built.footprint;

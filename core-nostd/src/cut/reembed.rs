@@ -126,7 +126,6 @@ fn nearest_visible_point<T: Real>(
     uv: [T; 2],
     accept: impl Fn(u32) -> bool,
 ) -> Option<(u32, [T; 4])> {
-    let centre = *camera.centre();
     let mut best: Option<(T, u32, [T; 3])> = None;
     for (tri, &tet) in mesh.surface().iter().zip(mesh.surface_tet()) {
         if !accept(tet) {
@@ -136,7 +135,8 @@ fn nearest_visible_point<T: Real>(
             continue;
         };
         // Facing the camera: the camera lies on the outer side of the triangle.
-        if orientation(p[0], p[1], p[2], [centre.x, centre.y, centre.z]) <= T::zero() {
+        let eye = camera.viewpoint_for(&nalgebra::Vector3::new(p[0][0], p[0][1], p[0][2]));
+        if orientation(p[0], p[1], p[2], [eye.x, eye.y, eye.z]) <= T::zero() {
             continue;
         }
         let mut q = [[T::zero(); 2]; 3];

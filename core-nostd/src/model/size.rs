@@ -27,6 +27,13 @@ use crate::cutline::CutLine;
 #[cfg(feature = "detect")]
 use crate::detect::Detector;
 
+/// The scalar the storage lengths are computed with: they are the same for every scalar type
+/// (scalars and indices are counted, not bytes), so any one the build has will do.
+#[cfg(feature = "f64")]
+type AnyReal = f64;
+#[cfg(all(feature = "f32", not(feature = "f64")))]
+type AnyReal = f32;
+
 /// The most a model holds, fixed when it is built. A cut adds nodes, tetrahedra and fill; it
 /// must fit these or it is refused with [`Error::Capacity`] (and the model stays as it was).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -205,8 +212,8 @@ impl ModelSize {
             times(3, n), // positions
             times(3, n), // previous positions (damping reference)
             times(2, n), // damping and depth-prior weights
-            Embedding::<f64>::real_len(c.features),
-            Embedding::<f64>::real_len(c.targets),
+            Embedding::<AnyReal>::real_len(c.features),
+            Embedding::<AnyReal>::real_len(c.targets),
         ])
     }
 
@@ -220,8 +227,8 @@ impl ModelSize {
             self.nnz_a, // its row indices
             self.symbolic_capacity().index_len(),
             times(30, c.mesh.tets), // scatter map
-            Embedding::<f64>::index_len(c.features),
-            Embedding::<f64>::index_len(c.targets),
+            Embedding::<AnyReal>::index_len(c.features),
+            Embedding::<AnyReal>::index_len(c.targets),
             Self::lips_len(c),
         ])
     }
@@ -230,8 +237,8 @@ impl ModelSize {
     /// damping reference).
     const fn saved_real_len(c: &Capacities) -> usize {
         sum(&[
-            Features::<f64>::real_len(c.features),
-            Embedding::<f64>::real_len(c.features),
+            Features::<AnyReal>::real_len(c.features),
+            Embedding::<AnyReal>::real_len(c.features),
             times(3, c.mesh.nodes),
         ])
     }
@@ -276,7 +283,7 @@ impl ModelSize {
             StoragePart {
                 name: "factor values (L and D)",
                 grows_with: "factor_entries",
-                reals: LdlFactor::<f64>::storage_len(&self.symbolic_capacity()),
+                reals: LdlFactor::<AnyReal>::storage_len(&self.symbolic_capacity()),
                 indices: 0,
                 feature: None,
             },
@@ -285,23 +292,23 @@ impl ModelSize {
                 grows_with: "the nodes",
                 reals: sum(&[
                     times(7, self.unknowns), // gradient, step, the PCG vectors, solve work
-                    LdlFactor::<f64>::SUPERNODAL_WORK_LEN, // packed blocks of the factorization
+                    LdlFactor::<AnyReal>::SUPERNODAL_WORK_LEN, // packed blocks of the factorization
                     times(3, c.mesh.nodes),  // trial positions of the line search
                 ]),
-                indices: LdlFactor::<f64>::supernodal_index_work_len(self.unknowns),
+                indices: LdlFactor::<AnyReal>::supernodal_index_work_len(self.unknowns),
                 feature: None,
             },
             StoragePart {
                 name: "features' observations and the copies a failed call restores",
                 grows_with: "features, the nodes",
                 reals: sum(&[
-                    Features::<f64>::real_len(c.features),
+                    Features::<AnyReal>::real_len(c.features),
                     Self::saved_real_len(c),
                 ]),
                 indices: sum(&[
-                    Features::<f64>::index_len(c.features),
-                    Features::<f64>::index_len(c.features), // saved copy
-                    Embedding::<f64>::index_len(c.features), // saved copy
+                    Features::<AnyReal>::index_len(c.features),
+                    Features::<AnyReal>::index_len(c.features), // saved copy
+                    Embedding::<AnyReal>::index_len(c.features), // saved copy
                 ]),
                 feature: None,
             },
@@ -383,8 +390,8 @@ impl ModelSize {
     #[cfg(feature = "detect")]
     const fn detection_real_len(c: &Capacities) -> usize {
         sum(&[
-            Detector::<f64>::real_len(c.features, c.pairs),
-            CutLine::<f64>::real_len(c.cut_vertices),
+            Detector::<AnyReal>::real_len(c.features, c.pairs),
+            CutLine::<AnyReal>::real_len(c.cut_vertices),
             times(2, c.features),                      // residuals
             times(2, max(c.features, c.cut_vertices)), // projections
         ])
@@ -408,8 +415,8 @@ impl ModelSize {
     #[cfg(feature = "detect")]
     const fn detection_index_len(c: &Capacities) -> usize {
         sum(&[
-            Detector::<f64>::index_len(c.features, c.pairs),
-            CutLine::<f64>::index_len(c.cut_vertices),
+            Detector::<AnyReal>::index_len(c.features, c.pairs),
+            CutLine::<AnyReal>::index_len(c.cut_vertices),
         ])
     }
 

@@ -11,7 +11,7 @@ use std::fmt;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use incise_core::Strategy;
+use incise_core::{Projection, Strategy};
 
 use super::CodegenError;
 
@@ -41,17 +41,17 @@ impl FeatureSet {
 pub const FEATURE_SETS: [FeatureSet; 3] = [
     FeatureSet {
         name: "cut",
-        features: &["cut", "strategies"],
+        features: &["cut", "strategies", "temporal-filter", "cameras", "f64"],
         leaves_out: "nothing: detection, the cut line, and cutting the mesh (which orders and analyses each cut mesh)",
     },
     FeatureSet {
         name: "detect",
-        features: &["detect", "strategies"],
+        features: &["detect", "strategies", "temporal-filter", "cameras", "f64"],
         leaves_out: "cutting the mesh: its spare topology, the mesh surgery, the minimum-degree ordering and the symbolic analysis",
     },
     FeatureSet {
         name: "register",
-        features: &["strategies"],
+        features: &["strategies", "cameras", "f64"],
         leaves_out: "also the cut detection and the cut line",
     },
 ];
@@ -59,32 +59,62 @@ pub const FEATURE_SETS: [FeatureSet; 3] = [
 /// Everything, computing in `f32`.
 pub const CUT_F32: FeatureSet = FeatureSet {
     name: "cut, f32",
-    features: &["cut", "strategies", "f32"],
-    leaves_out: "nothing, but computes in f32: 4 bytes less per scalar of the storage (the core needs no feature for this: a build holds only the scalar types it instantiates)",
+    features: &["cut", "strategies", "temporal-filter", "cameras", "f32"],
+    leaves_out: "f64: computes in f32, 4 bytes less per scalar of the storage",
 };
 
-/// [`FEATURE_SETS`] with [`CUT_F32`] after the first, and, last, registration with only the
-/// scene's linear strategy.
-pub fn feature_sets(strategy: Strategy) -> [FeatureSet; 5] {
+/// Everything but the detection's temporal filter.
+pub const CUT_NO_TEMPORAL_FILTER: FeatureSet = FeatureSet {
+    name: "cut, no temporal filter",
+    features: &["cut", "strategies", "cameras", "f64"],
+    leaves_out: "the detection's temporal filter (no feature is taken out as a tracking failure)",
+};
+
+/// [`FEATURE_SETS`] with [`CUT_F32`] and [`CUT_NO_TEMPORAL_FILTER`] after the first, and,
+/// last, registration with only the scene's linear strategy and camera projection.
+pub fn feature_sets(strategy: Strategy, projection: Projection) -> [FeatureSet; 6] {
     let [cut, detect, register] = FEATURE_SETS;
-    let one = match strategy {
-        Strategy::Refactor => FeatureSet {
-            name: "register, refactor only",
-            features: &["refactor"],
-            leaves_out: "also the frozen and factor-once strategies (their PCG)",
-        },
-        Strategy::Frozen { .. } => FeatureSet {
-            name: "register, frozen only",
-            features: &["frozen"],
-            leaves_out: "also the refactor and factor-once strategies",
-        },
-        Strategy::FactorOnce { .. } => FeatureSet {
-            name: "register, factor-once only",
-            features: &["factor-once"],
-            leaves_out: "also the refactor and frozen strategies (the frozen factor's set-up)",
-        },
+    // Every pair, so that each name and feature list is a `'static` constant.
+    let one = |name, features| FeatureSet {
+        name,
+        features,
+        leaves_out: "also the other linear strategies and the other camera projection",
     };
-    [cut, CUT_F32, detect, register, one]
+    use Projection::{Orthographic as O, Perspective as P};
+    let minimal = match (strategy, projection) {
+        (Strategy::Refactor, P) => one(
+            "register, refactor, perspective",
+            &["refactor", "perspective", "f64"],
+        ),
+        (Strategy::Refactor, O) => one(
+            "register, refactor, orthographic",
+            &["refactor", "orthographic", "f64"],
+        ),
+        (Strategy::Frozen { .. }, P) => one(
+            "register, frozen, perspective",
+            &["frozen", "perspective", "f64"],
+        ),
+        (Strategy::Frozen { .. }, O) => one(
+            "register, frozen, orthographic",
+            &["frozen", "orthographic", "f64"],
+        ),
+        (Strategy::FactorOnce { .. }, P) => one(
+            "register, factor-once, perspective",
+            &["factor-once", "perspective", "f64"],
+        ),
+        (Strategy::FactorOnce { .. }, O) => one(
+            "register, factor-once, orthographic",
+            &["factor-once", "orthographic", "f64"],
+        ),
+    };
+    [
+        cut,
+        CUT_F32,
+        CUT_NO_TEMPORAL_FILTER,
+        detect,
+        register,
+        minimal,
+    ]
 }
 
 /// Section sizes of a firmware build, bytes.

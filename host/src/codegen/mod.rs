@@ -20,7 +20,7 @@ use std::path::{Path, PathBuf};
 use incise_core::mesh::MeshCapacity;
 use incise_core::sparse::PrecomputedAnalysis;
 use incise_core::{
-    Capacities, ModelConfig, ModelSize, Observation, StoragePart, Strategy, WorkCount,
+    Capacities, ModelConfig, ModelSize, Observation, Projection, StoragePart, Strategy, WorkCount,
 };
 
 use crate::scene::Scene;
@@ -66,6 +66,8 @@ pub struct Generated {
     pub needs_cut: bool,
     /// The scene's linear strategy.
     pub strategy: Strategy,
+    /// The scene's camera projection.
+    pub projection: Projection,
 }
 
 /// Why `incise codegen` refused a scene.
@@ -172,6 +174,7 @@ pub fn generate(scene: &Scene, options: &CodegenOptions) -> Result<Generated, Co
         worst_case,
         needs_cut: config.detection.enabled,
         strategy: config.solver.strategy,
+        projection: config.camera.projection(),
     })
 }
 
@@ -262,7 +265,7 @@ fn emit(s: &mut String, e: &Emit<'_>) {
          #[allow(unused_imports)]\n\
          use incise_core::{\n    \
              Camera, Capacities, DetectionConfig, Error, Intrinsics, Material, MeshCapacity, \
-             MeshInput,\n    ModelConfig, ModelSize, Observation, SolverConfig, Strategy,\n};\n\n",
+             MeshInput,\n    ModelConfig, ModelSize, Observation, Projection, SolverConfig, Strategy,\n};\n\n",
     );
     let _ = writeln!(
         s,
@@ -340,6 +343,7 @@ fn emit(s: &mut String, e: &Emit<'_>) {
     let r = cam.rotation();
     let t = cam.translation();
     let sv = &cfg.solver;
+    let projection = cam.projection();
     let strategy = match sv.strategy {
         Strategy::Refactor => "Strategy::Refactor".to_string(),
         Strategy::Frozen { pcg_iterations } => {
@@ -355,7 +359,7 @@ fn emit(s: &mut String, e: &Emit<'_>) {
          ///\n/// # Errors\n/// None for the generated values, which the host checked; the camera's\n\
          /// constructor checks them again.\n\
          pub fn config() -> Result<ModelConfig<Scalar>, Error> {{\n    \
-         let camera = Camera::new(\n        Intrinsics {{\n            fx: {},\n            fy: {},\n            \
+         let camera = Camera::with_projection(\n        Projection::{projection:?},\n        Intrinsics {{\n            fx: {},\n            fy: {},\n            \
          cx: {},\n            cy: {},\n            width: {},\n            height: {},\n        }},\n        \
          Matrix3::new({}, {}, {}, {}, {}, {}, {}, {}, {}),\n        Vector3::new({}, {}, {}),\n        {},\n    )?;\n    \
          Ok(ModelConfig {{\n        material: Material {{\n            young: {},\n            poisson: {},\n        }},\n        \

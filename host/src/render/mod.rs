@@ -294,12 +294,12 @@ impl Canvas {
         triangles: &[[u32; 3]],
         colour: [u8; 3],
     ) {
-        let eye = *camera.centre();
         let front: Vec<[u32; 3]> = triangles
             .iter()
             .copied()
             .filter(|t| {
                 let p = t.map(|v| Vector3::from(positions[v as usize]));
+                let eye = camera.viewpoint_for(&p[0]);
                 (p[1] - p[0]).cross(&(p[2] - p[0])).dot(&(eye - p[0])) > 0.0
             })
             .collect();

@@ -4,7 +4,7 @@
 use std::path::Path;
 
 use incise_core::nalgebra::{Matrix3, Vector3};
-use incise_core::{Camera, Intrinsics, SolverConfig, Strategy};
+use incise_core::{Camera, Intrinsics, Projection, SolverConfig, Strategy};
 use serde::{Deserialize, Serialize};
 
 use super::SceneError;
@@ -58,7 +58,7 @@ fn one() -> f64 {
     1.0
 }
 
-/// `[camera]`: pinhole intrinsics (pixels) and world-to-camera pose (metres).
+/// `[camera]`: intrinsics (pixels) and world-to-camera pose (metres).
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct CameraSection {
@@ -81,10 +81,22 @@ pub struct CameraSection {
     /// Near plane, metres.
     #[serde(default = "default_near")]
     pub near: f64,
+    /// `"perspective"` (a pinhole, the default) or `"orthographic"` (parallel rays; `fx`, `fy`
+    /// then in pixels per metre).
+    #[serde(default = "default_projection", skip_serializing_if = "is_perspective")]
+    pub projection: String,
 }
 
 fn default_near() -> f64 {
     1e-4
+}
+
+fn default_projection() -> String {
+    "perspective".into()
+}
+
+fn is_perspective(p: &String) -> bool {
+    p == "perspective"
 }
 
 /// `[solver]`.
@@ -309,7 +321,22 @@ impl SceneFile {
     pub fn camera(&self, file: &Path) -> Result<Camera<f64>, SceneError> {
         let c = &self.camera;
         let r = Matrix3::from_row_slice(&c.rotation.concat());
-        Camera::new(
+        let projection = match c.projection.as_str() {
+            "perspective" => Projection::Perspective,
+            "orthographic" => Projection::Orthographic,
+            other => {
+                return Err(SceneError::new(
+                    file,
+                    0,
+                    format!(
+                        "[camera] projection: {other:?} is not one of \"perspective\", \
+                         \"orthographic\""
+                    ),
+                ));
+            }
+        };
+        Camera::with_projection(
+            projection,
             Intrinsics {
                 fx: c.fx,
                 fy: c.fy,

@@ -233,6 +233,7 @@ pub fn write_scene(
             rotation: [0, 1, 2].map(|i| [r[(i, 0)], r[(i, 1)], r[(i, 2)]]),
             translation: [0, 1, 2].map(|k| camera.translation()[k]),
             near: 1e-4,
+            projection: "perspective".into(),
         },
         solver: s.solver.clone(),
         detection: s.detection.clone(),
