@@ -1,0 +1,360 @@
+//! Growing the cut line: its robust start, following the separation points, advancing a front,
+//! and anchoring each vertex to the tracked features around it.
+
+use super::*;
+
+impl<'a, T: Real> CutLine<'a, T> {
+    /// Fits the line (robustly, then by total least squares) and places its two ends.
+    pub(super) fn start(
+        &mut self,
+        frame: u32,
+        points: &[[T; 2]],
+        features: &[[T; 2]],
+        usable: &[u32],
+        rules: &Rules<T>,
+        work: &mut LineWork,
+    ) -> usize {
+        // Of the lines through two separation points, the one with most points within the
+        // tolerance: spurious clusters (a tracking failure, a region where the model is poor)
+        // then do not tilt the line.
+        let pts = points.get(..FIT_POINTS).unwrap_or(points);
+        let tol = rules.tolerance;
+        let f = pts.len() as u64;
+        work.fit_tests += f * f.saturating_sub(1) / 2 * f + 3 * f;
+        // The inlier count and the two points of the best line.
+        let mut best = (0usize, [T::zero(); 2], [T::zero(); 2]);
+        for (i, &p_i) in pts.iter().enumerate() {
+            for &p_j in pts.iter().skip(i + 1) {
+                let d = sub(p_j, p_i);
+                let len = length(d);
+                if !(len > T::EPS) {
+                    continue;
+                }
+                let inliers = pts
+                    .iter()
+                    .filter(|p| (cross(d, sub(**p, p_i)) / len).abs() <= tol)
+                    .count();
+                if inliers > best.0 {
+                    best = (inliers, p_i, p_j);
+                }
+            }
+        }
+        if best.0 < rules.init_points {
+            return 0;
+        }
+        let (pi, d) = (best.1, sub(best.2, best.1));
+        let dl = length(d);
+        let inlier = |p: &&[T; 2]| (cross(d, sub(**p, pi)) / dl).abs() <= tol;
+        // Then total least squares on the inliers: the principal direction of their scatter.
+        let n = T::of(best.0 as f64);
+        let mut c = [T::zero(); 2];
+        for p in pts.iter().filter(inlier) {
+            c[0] += p[0] / n;
+            c[1] += p[1] / n;
+        }
+        let (mut sxx, mut sxy, mut syy) = (T::zero(), T::zero(), T::zero());
+        for p in pts.iter().filter(inlier) {
+            let d = sub(*p, c);
+            sxx += d[0] * d[0];
+            sxy += d[0] * d[1];
+            syy += d[1] * d[1];
+        }
+        // A cut is a line: refuse a cloud (one bad feature's pairs make a ring, noise a blob).
+        let half_trace = (sxx + syy) * T::of(0.5);
+        let root = ((sxx - syy) * (sxx - syy) * T::of(0.25) + sxy * sxy).sqrt();
+        let (major, minor) = (half_trace + root, (half_trace - root).max(T::zero()));
+        if !(major > T::zero()) || (minor / major).sqrt() > rules.max_line_spread {
+            return 0;
+        }
+        let angle = T::of(0.5) * (T::of(2.0) * sxy).libm_atan2(sxx - syy);
+        let (sin, cos) = angle.libm_sin_cos();
+        let e = [cos, sin];
+        let (mut lo, mut hi) = (T::zero(), T::zero());
+        for p in pts.iter().filter(inlier) {
+            let t = sub(*p, c)[0] * e[0] + sub(*p, c)[1] * e[1];
+            lo = lo.min(t);
+            hi = hi.max(t);
+        }
+        let a = [c[0] + e[0] * lo, c[1] + e[1] * lo];
+        let b = [c[0] + e[0] * hi, c[1] + e[1] * hi];
+        work.anchor_visits += 2 * ANCHOR_COST * (features.len() as u64 + 20);
+        match (
+            anchor_across(a, e, features, usable),
+            anchor_across(b, e, features, usable),
+        ) {
+            (Some((aa, wa)), Some((ab, wb))) if hi > lo => {
+                // [`CutLine::update`] starts the line only with room for two vertices.
+                let ([a0, a1, ..], [w0, w1, ..]) = (&mut *self.anchors, &mut *self.weights) else {
+                    return 0;
+                };
+                *a0 = aa;
+                *w0 = wa;
+                *a1 = ab;
+                *w1 = wb;
+                self.n = 2;
+                self.direction = [[-e[0], -e[1]], e];
+                self.moved = [frame; 2];
+                self.detected_frame = Some(frame);
+                2
+            }
+            _ => 0,
+        }
+    }
+
+    /// Keeps the line on its evidence. A vertex anchored while the cut was narrow stays at the
+    /// same fraction of the way between the lips as they part, which need not be the middle;
+    /// the separation points (midpoints of pairs across the cut) are. Each vertex with enough
+    /// of them within a maximum step moves across the line (not along it) to their mean and is
+    /// anchored again there. Where the model is cut there are no separation points left and
+    /// the vertex stays where its anchors on both lips hold it. `projected` are the vertices'
+    /// current pixels.
+    pub(super) fn follow_points(
+        &mut self,
+        points: &[[T; 2]],
+        features: &[[T; 2]],
+        usable: &[u32],
+        rules: &Rules<T>,
+        projected: &[[T; 2]],
+        work: &mut LineWork,
+    ) {
+        let m = projected.len();
+        if m < 2 {
+            return;
+        }
+        for (k, &v) in projected.iter().enumerate() {
+            let (Some(&a), Some(&b)) = (
+                projected.get(k.saturating_sub(1)),
+                projected.get((k + 1).min(m - 1)),
+            ) else {
+                continue;
+            };
+            let t = sub(b, a);
+            let len = length(t);
+            if !(len > T::EPS) {
+                continue;
+            }
+            let normal = [-t[1] / len, t[0] / len];
+            let across = |p: &[T; 2], reach: T| -> Option<T> {
+                let w = sub(*p, v);
+                (length(w) <= reach).then(|| w[0] * normal[0] + w[1] * normal[1])
+            };
+            let (mut offset, mut count) = (T::zero(), 0u32);
+            work.point_visits += points.len() as u64;
+            for d in points.iter().filter_map(|p| across(p, rules.max_step)) {
+                offset += d;
+                count += 1;
+            }
+            if count < rules.min_support {
+                continue;
+            }
+            let shift = offset / T::of(f64::from(count));
+            let target = [v[0] + normal[0] * shift, v[1] + normal[1] * shift];
+            work.anchor_visits += ANCHOR_COST * (features.len() as u64 + 20);
+            // `projected` holds one pixel per vertex (`k < n`).
+            if let Some((anchor, w)) = anchor_across(target, t, features, usable)
+                && let (Some(sa), Some(sw)) = (self.anchors.get_mut(k), self.weights.get_mut(k))
+            {
+                *sa = anchor;
+                *sw = w;
+            }
+        }
+    }
+
+    /// Where a front at `v` heading `u` moves, if enough `fresh` points ahead, inside the
+    /// angle `α` and within [`REACH_STEPS`] maximum steps, support it: toward their mean, by at most the
+    /// maximum step.
+    pub(super) fn advance(
+        v: [T; 2],
+        u: [T; 2],
+        points: &[[T; 2]],
+        fresh: impl Fn(usize) -> bool,
+        rules: &Rules<T>,
+    ) -> Option<([T; 2], [T; 2])> {
+        let cos_alpha = rules.cos_alpha;
+        let (mut sum, mut count) = ([T::zero(); 2], 0u32);
+        for (k, p) in points.iter().enumerate() {
+            if !fresh(k) {
+                continue;
+            }
+            let w = sub(*p, v);
+            let d = length(w);
+            if d > T::EPS
+                && d <= T::of(REACH_STEPS) * rules.max_step
+                && (w[0] * u[0] + w[1] * u[1]) >= cos_alpha * d
+            {
+                sum[0] += w[0];
+                sum[1] += w[1];
+                count += 1;
+            }
+        }
+        if count < rules.min_support {
+            return None;
+        }
+        let mean = [
+            sum[0] / T::of(f64::from(count)),
+            sum[1] / T::of(f64::from(count)),
+        ];
+        let len = length(mean);
+        if len < rules.min_step || !(len > T::zero()) {
+            return None;
+        }
+        let dir = [mean[0] / len, mean[1] / len];
+        let step = len.min(rules.max_step).max(rules.min_step);
+        Some(([v[0] + dir[0] * step, v[1] + dir[1] * step], dir))
+    }
+
+    /// Adds a vertex at the start (`end == 0`) or the end of the line. The caller checks that
+    /// there is room (`n` below the capacity); without room nothing changes.
+    pub(super) fn insert(&mut self, end: usize, anchor: [u32; ANCHORS], w: [T; ANCHORS]) {
+        let n = self.n;
+        let (Some(anchors), Some(weights)) =
+            (self.anchors.get_mut(..=n), self.weights.get_mut(..=n))
+        else {
+            return;
+        };
+        let slots = if end == 0 {
+            if let Some(r) = self.applied.as_mut() {
+                *r = [r[0] + 1, r[1] + 1];
+            }
+            // Vertices `0..n` move to `1..=n`.
+            anchors.rotate_right(1);
+            weights.rotate_right(1);
+            (anchors.first_mut(), weights.first_mut())
+        } else {
+            (anchors.last_mut(), weights.last_mut())
+        };
+        if let (Some(sa), Some(sw)) = slots {
+            *sa = anchor;
+            *sw = w;
+        }
+        self.n += 1;
+    }
+}
+
+/// Anchors image point `p` on a line running along `tangent` to the features on both sides:
+/// half of it follows three features on one side (their affine combination, which may
+/// extrapolate a little), half three on the other. As the cut opens, each half moves with its
+/// lip and the vertex stays midway between them; anchored to one triangle across the cut, it
+/// would slide toward whichever lip holds more of the triangle's weight. Where one side has no
+/// usable feature near (the line's end at the object's edge), the three features around `p`
+/// hold it. `None` when neither works.
+pub(super) fn anchor_across<T: Real>(
+    p: [T; 2],
+    tangent: [T; 2],
+    features: &[[T; 2]],
+    usable: &[u32],
+) -> Option<([u32; ANCHORS], [T; ANCHORS])> {
+    let normal = [-tangent[1], tangent[0]];
+    let side = |sign: T| {
+        move |f: &[T; 2]| {
+            let d = sub(*f, p);
+            (d[0] * normal[0] + d[1] * normal[1]) * sign > T::zero()
+        }
+    };
+    let half = T::of(0.5);
+    match (
+        anchor_where(p, features, usable, side(T::one())),
+        anchor_where(p, features, usable, side(-T::one())),
+    ) {
+        (Some((a, wa)), Some((b, wb))) => Some((
+            [a[0], a[1], a[2], b[0], b[1], b[2]],
+            [
+                wa[0] * half,
+                wa[1] * half,
+                wa[2] * half,
+                wb[0] * half,
+                wb[1] * half,
+                wb[2] * half,
+            ],
+        )),
+        _ => anchor_at(p, features, usable).map(|(a, w)| {
+            (
+                [a[0], a[1], a[2], a[0], a[1], a[2]],
+                [w[0], w[1], w[2], T::zero(), T::zero(), T::zero()],
+            )
+        }),
+    }
+}
+
+/// Anchors image point `p` to three usable features around it, as their affine combination
+/// (weights sum to one): of the triangles of its six nearest usable features, the one that
+/// contains `p` most centrally (largest smallest weight). A point on a cut is then held by
+/// features on both lips and stays between them as the cut opens. If no triangle contains
+/// `p`, the best-shaped one of the nearest is used. `None` with fewer than three usable
+/// features or only collinear ones.
+pub(super) fn anchor_at<T: Real>(
+    p: [T; 2],
+    features: &[[T; 2]],
+    usable: &[u32],
+) -> Option<([u32; 3], [T; 3])> {
+    anchor_where(p, features, usable, |_| true)
+}
+
+/// [`anchor_at`] among the features that `keep` accepts.
+pub(super) fn anchor_where<T: Real>(
+    p: [T; 2],
+    features: &[[T; 2]],
+    usable: &[u32],
+    keep: impl Fn(&[T; 2]) -> bool,
+) -> Option<([u32; 3], [T; 3])> {
+    // The six nearest usable features, by insertion into a small sorted list.
+    const K: usize = 6;
+    let mut near: [(T, u32); K] = [(T::max_value().unwrap_or(T::one()), u32::MAX); K];
+    let mut found = 0;
+    for (i, f) in features.iter().enumerate() {
+        if usable.get(i).is_none_or(|&u| u == 0) || !keep(f) {
+            continue;
+        }
+        let d = length(sub(*f, p));
+        if found < K || d < near[K - 1].0 {
+            // Into the last place in use (or the first free one), then down to its rank.
+            let mut k = found.min(K - 1);
+            if let Some(slot) = near.get_mut(k) {
+                *slot = (d, i as u32);
+            }
+            while k > 0 {
+                match (near.get(k - 1), near.get(k)) {
+                    (Some(lower), Some(this)) if this.0 < lower.0 => {
+                        near.swap(k, k - 1);
+                        k -= 1;
+                    }
+                    _ => break,
+                }
+            }
+            found = (found + 1).min(K);
+        }
+    }
+    let near = near.get(..found).unwrap_or_default();
+    let mut best: Option<(T, [u32; 3], [T; 3])> = None;
+    for (i, &(_, si)) in near.iter().enumerate() {
+        for (j, &(_, sj)) in near.iter().enumerate().skip(i + 1) {
+            for &(_, sk) in near.iter().skip(j + 1) {
+                let idx = [si, sj, sk];
+                // The slots come from enumerating `features`.
+                let (Some(&fa), Some(&fb), Some(&fc)) = (
+                    features.get(si as usize),
+                    features.get(sj as usize),
+                    features.get(sk as usize),
+                ) else {
+                    continue;
+                };
+                let (ab, ac) = (sub(fb, fa), sub(fc, fa));
+                let det = cross(ab, ac);
+                let scale = (length(ab) + length(ac)) * (length(ab) + length(ac));
+                // Skip slivers: their weights blow up with the noise of the features.
+                if !(det.abs() > T::of(0.05) * scale) {
+                    continue;
+                }
+                let wb = cross(sub(p, fa), ac) / det;
+                let wc = cross(ab, sub(p, fa)) / det;
+                let w = [T::one() - wb - wc, wb, wc];
+                // Containment first (largest smallest weight), then closeness to containment.
+                let score = w[0].min(w[1]).min(w[2]);
+                if best.is_none_or(|(s, _, _)| score > s) {
+                    best = Some((score, idx, w));
+                }
+            }
+        }
+    }
+    best.map(|(_, idx, w)| (idx, w))
+}

@@ -1,0 +1,134 @@
+//! Unit tests of the cut line on synthetic separation points.
+
+use super::grow::anchor_at;
+use super::*;
+
+#[test]
+fn an_anchored_point_follows_its_features_affinely() {
+    let features = [[0.0, 0.0], [10.0, 0.0], [0.0, 10.0], [50.0, 50.0]];
+    let usable = [1, 1, 1, 1];
+    let (anchor, w) = anchor_at([2.0, 3.0], &features, &usable).unwrap();
+    let place = |f: &[[f64; 2]]| -> [f64; 2] {
+        let mut p = [0.0; 2];
+        for k in 0..3 {
+            p[0] += w[k] * f[anchor[k] as usize][0];
+            p[1] += w[k] * f[anchor[k] as usize][1];
+        }
+        p
+    };
+    let here = place(&features);
+    assert!((here[0] - 2.0).abs() < 1e-12 && (here[1] - 3.0).abs() < 1e-12);
+    // Stretch the features by 2 along x and shift them: the point moves the same way.
+    let moved = features.map(|f| [2.0 * f[0] + 5.0, f[1] - 1.0]);
+    let there = place(&moved);
+    assert!((there[0] - 9.0).abs() < 1e-12 && (there[1] - 2.0).abs() < 1e-12);
+    // Unusable or collinear features cannot anchor.
+    assert!(anchor_at([1.0, 1.0], &features, &[1, 1, 0, 0]).is_none());
+    let line = [[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]];
+    assert!(anchor_at([1.0, 1.0], &line, &[1, 1, 1]).is_none());
+}
+
+/// Features on an 11 × 11 grid, 10 px apart.
+fn grid() -> [[f64; 2]; 121] {
+    core::array::from_fn(|k| [10.0 * (k % 11) as f64, 10.0 * (k / 11) as f64])
+}
+
+#[test]
+fn the_line_starts_on_collinear_points_and_grows_toward_new_ones() {
+    // Features on a grid; separation points along x = 50 from y = 20 to 60, then more up
+    // to y = 100.
+    let features = grid();
+    let usable = [1u32; 121];
+    let config = DetectionConfig::<f64>::paper();
+    let mut reals = [0.0; 128];
+    let mut indices = [0u32; 128];
+    let mut rs = Slab::new(&mut reals, crate::error::Resource::RealStorage);
+    let mut is = Slab::new(&mut indices, crate::error::Resource::IndexStorage);
+    let mut line = CutLine::new(16, &mut rs, &mut is).unwrap();
+    let mut scratch = [[0.0; 2]; 16];
+    let mut points = [[0.0; 2]; 20];
+    for k in 0..9 {
+        points[k] = [50.0, 20.0 + 5.0 * k as f64];
+    }
+    // A blob away from the line must not tilt it.
+    points[9] = [80.0, 80.0];
+    points[10] = [82.0, 81.0];
+    let r = line.update(
+        3,
+        &points[..11],
+        &[4; 11],
+        &features,
+        &usable,
+        &config,
+        25.0,
+        &mut scratch,
+    );
+    assert_eq!((r.detected_frame, r.vertices, r.added), (Some(3), 2, 2));
+    let m = line.project(&features, &mut scratch);
+    assert_eq!(m, 2);
+    for p in &scratch[..2] {
+        assert!((p[0] - 50.0).abs() < 1e-9, "{p:?}");
+    }
+    // More points further along +y: the end front advances, by at most the maximum step.
+    for k in 0..8 {
+        points[k] = [50.0, 65.0 + 5.0 * k as f64];
+    }
+    let before = line.project(&features, &mut scratch);
+    let far_end = scratch[..before].iter().map(|p| p[1]).fold(0.0, f64::max);
+    let r = line.update(
+        4,
+        &points[..8],
+        &[4; 8],
+        &features,
+        &usable,
+        &config,
+        25.0,
+        &mut scratch,
+    );
+    assert_eq!(r.added, 1);
+    let m = line.project(&features, &mut scratch);
+    let new_end = scratch[..m].iter().map(|p| p[1]).fold(0.0, f64::max);
+    assert!(new_end > far_end && new_end <= far_end + config.max_step * 25.0 + 1e-9);
+}
+
+#[test]
+fn a_full_line_reports_its_cap_instead_of_growing() {
+    let features = grid();
+    let usable = [1u32; 121];
+    let config = DetectionConfig::<f64>::paper();
+    let (mut reals, mut indices) = ([0.0; 12], [0u32; 12]);
+    let mut rs = Slab::new(&mut reals, crate::error::Resource::RealStorage);
+    let mut is = Slab::new(&mut indices, crate::error::Resource::IndexStorage);
+    // Room for two vertices only: the start.
+    let mut line = CutLine::new(2, &mut rs, &mut is).unwrap();
+    let mut scratch = [[0.0; 2]; 2];
+    let mut points = [[0.0; 2]; 8];
+    for k in 0..8 {
+        points[k] = [50.0, 20.0 + 5.0 * k as f64];
+    }
+    let r = line.update(
+        1,
+        &points,
+        &[1; 8],
+        &features,
+        &usable,
+        &config,
+        25.0,
+        &mut scratch,
+    );
+    assert_eq!((r.vertices, r.capped), (2, false));
+    for k in 0..8 {
+        points[k] = [50.0, 60.0 + 5.0 * k as f64];
+    }
+    let r = line.update(
+        2,
+        &points,
+        &[2; 8],
+        &features,
+        &usable,
+        &config,
+        25.0,
+        &mut scratch,
+    );
+    assert_eq!((r.vertices, r.added, r.capped), (2, 0, true));
+}

@@ -1,0 +1,315 @@
+//! The four steps of `Detector::update`: the temporal filter, the pair differences, the
+//! outlier classification and the separation points.
+
+use super::*;
+
+impl<'a, T: Real> Detector<'a, T> {
+    /// Step 1, the temporal filter: a feature whose residual changes from the last frame
+    /// far more than the others' (beyond the median change plus `temporal_sigmas` robust
+    /// deviations) is a tracking failure and is taken out of detection for good. Returns
+    /// whether a feature was taken out this frame.
+    pub(super) fn temporal_filter(
+        &mut self,
+        d: &[[T; 2]],
+        observed: &[u32],
+        n: usize,
+        config: &DetectionConfig<T>,
+        work: &mut DetectionWork,
+    ) -> bool {
+        // The first `n` slots of every buffer (`n` is at most each one's length, and the
+        // per-feature buffers all hold the same number of slots; `scratch` at least as
+        // many): the zips below stop at `n`.
+        let eligible = OBSERVED | HAS_PREVIOUS;
+        let mut count = 0usize;
+        let slots = self
+            .feature_state
+            .iter_mut()
+            .zip(observed)
+            .zip(d.iter().zip(self.current.iter_mut()))
+            .zip(self.previous.iter());
+        for (((s, &o), (&di, current)), &previous) in slots.take(n) {
+            *s = (*s & !OBSERVED) | if o != 0 { OBSERVED } else { 0 };
+            *current = di;
+            if *s & (eligible | FILTERED) == eligible
+                && let Some(slot) = self.scratch.get_mut(count)
+            {
+                *slot = norm(di, previous);
+                count += 1;
+            }
+        }
+        // A constant in a build without the feature, which then leaves the filter out.
+        let filtering = cfg!(feature = "temporal-filter") && config.temporal_sigmas.finite();
+        let mut newly_filtered = false;
+        if filtering {
+            let (median, mad, comparisons) =
+                median_mad(self.scratch.get_mut(..count).unwrap_or_default());
+            work.comparisons += comparisons;
+            let limit = (median + config.temporal_sigmas * T::of(MAD_TO_SIGMA) * mad)
+                .max(config.min_difference_px);
+            let slots = self
+                .feature_state
+                .iter_mut()
+                .zip(d)
+                .zip(self.previous.iter());
+            for ((s, &di), &previous) in slots.take(n) {
+                if *s & (eligible | FILTERED) == eligible && norm(di, previous) > limit {
+                    *s |= FILTERED;
+                    self.features_filtered += 1;
+                    newly_filtered = true;
+                }
+            }
+        }
+        let slots = self
+            .feature_state
+            .iter_mut()
+            .zip(d)
+            .zip(self.previous.iter_mut());
+        for ((s, &di), previous) in slots.take(n) {
+            if *s & OBSERVED != 0 {
+                *previous = di;
+                *s |= HAS_PREVIOUS;
+            }
+        }
+        work.feature_visits += 3 * n as u64;
+        newly_filtered
+    }
+
+    /// Step 2, the differences: `μ_ij` of every pair whose features are both usable, their
+    /// median and robust deviation over the frame, and each feature's local slope (the
+    /// lower tertile of `μ / ℓ` over its measured pairs: the smooth part of the residual
+    /// field around it, which a cut through a third of its neighbourhood does not move).
+    /// Returns `(active pairs, median, deviation)`.
+    pub(super) fn measure_pairs(
+        &mut self,
+        newly_filtered: bool,
+        targets: &[[T; 2]],
+        n: usize,
+        work: &mut DetectionWork,
+    ) -> (usize, T, T) {
+        // The pair buffers hold `n_pairs` entries, `scratch` at least as many; a measured
+        // pair's slots are below `n`, within `current` and `targets`. No lookup below
+        // fails.
+        let mut active = 0usize;
+        let feature_state = &*self.feature_state;
+        let pairs = self
+            .pairs
+            .iter()
+            .zip(self.pair_state.iter_mut())
+            .zip(self.difference.iter_mut().zip(self.length.iter_mut()));
+        for ((&[i, j], state), (difference, length)) in pairs.take(self.n_pairs) {
+            if newly_filtered
+                && *state & DROPPED == 0
+                && [i, j].iter().any(|&f| {
+                    feature_state
+                        .get(f as usize)
+                        .is_some_and(|s| s & FILTERED != 0)
+                })
+            {
+                *state |= DROPPED;
+                self.pairs_lost += 1;
+            }
+            let measured = if *state & DROPPED == 0
+                && usable(feature_state, i)
+                && usable(feature_state, j)
+                && (i as usize) < n
+                && (j as usize) < n
+            {
+                let (i, j) = (i as usize, j as usize);
+                match (
+                    self.current.get(i),
+                    self.current.get(j),
+                    targets.get(i),
+                    targets.get(j),
+                ) {
+                    (Some(&ci), Some(&cj), Some(&ti), Some(&tj)) => Some((ci, cj, ti, tj)),
+                    _ => None,
+                }
+            } else {
+                None
+            };
+            *difference = match measured {
+                Some((ci, cj, ti, tj)) => {
+                    let mu = norm(ci, cj);
+                    *length = norm(ti, tj);
+                    if let Some(slot) = self.scratch.get_mut(active) {
+                        *slot = mu;
+                        active += 1;
+                    }
+                    mu
+                }
+                None => T::of(UNMEASURED),
+            };
+        }
+        let (median, mad, comparisons) =
+            median_mad(self.scratch.get_mut(..active).unwrap_or_default());
+        work.comparisons += comparisons;
+        // `incident_start` holds `n + 1` ascending starts into `incident`, whose entries
+        // are pair indices below `n_pairs`.
+        let starts = self
+            .incident_start
+            .iter()
+            .zip(self.incident_start.iter().skip(1));
+        for (slope, (&lo, &hi)) in self.slope.iter_mut().zip(starts).take(n) {
+            let mut m = 0;
+            let incident = self
+                .incident
+                .get(lo as usize..hi as usize)
+                .unwrap_or_default();
+            for &k in incident {
+                let (Some(&mu), Some(&length)) =
+                    (self.difference.get(k as usize), self.length.get(k as usize))
+                else {
+                    continue;
+                };
+                if mu >= T::zero()
+                    && let Some(slot) = self.scratch.get_mut(m)
+                {
+                    *slot = mu / length.max(T::EPS);
+                    m += 1;
+                }
+            }
+            work.pair_visits += incident.len() as u64;
+            let sorted = self.scratch.get_mut(..m).unwrap_or_default();
+            work.comparisons += sort(sorted);
+            *slope = if m >= 3 {
+                quantile_sorted(sorted, T::of(1.0 / 3.0))
+            } else {
+                T::zero()
+            };
+        }
+        work.pair_visits += self.n_pairs as u64;
+        work.feature_visits += n as u64;
+        (active, median, T::of(MAD_TO_SIGMA) * mad)
+    }
+
+    /// Step 3, the outliers: a pair is one when `μ_ij` exceeds what the frame explains —
+    /// the larger of the frame's median and the smooth field over the pair's length
+    /// (`min(sᵢ, sⱼ) ℓ_ij`) — by `outlier_sigmas` robust deviations; with `opening_only`,
+    /// only when the residuals diverge along the pair. Counts each feature's measured and
+    /// outlier pairs; returns the outliers.
+    pub(super) fn classify_pairs(
+        &mut self,
+        median: T,
+        deviation: T,
+        targets: &[[T; 2]],
+        n: usize,
+        config: &DetectionConfig<T>,
+        work: &mut DetectionWork,
+    ) -> usize {
+        for c in self.pair_counts.iter_mut().take(n) {
+            *c = [0, 0];
+        }
+        let margin = (config.outlier_sigmas * deviation).max(config.min_difference_px);
+        let mut outliers = 0;
+        // A measured pair (`μ ≥ 0`) has both slots below `n` ([`Detector::measure_pairs`]),
+        // so the lookups below do not fail.
+        let pairs = self
+            .pairs
+            .iter()
+            .zip(self.pair_state.iter_mut())
+            .zip(self.difference.iter().zip(self.length.iter()));
+        for ((&[i, j], state), (&mu, &len)) in pairs.take(self.n_pairs) {
+            if mu < T::zero() {
+                continue;
+            }
+            *state &= !OUTLIER;
+            let (i, j) = (i as usize, j as usize);
+            let (Some(&a), Some(&b), Some(&si), Some(&sj), Some(&di), Some(&dj)) = (
+                targets.get(i),
+                targets.get(j),
+                self.slope.get(i),
+                self.slope.get(j),
+                self.current.get(i),
+                self.current.get(j),
+            ) else {
+                continue;
+            };
+            let smooth = si.min(sj) * len;
+            let mut out = mu > median.max(smooth) + margin;
+            if out && config.opening_only {
+                // An opening cut leaves the model behind on both lips: across it, the
+                // residuals diverge along the line joining the two features.
+                let (ux, uy) = (b[0] - a[0], b[1] - a[1]);
+                let opening = ((dj[0] - di[0]) * ux + (dj[1] - di[1]) * uy) / len.max(T::EPS);
+                out = opening >= T::of(0.5) * mu;
+            }
+            if out {
+                *state |= OUTLIER;
+            }
+            for f in [i, j] {
+                if let Some(c) = self.pair_counts.get_mut(f) {
+                    c[0] += 1;
+                    c[1] += u32::from(out);
+                }
+            }
+            outliers += usize::from(out);
+        }
+        work.pair_visits += self.n_pairs as u64;
+        outliers
+    }
+
+    /// Step 4, persistence and separation points: an outlier pair between two features that
+    /// agree with most of their other neighbours extends its streak; after `persistence`
+    /// frames in a row it is split, and its midpoint between the tracked features is a
+    /// separation point. Returns the split pairs.
+    pub(super) fn separation_points(
+        &mut self,
+        frame: u32,
+        targets: &[[T; 2]],
+        config: &DetectionConfig<T>,
+        work: &mut DetectionWork,
+    ) -> usize {
+        let trusted = |c: &[[u32; 2]], f: u32| {
+            c.get(f as usize).is_some_and(|&[all, bad]| {
+                T::of(f64::from(bad)) <= config.max_outlier_fraction * T::of(f64::from(all))
+            })
+        };
+        let mut split = 0;
+        self.n_points = 0;
+        let pair_counts = &*self.pair_counts;
+        let pairs = self
+            .pairs
+            .iter()
+            .zip(self.pair_state.iter_mut())
+            .zip(self.difference.iter().zip(self.split_since.iter_mut()));
+        for ((&[i, j], pair_state), (&difference, split_since)) in pairs.take(self.n_pairs) {
+            // Unmeasured pairs keep their streak (a dropped frame does not reset it).
+            if !(difference >= T::zero()) {
+                continue;
+            }
+            let out = *pair_state & OUTLIER != 0;
+            let state = *pair_state;
+            // An outlier pair only counts between two features that agree with most of
+            // their other neighbours.
+            let counts = out && trusted(pair_counts, i) && trusted(pair_counts, j);
+            let streak = if counts {
+                ((state & STREAK) + 1).min(STREAK)
+            } else {
+                0
+            };
+            let mut next = (state & !STREAK) | streak;
+            if streak >= config.persistence {
+                next |= SPLIT;
+                split += 1;
+                if streak == config.persistence {
+                    *split_since = frame;
+                }
+                // The separation point: between the two tracked features, where the cut
+                // runs (a measured pair's slots are within `targets`), while there is room.
+                if let (Some(point), Some(since), Some(&a), Some(&b)) = (
+                    self.points.get_mut(self.n_points),
+                    self.point_since.get_mut(self.n_points),
+                    targets.get(i as usize),
+                    targets.get(j as usize),
+                ) {
+                    *point = [(a[0] + b[0]) * T::of(0.5), (a[1] + b[1]) * T::of(0.5)];
+                    *since = *split_since;
+                    self.n_points += 1;
+                }
+            }
+            *pair_state = next;
+        }
+        work.pair_visits += self.n_pairs as u64;
+        split
+    }
+}

@@ -1,0 +1,179 @@
+//! Unit tests of the detector on synthetic grids of features.
+
+use super::*;
+
+/// Features on a grid, `n × n`, `spacing` pixels apart.
+fn grid(n: usize, spacing: f64) -> [[f64; 2]; 400] {
+    let mut uv = [[0.0; 2]; 400];
+    for k in 0..n * n {
+        uv[k] = [spacing * (k % n) as f64, spacing * (k / n) as f64];
+    }
+    uv
+}
+
+struct Store {
+    reals: [f64; 16384],
+    indices: [u32; 24576],
+}
+
+fn store() -> Store {
+    Store {
+        reals: [0.0; 16384],
+        indices: [0; 24576],
+    }
+}
+
+fn detector(s: &mut Store, features: usize, pairs: usize) -> Detector<'_, f64> {
+    let mut rs = Slab::new(&mut s.reals, Resource::RealStorage);
+    let mut is = Slab::new(&mut s.indices, Resource::IndexStorage);
+    Detector::new(features, pairs, &mut rs, &mut is).unwrap()
+}
+
+fn config() -> DetectionConfig<f64> {
+    DetectionConfig {
+        radius_px: 15.0,
+        ..DetectionConfig::paper()
+    }
+}
+
+#[test]
+fn grid_pairs_are_the_close_ones() {
+    let mut s = store();
+    let mut det = detector(&mut s, 400, 2000);
+    let uv = grid(20, 10.0);
+    det.init(&uv, &[[0.0; 2]; 400], &config()).unwrap();
+    // Within 15 px of a grid point 10 px apart: 4 axis and 4 diagonal neighbours (14.1 px):
+    // 2·19·20 axis pairs and 2·19·19 diagonal ones.
+    assert_eq!(det.pairs().len(), 2 * 19 * 20 + 2 * 19 * 19);
+    assert!(det.pairs().iter().all(|&[i, j]| i < j));
+}
+
+#[test]
+fn features_apart_on_the_object_are_not_paired() {
+    let mut s = store();
+    let mut det = detector(&mut s, 400, 2000);
+    let uv = grid(20, 10.0);
+    // A fold along the middle: the two halves of the grid touch in the image only.
+    let half = |k: usize| uv[k][0] < 95.0;
+    det.init_on_surface(&uv, &[[0.0; 2]; 400], &config(), |i, j, l| {
+        assert!(l > 0.0 && l < 15.0);
+        half(i) != half(j)
+    })
+    .unwrap();
+    // Each half (10 columns × 20 rows) pairs as a grid of its own.
+    let per_half = (9 * 20 + 10 * 19) + 2 * 9 * 19;
+    assert_eq!(det.pairs().len(), 2 * per_half);
+    assert!(
+        det.pairs()
+            .iter()
+            .all(|&[i, j]| half(i as usize) == half(j as usize))
+    );
+}
+
+#[test]
+fn a_surface_ratio_below_one_is_refused() {
+    for (ratio, ok) in [
+        (0.0, true),
+        (1.0, true),
+        (3.0, true),
+        (0.5, false),
+        (f64::NAN, false),
+    ] {
+        let c = DetectionConfig {
+            max_surface_ratio: ratio,
+            ..config()
+        };
+        assert_eq!(c.validate().is_ok(), ok, "ratio {ratio}");
+    }
+}
+
+#[test]
+fn rigid_motion_gives_no_outlier() {
+    let mut s = store();
+    let mut det = detector(&mut s, 400, 2000);
+    let uv = grid(20, 10.0);
+    det.init(&uv, &[[0.0; 2]; 400], &config()).unwrap();
+    // Every residual the same (the model lags a rigid shift by the same amount everywhere).
+    let d = [[3.0, -2.0]; 400];
+    for _ in 0..5 {
+        let r = det.update(0, &d, &[1; 400], &uv, &config());
+        assert_eq!(r.outliers, 0);
+        assert_eq!(r.split, 0);
+    }
+}
+
+#[test]
+fn a_clean_jump_across_a_line_gives_separation_points_on_it() {
+    let mut s = store();
+    let mut det = detector(&mut s, 400, 2000);
+    let uv = grid(20, 10.0);
+    det.init(&uv, &[[0.0; 2]; 400], &config()).unwrap();
+    // Residuals jump across the vertical line x = 95 (between columns 9 and 10), with a
+    // small smooth variation elsewhere.
+    let mut d = [[0.0; 2]; 400];
+    for k in 0..400 {
+        let x = uv[k][0];
+        d[k] = if x > 95.0 { [6.0, 0.0] } else { [-6.0, 0.0] };
+        d[k][1] = 0.01 * uv[k][1];
+    }
+    let mut last = DetectionReport::default();
+    for frame in 0..3 {
+        // Reach the final residuals in one step then hold: the temporal filter sees the
+        // same change everywhere, so nothing is filtered.
+        let dd = if frame == 0 { [[0.0; 2]; 400] } else { d };
+        last = det.update(0, &dd, &[1; 400], &uv, &config());
+    }
+    assert_eq!(last.features_filtered, 0);
+    assert!(last.split > 0);
+    for p in det.points() {
+        assert!((p[0] - 95.0).abs() <= 5.0 + 1e-12, "{p:?}");
+    }
+}
+
+#[test]
+#[cfg(feature = "temporal-filter")]
+fn a_single_jumping_feature_is_filtered_and_cuts_nothing() {
+    let mut s = store();
+    let mut det = detector(&mut s, 400, 2000);
+    let uv = grid(20, 10.0);
+    det.init(&uv, &[[0.0; 2]; 400], &config()).unwrap();
+    let mut d = [[0.0; 2]; 400];
+    // Noise-like residuals, then feature 210 jumps by 20 px for three frames.
+    for frame in 0..8 {
+        for k in 0..400 {
+            // Uniform noise in ±0.5 px from a multiplicative hash.
+            let h = |salt: u64| {
+                let x =
+                    ((k as u64 * 40_503 + frame as u64 * 9_973 + salt) * 2_654_435_761) % 1_000_003;
+                x as f64 / 1_000_003.0 - 0.5
+            };
+            d[k] = [h(1), h(7)];
+        }
+        if (2..5).contains(&frame) {
+            d[210][0] += 20.0;
+        }
+        let r = det.update(0, &d, &[1; 400], &uv, &config());
+        assert_eq!(r.split, 0, "frame {frame}");
+    }
+    let r = det.update(0, &d, &[1; 400], &uv, &config());
+    assert_eq!(r.features_filtered, 1);
+    // Feature 210 had 8 neighbours within 15 px.
+    assert_eq!(r.pairs_lost, 8);
+}
+
+#[test]
+fn too_many_pairs_is_a_capacity_error() {
+    let mut s = store();
+    let mut det = detector(&mut s, 400, 100);
+    let uv = grid(20, 10.0);
+    let err = det.init(&uv, &[[0.0; 2]; 400], &config()).unwrap_err();
+    assert!(matches!(
+        err,
+        Error::Capacity {
+            resource: Resource::Pairs,
+            available: 100,
+            ..
+        }
+    ));
+    assert!(det.pairs().is_empty());
+}
