@@ -1,0 +1,149 @@
+//! Placing what the model carries: the virtual features at frame 0 (on the surface, through the
+//! camera rays) and the internal targets (in the rest mesh).
+
+use super::*;
+
+impl<T: Real> Model<'_, T> {
+    /// Embeds internal targets given by their rest positions (metres): each in the rest
+    /// tetrahedron that contains it, or, for a point just outside the mesh, the one it lies
+    /// least outside of (weights clamped to it). Replaces the targets held before. The model
+    /// carries them from then on, through cuts (each is re-embedded in the piece of its own
+    /// side).
+    ///
+    /// Cost: targets × tetrahedra barycentric solves, once.
+    ///
+    /// # Errors
+    /// [`Error::Capacity`] naming [`Resource::Targets`] for more points than
+    /// [`Capacities::targets`]; [`Error::NonFiniteInput`] for a non-finite coordinate. On error
+    /// the targets held before stay.
+    pub fn embed_targets(&mut self, rest_points: &[[T; 3]]) -> Result<usize, Error> {
+        let capacity = self.live.targets.capacity();
+        if rest_points.len() > capacity {
+            return Err(Error::Capacity {
+                resource: Resource::Targets,
+                needed: rest_points.len(),
+                available: capacity,
+            });
+        }
+        if let Some(position) = rest_points
+            .iter()
+            .position(|p| !p.iter().all(|c| c.finite()))
+        {
+            return Err(Error::NonFiniteInput {
+                resource: Resource::Targets,
+                position,
+            });
+        }
+        let targets = &mut self.live.targets;
+        targets.clear();
+        for &p in rest_points {
+            // A mesh has at least one proper tetrahedron, so a point always lands somewhere.
+            let (t, w) = locate_at_rest(&self.live.mesh, p).unwrap_or((0, [T::of(0.25); 4]));
+            targets.push(t, w, Resource::Targets)?;
+        }
+        Ok(targets.len())
+    }
+
+    /// Embeds the features of frame 0 (see [`Features::embed`]) at the current positions,
+    /// replacing any held before, sets up the cut detection on them (`cut` feature: neighbour
+    /// pairs, a fresh cut line, frame count back to 0) and prepares the frozen factor when
+    /// that strategy is configured.
+    ///
+    /// All or nothing: the features and their embedding are copied aside first (once, `9 ·`
+    /// [`Capacities::features`] entries at most), the detector counts its pairs before it
+    /// stores any, and the factor keeps its previous values until the call succeeds
+    /// ([`LdlFactor::checkpoint`]).
+    ///
+    /// # Errors
+    /// As [`Features::embed`]; [`Error::NoFeatures`] if no ray hits the model;
+    /// [`Error::FeatureBehindCamera`] for a virtual feature that cannot be projected;
+    /// [`Error::Capacity`] naming [`Resource::Pairs`] for more neighbour pairs than
+    /// [`Capacities::pairs`]; the factorization's errors for the frozen factor. On any error
+    /// the model is exactly as before the call ([`Model::fingerprint`] unchanged).
+    pub fn embed_features(&mut self, frame0: &[Observation<T>]) -> Result<EmbedReport, Error> {
+        self.saved.features.copy_from(&self.features);
+        self.saved.embedding.copy_from(&self.live.features);
+        let holds = self.holds;
+        self.factor.checkpoint();
+        match self.embed_features_uncommitted(frame0) {
+            Ok(report) => {
+                self.factor.commit();
+                Ok(report)
+            }
+            Err(e) => {
+                self.features.copy_from(&self.saved.features);
+                self.live.features.copy_from(&self.saved.embedding);
+                self.holds = holds;
+                self.factor.rollback();
+                Err(e)
+            }
+        }
+    }
+
+    /// [`Model::embed_features`] without the roll-back: what fails comes before what cannot.
+    fn embed_features_uncommitted(
+        &mut self,
+        frame0: &[Observation<T>],
+    ) -> Result<EmbedReport, Error> {
+        let margin = self.config.solver.image_margin;
+        let n = self.live.mesh.n_nodes();
+        let report = self.features.embed(
+            &mut self.live.features,
+            &self.live.mesh,
+            &self.live.x[..n],
+            &self.config.camera,
+            frame0,
+            margin,
+        )?;
+        if report.embedded == 0 {
+            return Err(Error::NoFeatures);
+        }
+        #[cfg(feature = "detect")]
+        {
+            // Scratch: the projections and residuals at frame 0.
+            for slot in 0..self.features.len() {
+                let uv = self.projected_feature(slot)?;
+                let t = self.features.targets()[slot];
+                self.cut.pixels[slot] = uv;
+                self.cut.residuals[slot] = [t[0] - uv[0], t[1] - uv[1]];
+            }
+        }
+        // The frozen factor is part of setting up, not of the first frame, so that every frame
+        // costs the same.
+        self.holds = FactorHolds::Nothing;
+        if cfg!(feature = "frozen")
+            && let Strategy::Frozen { .. } = self.config.solver.strategy
+        {
+            self.prepare_frozen(&mut WorkCount::default())?;
+        }
+        #[cfg(feature = "detect")]
+        {
+            let n = self.features.len();
+            let (live, camera) = (&self.live, &self.config.camera);
+            let focal = camera.intrinsics().fx;
+            let at = |slot: usize| {
+                live.features
+                    .position(slot, &live.mesh, &live.x[..live.mesh.n_nodes()])
+                    .map(|p| camera.to_camera(&Vector3::from(p)))
+            };
+            // Pairs across a fold or a grazing slope are left out (the ratio's doc says why).
+            let ratio = self.config.detection.max_surface_ratio;
+            // The last step that can fail: it leaves the detector as it was on error.
+            self.cut.detector.init_on_surface(
+                &self.cut.pixels[..n],
+                &self.cut.residuals[..n],
+                &self.config.detection,
+                |i, j, l| match (at(i), at(j)) {
+                    (Some(a), Some(b)) if ratio > T::zero() => {
+                        let z = T::of(0.5) * (a.z + b.z);
+                        (a - b).norm() > ratio * l * z / focal
+                    }
+                    _ => false,
+                },
+            )?;
+            self.frame = 0;
+            self.cut.line.reset();
+        }
+        Ok(report)
+    }
+}
