@@ -41,6 +41,7 @@
 
 mod place;
 mod reembed;
+mod report;
 pub(crate) mod separate;
 pub(crate) mod split;
 pub(crate) mod surface;
@@ -53,6 +54,7 @@ use crate::real::Real;
 use crate::solve::WorkCount;
 use crate::storage::{Slab, sum, times};
 
+pub use report::{CutEvent, CutReport, CutWork};
 use separate::{Incidence, StarScratch, cut_faces, duplicate_nodes};
 use split::Sign;
 use surface::{REALS_PER_VERTEX, SeparationSurface};
@@ -165,147 +167,6 @@ impl<'a> Lips<'a> {
         *slot = pair;
         self.len += 1;
         Ok(())
-    }
-}
-
-/// Work of a cut event, in data-independent units.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
-pub struct CutWork {
-    /// Node–segment distance tests of the level set.
-    pub node_tests: u64,
-    /// Tetrahedron visits (selection, quality passes, splitting).
-    pub element_tests: u64,
-    /// Faces sorted to find the cut faces.
-    pub faces_sorted: u64,
-    /// Face entries sorted around the nodes on the cut.
-    pub star_entries: u64,
-    /// Point-in-piece and ray–triangle tests of the re-embedding.
-    pub embed_tests: u64,
-}
-
-impl CutWork {
-    /// The most an event can cost for a model of `nodes` nodes, `tets` tetrahedra, `triangles`
-    /// boundary triangles (all at capacity), `segments` polyline segments, `features` and
-    /// `targets`: every node tested against every segment; three splits (the surface, then the
-    /// planes of up to two ends), each visiting every tetrahedron to select, to split, and once
-    /// per quality pass (at most one pass per node, each declaring one node on the level set);
-    /// all faces sorted; every node's star sorted; every point re-embedded after each split,
-    /// and every feature checked against every boundary triangle.
-    pub fn bound(
-        nodes: u64,
-        tets: u64,
-        triangles: u64,
-        segments: u64,
-        features: u64,
-        targets: u64,
-    ) -> Self {
-        CutWork {
-            node_tests: nodes * segments,
-            element_tests: 3 * tets * (4 + nodes),
-            faces_sorted: 4 * tets,
-            star_entries: 12 * tets,
-            embed_tests: 3 * (features + targets) * split::MAX_CHILDREN as u64
-                + features * triangles,
-        }
-    }
-
-    /// Whether every count is at most `bound`'s.
-    pub fn within(&self, bound: &CutWork) -> bool {
-        self.node_tests <= bound.node_tests
-            && self.element_tests <= bound.element_tests
-            && self.faces_sorted <= bound.faces_sorted
-            && self.star_entries <= bound.star_entries
-            && self.embed_tests <= bound.embed_tests
-    }
-}
-
-/// What a cut event did to the mesh.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
-pub struct CutEvent {
-    /// Nodes moved onto the surface.
-    pub nodes_moved: usize,
-    /// Nodes declared on the surface without moving (a move would have spoilt an element, the
-    /// node is fixed, or the split stops there).
-    pub nodes_declared: usize,
-    /// Tetrahedra split (along the surface, and where the cut ends inside the object).
-    pub tets_split: usize,
-    /// Of those, the ones split by the plane an end inside the object ends on.
-    pub tets_split_at_ends: usize,
-    /// Ends of the cut inside the object (where it stops, on a plane across the line).
-    pub ends_inside: usize,
-    /// Tetrahedra added by the splits.
-    pub tets_added: usize,
-    /// Nodes added on crossed edges.
-    pub edge_nodes: usize,
-    /// Faces separated.
-    pub faces_cut: usize,
-    /// Node copies made to separate them.
-    pub nodes_duplicated: usize,
-    /// Features and targets moved to a piece of a split tetrahedron.
-    pub points_reembedded: usize,
-    /// Features moved to the surface of their own side.
-    pub features_moved_across: usize,
-    /// Lowest quality of the tetrahedra created or moved (1 if none).
-    pub min_quality_milli: u32,
-    /// The work of the geometry.
-    pub work: CutWork,
-}
-
-impl CutEvent {
-    /// Whether the event separates anything (else the model discards it).
-    pub fn changes_mesh(&self) -> bool {
-        self.faces_cut > 0
-    }
-
-    /// Adds the counts of `other` (the next part of one event).
-    pub fn merge(&mut self, other: &CutEvent) {
-        self.nodes_moved += other.nodes_moved;
-        self.nodes_declared += other.nodes_declared;
-        self.tets_split += other.tets_split;
-        self.tets_split_at_ends += other.tets_split_at_ends;
-        self.ends_inside += other.ends_inside;
-        self.tets_added += other.tets_added;
-        self.edge_nodes += other.edge_nodes;
-        self.faces_cut += other.faces_cut;
-        self.nodes_duplicated += other.nodes_duplicated;
-        self.points_reembedded += other.points_reembedded;
-        self.features_moved_across += other.features_moved_across;
-        self.min_quality_milli = if self.tets_split == other.tets_split {
-            other.min_quality_milli
-        } else {
-            self.min_quality_milli.min(other.min_quality_milli)
-        };
-        let (w, o) = (&mut self.work, &other.work);
-        w.node_tests += o.node_tests;
-        w.element_tests += o.element_tests;
-        w.faces_sorted += o.faces_sorted;
-        w.star_entries += o.star_entries;
-        w.embed_tests += o.embed_tests;
-    }
-}
-
-/// A cut event as [`crate::Model::step`] reports it.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
-pub struct CutReport {
-    /// Whether a new topology went into service.
-    pub applied: bool,
-    /// The error that made the model refuse the cut (it stays as it was).
-    pub refused: Option<Error>,
-    /// The geometry of the event.
-    pub event: CutEvent,
-    /// The work of rebuilding the linear system (assembly, factorization), apart from the
-    /// steady frame; the ordering and symbolic analysis are counted in
-    /// [`WorkCount::factor_flops`]'s terms by their result only.
-    pub work: WorkCount,
-}
-
-impl CutReport {
-    /// A refused cut.
-    pub fn refused(e: Error) -> Self {
-        CutReport {
-            refused: Some(e),
-            ..CutReport::default()
-        }
     }
 }
 
