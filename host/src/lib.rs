@@ -33,7 +33,8 @@
 //!   (`codegen/mod.rs`), and the firmware program built and measured (`codegen/footprint.rs`).
 //! - [`eval`]: `incise eval`, scene families run end to end and summed up.
 //! - [`rng`]: a small seeded random generator, so that everything generated is reproducible.
-//! - [`cli`]: the `incise` command line.
+//! - [`cli`]: the `incise` command line: its arguments and dispatch (`cli/mod.rs`), one function
+//!   per command (`cli/commands.rs`).
 //! - `video`, `track` (the `opencv` feature): video input and output, and KLT tracking.
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]

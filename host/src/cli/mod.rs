@@ -1,0 +1,305 @@
+//! The `incise` command line.
+
+use std::fmt;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use clap::{Parser, Subcommand};
+
+use crate::run::{RunOptions, run_scene};
+use crate::scene::Scene;
+
+/// incise: keeps a pre-operative organ model aligned with endoscopic video while the surgeon
+/// cuts (Paulus et al., MICCAI 2015).
+#[derive(Debug, Parser)]
+#[command(name = "incise", version, about)]
+pub struct Cli {
+    /// What to do.
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// Subcommands.
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Run the shipped default scene (band-side-cut) and write pictures to ./incise-demo/.
+    Demo {
+        /// Where to write the pictures.
+        #[arg(long, default_value = "incise-demo")]
+        out: PathBuf,
+    },
+    /// Run a scene: drive the core over its tracks and measure against its ground truth.
+    Run {
+        /// The scene directory (holding scene.toml).
+        scene: PathBuf,
+        /// Print one JSON object with the results.
+        #[arg(long)]
+        json: bool,
+        /// Write overlay pictures (PNG) and the deformed mesh per frame (VTU) here; with
+        /// --video, the overlay video (overlay.avi, Motion-JPEG) too.
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Also run with the mesh cut along the true cut (ground truth) instead of the
+        /// detected one: `dice_final_true_cut`, `tre_mm_final_true_cut`.
+        #[arg(long, conflicts_with = "video")]
+        true_cut: bool,
+        // --- OpenCV video driver (options present in every build; they need `opencv`) ---
+        /// Track this video (KLT) instead of reading the scene's tracks.csv, in one streaming
+        /// pass (needs the `opencv` feature).
+        #[arg(long)]
+        video: Option<PathBuf>,
+        /// Camera calibration (OpenCV YAML/XML: camera_matrix, dist_coeffs) of the video: its
+        /// points are undistorted and its intrinsics replace the scene's.
+        #[arg(long, requires = "video")]
+        calibration: Option<PathBuf>,
+        // --- end OpenCV video driver ---
+    },
+    // --- OpenCV video driver (present in every build; needs `opencv`) ---
+    /// Track features of a video (KLT) inside the scene model's silhouette and write them as
+    /// tracks.csv (needs the `opencv` feature).
+    Track {
+        /// The video (anything OpenCV reads; Motion-JPEG AVI always works).
+        video: PathBuf,
+        /// The scene directory (scene.toml and the model; tracks.csv may be missing).
+        #[arg(long)]
+        scene: PathBuf,
+        /// Where to write the tracks.
+        #[arg(short, long, default_value = "tracks.csv")]
+        out: PathBuf,
+        /// Camera calibration (OpenCV YAML/XML: camera_matrix, dist_coeffs) of the video.
+        #[arg(long)]
+        calibration: Option<PathBuf>,
+    },
+    // --- end OpenCV video driver ---
+    /// Run several scenes and print a Markdown table of their results (as in the README).
+    Table {
+        /// Scene directories.
+        #[arg(required = true)]
+        scenes: Vec<PathBuf>,
+        /// Also run each cut scene with its mesh cut along the true cut, and print a second
+        /// table: Dice and target error with the detected cut against the true one.
+        #[arg(long)]
+        true_cut: bool,
+    },
+    /// Error against run time: run a scene under several solver settings (strategy, Newton
+    /// steps, PCG steps) and report Dice, target error and step time for each, as a table and
+    /// as plots (`--out DIR`: error_vs_time.svg).
+    Sweep {
+        /// The scene directory.
+        scene: PathBuf,
+        /// Write the plots here.
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
+    /// Run scene families end to end (issue 11's acceptance): generate each variant (or
+    /// reuse it from --work), run it with the detection defaults, and print per family the
+    /// false cuts, detection latency, the line's Hausdorff distance to the cut, and Dice and
+    /// target error without and with cutting.
+    Eval {
+        /// Family files (see fixtures/README.md), e.g. fixtures/families/*.toml.
+        #[arg(required = true)]
+        families: Vec<PathBuf>,
+        /// Where the variants' scenes are written and kept; a variant whose scenario is
+        /// unchanged is not simulated again.
+        #[arg(long, default_value = "incise-eval")]
+        work: PathBuf,
+        /// Run only the first N variants of each kind (intact, pre-cut, live).
+        #[arg(long)]
+        per_kind: Option<usize>,
+        /// Simulate every variant again even if its scene is in --work.
+        #[arg(long)]
+        fresh: bool,
+        /// Also print one line per variant.
+        #[arg(long)]
+        variants: bool,
+        /// Print JSON (every family with every variant) instead of tables.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Write one scene as a Rust module for a firmware build (`firmware/`): mesh, camera,
+    /// settings, capacities and `const` buffer lengths, the uncut mesh's precomputed ordering
+    /// and symbolic analysis, and the first frames of tracks. Nothing is written for a scene
+    /// that does not check out.
+    Codegen {
+        /// The scene directory (holding scene.toml).
+        scene: PathBuf,
+        /// The module to write.
+        #[arg(short, long)]
+        out: PathBuf,
+        /// Frames of tracks to include (frame 0 and the next ones).
+        #[arg(long, default_value_t = 5)]
+        frames: usize,
+        /// Then build the firmware program with the module, once per feature set of the core,
+        /// and print its static RAM and code size (needs this source tree, cargo, cc and
+        /// binutils).
+        #[arg(long)]
+        footprint: bool,
+        /// Refuse the scene (and write nothing) if its model's static RAM exceeds this many
+        /// KiB, saying which buffer is too large and by how much.
+        #[arg(long)]
+        ram_budget_kib: Option<u64>,
+    },
+    /// Generate scenes: simulate each scenario's real object and write the scene beside it;
+    /// or, with --family, every variant of a scene family.
+    Gen {
+        /// Scenario files (scenario.toml).
+        #[arg(required_unless_present = "family", conflicts_with = "family")]
+        scenarios: Vec<PathBuf>,
+        /// A scene family file (see fixtures/README.md): write each of its variants as
+        /// OUT/<variant name>/ (its scenario.toml and the scene); needs --out.
+        #[arg(long, requires = "out", conflicts_with = "video")]
+        family: Option<PathBuf>,
+        /// Write the scene here instead of the scenario's directory (one scenario only); with
+        /// --family, the directory of the variants.
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Also render the textured video of the real object, `video.avi` in the scene
+        /// (MJPG, 25 frames per second; needs the opencv feature).
+        #[arg(long)]
+        video: bool,
+    },
+}
+
+/// Where the shipped fixtures are: `./fixtures` if run from the repository, else beside the
+/// source tree this binary was built from.
+fn fixtures_dir() -> PathBuf {
+    let here = PathBuf::from("fixtures");
+    if here.join("band-side-cut").join("scene.toml").exists() {
+        return here;
+    }
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("..")
+        .join("fixtures")
+}
+
+/// Exit status when standard output is a closed pipe (`incise demo | head -1`): what a shell
+/// reports for a program ended by `SIGPIPE`, 128 + 13, as for `yes | head -1`.
+pub const BROKEN_PIPE_STATUS: i32 = 141;
+
+/// Why a command stopped.
+#[derive(Debug)]
+enum Failure {
+    /// An error to print.
+    Message(String),
+    /// Standard output was closed (the reader of a pipe has gone): stop quietly.
+    BrokenPipe,
+}
+
+impl From<String> for Failure {
+    fn from(m: String) -> Self {
+        Failure::Message(m)
+    }
+}
+
+impl From<&str> for Failure {
+    fn from(m: &str) -> Self {
+        Failure::Message(m.to_string())
+    }
+}
+
+/// Writes to standard output. Unlike `print!`, which panics when the reader of a pipe has
+/// gone, a closed pipe becomes [`Failure::BrokenPipe`].
+fn write_stdout(args: fmt::Arguments<'_>) -> Result<(), Failure> {
+    let mut stdout = std::io::stdout().lock();
+    stdout
+        .write_fmt(args)
+        .and_then(|()| stdout.flush())
+        .map_err(|e| match e.kind() {
+            std::io::ErrorKind::BrokenPipe => Failure::BrokenPipe,
+            _ => Failure::Message(format!("standard output: {e}")),
+        })
+}
+
+/// `print!` through [`write_stdout`]: evaluates to `Result<(), Failure>`.
+macro_rules! out {
+    ($($arg:tt)*) => {
+        write_stdout(format_args!($($arg)*))
+    };
+}
+
+/// `println!` through [`write_stdout`]: evaluates to `Result<(), Failure>`.
+macro_rules! outln {
+    ($($arg:tt)*) => {
+        write_stdout(format_args!("{}\n", format_args!($($arg)*)))
+    };
+}
+
+mod commands;
+use commands::*;
+
+/// Runs the parsed command line; returns the process exit code: 0, 1 after an error (printed
+/// on standard error), or [`BROKEN_PIPE_STATUS`] if standard output was closed early.
+pub fn run(cli: Cli) -> i32 {
+    let result = match cli.command {
+        Command::Demo { out } => demo(&out),
+        Command::Run {
+            scene,
+            json,
+            out,
+            true_cut,
+            video: None,
+            calibration: _,
+        } => run_command(&scene, json, out, true_cut),
+        Command::Run {
+            scene,
+            json,
+            out,
+            video: Some(video),
+            calibration,
+            ..
+        } => run_video_command(&scene, &video, calibration.as_deref(), json, out),
+        Command::Track {
+            video,
+            scene,
+            out,
+            calibration,
+        } => track_command(&video, &scene, &out, calibration.as_deref()),
+        Command::Eval {
+            families,
+            work,
+            per_kind,
+            fresh,
+            variants,
+            json,
+        } => eval_command(
+            &families,
+            &crate::eval::EvalOptions {
+                work,
+                selection: crate::eval::Selection { per_kind },
+                fresh,
+                progress: true,
+            },
+            variants,
+            json,
+        ),
+        Command::Gen {
+            family: Some(family),
+            out,
+            ..
+        } => gen_family_command(&family, out.as_deref()),
+        Command::Gen {
+            scenarios,
+            family: None,
+            out,
+            video,
+        } => gen_command(&scenarios, out, video),
+        Command::Codegen {
+            scene,
+            out,
+            frames,
+            footprint,
+            ram_budget_kib,
+        } => codegen_command(&scene, &out, frames, footprint, ram_budget_kib),
+        Command::Table { scenes, true_cut } => table_command(&scenes, true_cut),
+        Command::Sweep { scene, out } => sweep_command(&scene, out.as_deref()),
+    };
+    match result {
+        Ok(()) => 0,
+        Err(Failure::BrokenPipe) => BROKEN_PIPE_STATUS,
+        Err(Failure::Message(message)) => {
+            // Not `eprintln!`, which panics if standard error is closed too.
+            let _ = writeln!(std::io::stderr(), "incise: {message}");
+            1
+        }
+    }
+}
