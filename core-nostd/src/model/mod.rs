@@ -68,7 +68,7 @@ pub struct ModelConfig<T: Real> {
     pub camera: Camera<T>,
     /// The per-frame solve.
     pub solver: SolverConfig<T>,
-    /// Cut detection (used only when the crate is built with the `cut` feature).
+    /// Cut detection (used only when the crate is built with the `detect` feature).
     pub detection: DetectionConfig<T>,
 }
 
@@ -261,48 +261,54 @@ impl<'a, T: Real> Model<'a, T> {
         ensure_len(reals, size.real_len(), Resource::RealStorage)?;
         ensure_len(indices, size.index_len(), Resource::IndexStorage)?;
         let caps = size.capacities();
-        let mut rs = Slab::new(reals, Resource::RealStorage);
-        let mut is = Slab::new(indices, Resource::IndexStorage);
-        let mut live = Discretization::with_capacity(size, &mut rs, &mut is)?;
+        let mut scalar_slab = Slab::new(reals, Resource::RealStorage);
+        let mut index_slab = Slab::new(indices, Resource::IndexStorage);
+        let mut live = Discretization::with_capacity(size, &mut scalar_slab, &mut index_slab)?;
         #[cfg(feature = "cut")]
-        let spare = Discretization::with_capacity(size, &mut rs, &mut is)?;
+        let spare = Discretization::with_capacity(size, &mut scalar_slab, &mut index_slab)?;
         let dofs = size.unknowns();
-        let hessian = rs.take(size.nnz_a())?;
+        let hessian = scalar_slab.take(size.nnz_a())?;
         let factor = LdlFactor::new(
             &size.symbolic_capacity(),
-            rs.take(LdlFactor::<T>::storage_len(&size.symbolic_capacity()))?,
+            scalar_slab.take(LdlFactor::<T>::storage_len(&size.symbolic_capacity()))?,
         )?;
         let vectors = SolveVectors {
-            gradient: rs.take(dofs)?,
-            step: rs.take(dofs)?,
-            residual: rs.take(dofs)?,
-            preconditioned: rs.take(dofs)?,
-            direction: rs.take(dofs)?,
-            product: rs.take(dofs)?,
-            solve_work: rs.take(dofs)?,
-            trial: rs.take(3 * caps.mesh.nodes)?.as_chunks_mut::<3>().0,
-            factor_work: rs.take(LdlFactor::<T>::SUPERNODAL_WORK_LEN)?,
-            factor_indices: is.take(LdlFactor::<T>::supernodal_index_work_len(dofs))?,
+            gradient: scalar_slab.take(dofs)?,
+            step: scalar_slab.take(dofs)?,
+            residual: scalar_slab.take(dofs)?,
+            preconditioned: scalar_slab.take(dofs)?,
+            direction: scalar_slab.take(dofs)?,
+            product: scalar_slab.take(dofs)?,
+            solve_work: scalar_slab.take(dofs)?,
+            trial: scalar_slab
+                .take(3 * caps.mesh.nodes)?
+                .as_chunks_mut::<3>()
+                .0,
+            factor_work: scalar_slab.take(LdlFactor::<T>::SUPERNODAL_WORK_LEN)?,
+            factor_indices: index_slab.take(LdlFactor::<T>::supernodal_index_work_len(dofs))?,
         };
-        let features = Features::new(caps.features, &mut rs, &mut is)?;
+        let features = Features::new(caps.features, &mut scalar_slab, &mut index_slab)?;
         let saved = Saved {
-            features: Features::new(caps.features, &mut rs, &mut is)?,
-            embedding: Embedding::with_capacity(caps.features, &mut rs, &mut is)?,
-            previous: rs.take(3 * caps.mesh.nodes)?.as_chunks_mut::<3>().0,
+            features: Features::new(caps.features, &mut scalar_slab, &mut index_slab)?,
+            embedding: Embedding::with_capacity(caps.features, &mut scalar_slab, &mut index_slab)?,
+            previous: scalar_slab
+                .take(3 * caps.mesh.nodes)?
+                .as_chunks_mut::<3>()
+                .0,
         };
         #[cfg(feature = "detect")]
         let cut = CutState {
-            detector: Detector::new(caps.features, caps.pairs, &mut rs, &mut is)?,
-            line: CutLine::new(caps.cut_vertices, &mut rs, &mut is)?,
-            residuals: rs.take(2 * caps.features)?.as_chunks_mut::<2>().0,
-            pixels: rs
+            detector: Detector::new(caps.features, caps.pairs, &mut scalar_slab, &mut index_slab)?,
+            line: CutLine::new(caps.cut_vertices, &mut scalar_slab, &mut index_slab)?,
+            residuals: scalar_slab.take(2 * caps.features)?.as_chunks_mut::<2>().0,
+            pixels: scalar_slab
                 .take(2 * caps.features.max(caps.cut_vertices))?
                 .as_chunks_mut::<2>()
                 .0,
             #[cfg(feature = "cut")]
-            scratch: rs.take(cut::real_len(caps.mesh.nodes, caps.cut_vertices))?,
+            scratch: scalar_slab.take(cut::real_len(caps.mesh.nodes, caps.cut_vertices))?,
         };
-        let work = is.take(size.work_len())?;
+        let work = index_slab.take(size.work_len())?;
         load(&mut live, &lame, &config.solver, work)?;
         Ok(Model {
             config: *config,
