@@ -1,0 +1,434 @@
+//! Assembly: the energies, the gradient and the (PSD-projected) Hessian of the frame's problem
+//! (elastic energy, feature springs through the camera, damping and depth prior), element by
+//! element into the stiffness pattern through the scatter map.
+
+#![cfg_attr(not(test), deny(clippy::indexing_slicing))]
+
+use nalgebra::{Matrix3, Vector3};
+
+use super::{Energies, WorkCount};
+use crate::camera::Camera;
+use crate::embed::Embedding;
+use crate::error::{Error, Resource};
+use crate::features::Features;
+use crate::material::{
+    ElementRest, Lame, TangentProjection, element_energy, element_energy_gradient_tangent,
+    element_gradient,
+};
+use crate::mesh::Mesh;
+use crate::real::Real;
+use crate::sparse::{NONE, UpperCsc, ux};
+use crate::storage::ensure_len;
+
+/// Everything the assembly reads, borrowed from the model.
+pub(crate) struct Problem<'p, 'a, T: Real> {
+    pub mesh: &'p Mesh<'a, T>,
+    pub lame: Lame<T>,
+    pub camera: &'p Camera<T>,
+    /// The features' observations (targets, observed in this frame).
+    pub features: &'p Features<'a, T>,
+    /// Where each feature sits in the mesh (slot by slot).
+    pub embedding: &'p Embedding<'a, T>,
+    pub spring_stiffness: T,
+    /// Damping weight per node.
+    pub damping: &'p [T],
+    /// Depth-prior weight per node.
+    pub depth_weight: &'p [T],
+    /// Positions of the previous frame (damping anchor).
+    pub anchor: &'p [[T; 3]],
+    /// Per tetrahedron, per node pair ([`PAIRS`]) and column, the position in the pattern's
+    /// value array of the block's first row; [`NONE`] when a node of the pair is fixed.
+    pub scatter: &'p [[u32; 30]],
+    /// Column pointers of the stiffness pattern (the diagonal ends each column).
+    pub col_ptr: &'p [u32],
+}
+
+/// The ten node pairs of a tetrahedron whose `3 × 3` blocks are stored (upper triangle).
+pub(crate) const PAIRS: [(usize, usize); 10] = [
+    (0, 0),
+    (1, 1),
+    (2, 2),
+    (3, 3),
+    (0, 1),
+    (0, 2),
+    (0, 3),
+    (1, 2),
+    (1, 3),
+    (2, 3),
+];
+
+fn vec3<T: Real>(p: &[T; 3]) -> Vector3<T> {
+    Vector3::new(p[0], p[1], p[2])
+}
+
+/// The compact (free) index of each node of `tet`, [`NONE`] for a fixed node. The mesh checks
+/// its tetrahedra's nodes against `free` when it is loaded or edited; a node out of range
+/// would count as fixed.
+fn free_of(free: &[u32], tet: &[u32; 4]) -> [u32; 4] {
+    tet.map(|v| free.get(ux(v)).copied().unwrap_or(NONE))
+}
+
+/// The column ends `col_ptr[3 f + 1 ..= 3 f + 3]` of free node `f`'s three columns (empty if
+/// out of range, which the pattern built for the mesh's free nodes never is).
+fn column_ends(col_ptr: &[u32], f: u32) -> &[u32] {
+    let first = 3 * ux(f) + 1;
+    col_ptr.get(first..first + 3).unwrap_or_default()
+}
+
+impl<T: Real> Problem<'_, '_, T> {
+    /// Displacements from rest of the nodes `tet` of tetrahedron `t`.
+    ///
+    /// # Errors
+    /// [`Error::IndexOutOfRange`] for a node beyond `x` or the rest positions.
+    fn element_u(&self, t: usize, tet: &[u32; 4], x: &[[T; 3]]) -> Result<[[T; 3]; 4], Error> {
+        let rest = self.mesh.rest();
+        let mut u = [[T::zero(); 3]; 4];
+        for (k, (ue, &v)) in u.iter_mut().zip(tet).enumerate() {
+            let (Some(p), Some(q)) = (x.get(ux(v)), rest.get(ux(v))) else {
+                return Err(Error::IndexOutOfRange {
+                    resource: Resource::Nodes,
+                    position: 4 * t + k,
+                    index: ux(v),
+                    bound: x.len().min(rest.len()),
+                });
+            };
+            *ue = [p[0] - q[0], p[1] - q[1], p[2] - q[2]];
+        }
+        Ok(u)
+    }
+
+    fn element_rest(&self, t: usize) -> Result<ElementRest<T>, Error> {
+        self.mesh.element_rest(t).ok_or(Error::IndexOutOfRange {
+            resource: Resource::Tetrahedra,
+            position: t,
+            index: t,
+            bound: self.mesh.n_tets(),
+        })
+    }
+
+    /// Energy at positions `x`.
+    ///
+    /// # Errors
+    /// [`Error::FeatureBehindCamera`] if a virtual feature cannot be projected.
+    // Out of line, as `assemble`: a few calls per frame, and profilers can tell the stages apart.
+    #[inline(never)]
+    pub fn energy(&self, x: &[[T; 3]], work: &mut WorkCount) -> Result<Energies<T>, Error> {
+        let mut e = Energies::default();
+        for (t, tet) in self.mesh.tets().iter().enumerate() {
+            let rest = self.element_rest(t)?;
+            let g = rest.shape_gradients();
+            e.elastic += element_energy(&self.lame, &rest, &g, &self.element_u(t, tet, x)?);
+        }
+        work.element_evaluations += self.mesh.n_tets() as u64;
+        e.spring = self.spring_energy(x, work)?;
+        e.damping = self.damping_energy(x);
+        e.depth = self.depth_energy(x);
+        work.energy_evaluations += 1;
+        Ok(e)
+    }
+
+    fn spring_energy(&self, x: &[[T; 3]], work: &mut WorkCount) -> Result<T, Error> {
+        let half_k = T::of(0.5) * self.spring_stiffness;
+        let mut sum = T::zero();
+        let observations = self.features.active().iter().zip(self.features.targets());
+        for (slot, (&active, target)) in observations.enumerate() {
+            if active == 0 {
+                continue;
+            }
+            let p = self
+                .embedding
+                .position(slot, self.mesh, x)
+                .ok_or(Error::NoFeatures)?;
+            let uv = self
+                .camera
+                .project(&Vector3::from(p), slot)
+                .map_err(|_| self.features.behind_camera(slot))?;
+            let (du, dv) = (target[0] - uv.x, target[1] - uv.y);
+            sum += half_k * (du * du + dv * dv);
+            work.feature_evaluations += 1;
+        }
+        Ok(sum)
+    }
+
+    /// Unit direction of the camera ray through a node's rest position `q`.
+    fn ray_at_rest(&self, q: &[T; 3]) -> Vector3<T> {
+        self.camera.ray_direction_through(&vec3(q))
+    }
+
+    fn depth_energy(&self, x: &[[T; 3]]) -> T {
+        let rest = self.mesh.rest();
+        let mut sum = T::zero();
+        // `x` and the weights hold at least the `n_nodes()` nodes of `rest()`.
+        let nodes = self.depth_weight.iter().zip(x).zip(rest);
+        for ((&c, p), q) in nodes.take(self.mesh.n_nodes()) {
+            if c == T::zero() {
+                continue;
+            }
+            let s = (vec3(p) - vec3(q)).dot(&self.ray_at_rest(q));
+            sum += T::of(0.5) * c * s * s;
+        }
+        sum
+    }
+
+    fn damping_energy(&self, x: &[[T; 3]]) -> T {
+        let mut sum = T::zero();
+        // `x`, the weights and the anchor hold at least the `n_nodes()` nodes.
+        let nodes = self.damping.iter().zip(x).zip(self.anchor);
+        for ((&c, p), q) in nodes.take(self.mesh.n_nodes()) {
+            let d = vec3(p) - vec3(q);
+            sum += T::of(0.5) * c * d.norm_squared();
+        }
+        sum
+    }
+
+    /// Gradient over the free unknowns into `grad` (`3 · n_free`), and, when `hessian` is
+    /// given, the positive definite Hessian into the pattern's values; returns the energy.
+    ///
+    /// # Errors
+    /// [`Error::FeatureBehindCamera`] if a virtual feature cannot be projected.
+    // Out of line (a few calls per frame) so that profilers can tell assembly from the Newton
+    // loop around it.
+    #[inline(never)]
+    pub fn assemble(
+        &self,
+        x: &[[T; 3]],
+        grad: &mut [T],
+        mut hessian: Option<&mut [T]>,
+        work: &mut WorkCount,
+    ) -> Result<Energies<T>, Error> {
+        let free = self.mesh.free_index();
+        grad.fill(T::zero());
+        if let Some(h) = hessian.as_deref_mut() {
+            h.fill(T::zero());
+        }
+        let mut e = Energies::default();
+        let mut force_sum = T::zero();
+        for (t, tet) in self.mesh.tets().iter().enumerate() {
+            let rest = self.element_rest(t)?;
+            let g = rest.shape_gradients();
+            let xe = self.element_u(t, tet, x)?;
+            let ft = free_of(free, tet);
+            let gradient = match hessian.as_deref_mut() {
+                Some(h) => {
+                    let eval = element_energy_gradient_tangent(
+                        &self.lame,
+                        &rest,
+                        &g,
+                        &xe,
+                        TangentProjection::PositiveDefinite,
+                    );
+                    e.elastic += eval.energy;
+                    let scatter = self.scatter.get(t).ok_or(Error::SymbolicMismatch)?;
+                    for (&(a, b), starts) in PAIRS.iter().zip(scatter.as_chunks::<3>().0) {
+                        // `a`, `b` < 4 (the pairs of a tetrahedron's nodes).
+                        let block = eval.tangent.get(a).and_then(|row| row.get(b));
+                        if let (Some(m), Some(&fa), Some(&fb)) = (block, ft.get(a), ft.get(b)) {
+                            add_block(h, starts, a == b, fa >= fb, m);
+                        }
+                    }
+                    eval.gradient
+                }
+                None => {
+                    e.elastic += element_energy(&self.lame, &rest, &g, &xe);
+                    element_gradient(&self.lame, &rest, &g, &xe)
+                }
+            };
+            for (ga, &f) in gradient.iter().zip(&ft) {
+                add_gradient(grad, f, ga);
+                force_sum += ga.abs().sum();
+            }
+        }
+        if hessian.is_some() {
+            work.element_tangents += self.mesh.n_tets() as u64;
+        } else {
+            work.element_evaluations += self.mesh.n_tets() as u64;
+        }
+
+        // Springs, Gauss–Newton through the projection.
+        let k = self.spring_stiffness;
+        let observations = self.features.active().iter().zip(self.features.targets());
+        for (slot, (&active, target)) in observations.enumerate() {
+            if active == 0 {
+                continue;
+            }
+            // As in [`Embedding::position`], which fails the same way.
+            let (Some(&t), Some(w)) = (
+                self.embedding.tets().get(slot),
+                self.embedding.weights().get(slot),
+            ) else {
+                return Err(Error::NoFeatures);
+            };
+            let t = ux(t);
+            let tet = self.mesh.tets().get(t).ok_or(Error::NoFeatures)?;
+            let ft = free_of(free, tet);
+            let p = self
+                .embedding
+                .position(slot, self.mesh, x)
+                .ok_or(Error::NoFeatures)?;
+            let (uv, j) = self
+                .camera
+                .project_with_jacobian(&Vector3::from(p), slot)
+                .map_err(|_| self.features.behind_camera(slot))?;
+            let r = nalgebra::Vector2::new(target[0] - uv.x, target[1] - uv.y);
+            e.spring += T::of(0.5) * k * r.norm_squared();
+            let jr = j.transpose() * r * k;
+            force_sum += jr.abs().sum();
+            for (&f, &wa) in ft.iter().zip(w) {
+                add_gradient(grad, f, &(-jr * wa));
+            }
+            if let Some(h) = hessian.as_deref_mut() {
+                let jtj = j.transpose() * j * k;
+                let scatter = self.scatter.get(t).ok_or(Error::SymbolicMismatch)?;
+                for (&(a, b), starts) in PAIRS.iter().zip(scatter.as_chunks::<3>().0) {
+                    // `a`, `b` < 4 (the pairs of a tetrahedron's nodes).
+                    if let (Some(&wa), Some(&wb), Some(&fa), Some(&fb)) =
+                        (w.get(a), w.get(b), ft.get(a), ft.get(b))
+                    {
+                        add_block(h, starts, a == b, fa >= fb, &(jtj * (wa * wb)));
+                    }
+                }
+            }
+            work.feature_evaluations += 1;
+        }
+
+        // Damping toward the previous frame. `free` has the `n_nodes()` entries of the mesh,
+        // and `x`, the weights, the anchor and the rest positions at least as many. The pattern
+        // was built for these free nodes and its invariants ([`UpperCsc::new`]) end every
+        // column with its diagonal, so no entry below falls outside `col_ptr` or `h`.
+        let nodes = free
+            .iter()
+            .zip(self.damping.iter().zip(self.depth_weight))
+            .zip(x.iter().zip(self.anchor).zip(self.mesh.rest()));
+        for ((&f, (&c, &r)), ((p, p_anchor), p_rest)) in nodes {
+            if f == NONE {
+                continue;
+            }
+            let d = vec3(p) - vec3(p_anchor);
+            e.damping += T::of(0.5) * c * d.norm_squared();
+            add_gradient(grad, f, &(d * c));
+            force_sum += (d * c).abs().sum();
+            if let Some(h) = hessian.as_deref_mut() {
+                // The diagonal entry is the last of its column in the upper pattern.
+                for &end in column_ends(self.col_ptr, f) {
+                    if let Some(hd) = h.get_mut(ux(end).wrapping_sub(1)) {
+                        *hd += c;
+                    }
+                }
+            }
+            // The prior on depth: `r (d · e) e` and `r e eᵀ`.
+            if r > T::zero() {
+                let e_ray = self.ray_at_rest(p_rest);
+                let u = vec3(p) - vec3(p_rest);
+                let s = u.dot(&e_ray);
+                e.depth += T::of(0.5) * r * s * s;
+                add_gradient(grad, f, &(e_ray * (r * s)));
+                force_sum += (e_ray * (r * s)).abs().sum();
+                if let Some(h) = hessian.as_deref_mut() {
+                    // Column 3f + c of the diagonal block ends with its rows 3f ..= 3f + c.
+                    let e_arr = [e_ray.x, e_ray.y, e_ray.z];
+                    let ends = column_ends(self.col_ptr, f);
+                    for (col, (&end, &e_col)) in ends.iter().zip(&e_arr).enumerate() {
+                        let rows = ux(end).wrapping_sub(1 + col)..ux(end);
+                        if let Some(dst) = h.get_mut(rows) {
+                            for (hv, &e_row) in dst.iter_mut().zip(&e_arr) {
+                                *hv += r * e_row * e_col;
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        let x_max = x.iter().fold(T::zero(), |m, p| {
+            m.max(p[0].abs()).max(p[1].abs()).max(p[2].abs())
+        });
+        e.rounding = T::of(8.0) * T::EPS * x_max * force_sum;
+        work.assemblies += 1;
+        Ok(e)
+    }
+}
+
+/// Adds `g` to the three unknowns of free node `f` (nothing for a fixed node, [`NONE`]). `grad`
+/// holds the `3 · n_free` unknowns of the free nodes.
+fn add_gradient<T: Real>(grad: &mut [T], f: u32, g: &Vector3<T>) {
+    if f != NONE {
+        let base = 3 * ux(f);
+        if let Some([gx, gy, gz]) = grad.get_mut(base..base + 3) {
+            *gx += g.x;
+            *gy += g.y;
+            *gz += g.z;
+        }
+    }
+}
+
+/// Adds the `3 × 3` block `m` of a local node pair into the upper pattern, at `starts` (the
+/// position of the block's first row in each of its three columns, [`NONE`] when a node of the
+/// pair is fixed): on the diagonal (`diagonal`) only the upper triangle is stored; where the
+/// global order of the two nodes is reversed (`transpose`), the stored block is the transpose.
+/// The scatter map was built against this pattern ([`build_scatter`]), so every entry lies in
+/// `h`.
+fn add_block<T: Real>(
+    h: &mut [T],
+    starts: &[u32; 3],
+    diagonal: bool,
+    transpose: bool,
+    m: &Matrix3<T>,
+) {
+    if starts[0] == NONE {
+        return;
+    }
+    // Column-major: `columns[c][r]` is `m[(r, c)]`.
+    let columns: &[[T; 3]; 3] = m.as_ref();
+    for (c, (&s, column)) in starts.iter().zip(columns).enumerate() {
+        let s = ux(s);
+        if diagonal {
+            // Rows `0..=c` of column `c`.
+            if let Some(dst) = h.get_mut(s..=s + c) {
+                for (hv, &v) in dst.iter_mut().zip(column) {
+                    *hv += v;
+                }
+            }
+        } else if let Some(dst) = h.get_mut(s..s + 3) {
+            if transpose {
+                // Row `c` of `m`: `m[(c, r)]` is `columns[r][c]`.
+                for (hv, other) in dst.iter_mut().zip(columns) {
+                    if let Some(&v) = other.get(c) {
+                        *hv += v;
+                    }
+                }
+            } else {
+                for (hv, &v) in dst.iter_mut().zip(column) {
+                    *hv += v;
+                }
+            }
+        }
+    }
+}
+
+/// Builds the scatter map of every tetrahedron for the pattern `a`.
+///
+/// # Errors
+/// [`Error::SymbolicMismatch`] if a block the mesh needs is missing from the pattern.
+pub(crate) fn build_scatter<T: Real>(
+    mesh: &Mesh<'_, T>,
+    a: &UpperCsc<'_>,
+    scatter: &mut [[u32; 30]],
+) -> Result<(), Error> {
+    let free = mesh.free_index();
+    ensure_len(scatter, mesh.n_tets(), Resource::Tetrahedra)?;
+    for (tet, map) in mesh.tets().iter().zip(scatter.iter_mut()) {
+        let ft = free_of(free, tet);
+        for (&(la, lb), starts) in PAIRS.iter().zip(map.as_chunks_mut::<3>().0) {
+            let fa = ft.get(la).copied().unwrap_or(NONE);
+            let fb = ft.get(lb).copied().unwrap_or(NONE);
+            for (c, start) in starts.iter_mut().enumerate() {
+                *start = if fa == NONE || fb == NONE {
+                    NONE
+                } else {
+                    let (lo, hi) = (fa.min(fb) as usize, fa.max(fb) as usize);
+                    a.find(3 * lo, 3 * hi + c).ok_or(Error::SymbolicMismatch)? as u32
+                };
+            }
+        }
+    }
+    Ok(())
+}
