@@ -265,11 +265,11 @@ fn instructions() {
 /// for it (`Model::step` calls each of them; the rest of the frame is "other": observing,
 /// the Newton loop's vector updates, copies for the all-or-nothing step).
 const STAGES: [(&str, &str); 7] = [
-    ("assembly", "solve::Problem<T>::assemble"),
+    ("assembly", "assembly::Problem<T>::assemble"),
     ("factorization", "LdlFactor<T>::factorize_supernodal"),
     ("solves", "LdlFactor<T>::solve_in_place"),
     ("PCG products", "sym_matvec"),
-    ("line search", "solve::Problem<T>::energy"),
+    ("line search", "assembly::Problem<T>::energy"),
     ("detection", "Detector<T>::update"),
     ("cut line", "CutLine<T>::update"),
 ];
