@@ -766,6 +766,7 @@ mod tests {
     }
 
     #[test]
+    #[cfg(feature = "f32")]
     fn works_in_f32() {
         let l = Lame::<f32>::from_young_poisson(3000.0, 0.3).unwrap();
         let xr = [
