@@ -18,7 +18,7 @@ use incise::codegen::footprint::{self, FeatureSet, Firmware, feature_sets};
 use incise::codegen::{self, CodegenOptions};
 use incise::scene::Scene;
 use incise::storage::ModelStorage;
-use incise_validation::symbols::{allocator_symbols, names};
+use incise_validation::symbols::allocator_symbols;
 
 const SCENES: [&str; 2] = ["band-side-cut", "liver-lobe"];
 
@@ -122,7 +122,6 @@ fn check_scene(dir: &Path, name: &str, set: &FeatureSet) -> Firmware {
             set.name
         );
     }
-    assert!(!names(&firmware.exe).is_empty());
     let host = host_positions(&scene, frames, set);
     let device = firmware_positions(&firmware.exe);
     assert_eq!(device.len(), host.len(), "{name}, {}: node count", set.name);

@@ -228,12 +228,17 @@ impl<T: Real> Camera<T> {
     pub fn project(&self, x: &Vector3<T>, index: usize) -> Result<Vector2<T>, Error> {
         let xc = self.to_camera(x);
         let z = self.depth(&xc, index)?;
+        Ok(self.pixel(&xc, z))
+    }
+
+    /// The pixel of camera coordinates `xc` at depth `z` (checked in front).
+    fn pixel(&self, xc: &Vector3<T>, z: T) -> Vector2<T> {
         let i = &self.intrinsics;
-        Ok(if self.is_orthographic() {
+        if self.is_orthographic() {
             Vector2::new(i.fx * xc.x + i.cx, i.fy * xc.y + i.cy)
         } else {
             Vector2::new(i.fx * xc.x / z + i.cx, i.fy * xc.y / z + i.cy)
-        })
+        }
     }
 
     /// Pixel of `x` and the Jacobian `∂(u, v)/∂x` (pixels per metre, `2 × 3`).
@@ -248,28 +253,20 @@ impl<T: Real> Camera<T> {
         let xc = self.to_camera(x);
         let z = self.depth(&xc, index)?;
         let (fx, fy) = (self.intrinsics.fx, self.intrinsics.fy);
-        if self.is_orthographic() {
-            let uv = Vector2::new(
-                fx * xc.x + self.intrinsics.cx,
-                fy * xc.y + self.intrinsics.cy,
-            );
-            let jc = Matrix2x3::new(fx, T::zero(), T::zero(), T::zero(), fy, T::zero());
-            return Ok((uv, jc * self.rotation));
-        }
-        let uv = Vector2::new(
-            fx * xc.x / z + self.intrinsics.cx,
-            fy * xc.y / z + self.intrinsics.cy,
-        );
-        let z2 = z * z;
-        let jc = Matrix2x3::new(
-            fx / z,
-            T::zero(),
-            -fx * xc.x / z2,
-            T::zero(),
-            fy / z,
-            -fy * xc.y / z2,
-        );
-        Ok((uv, jc * self.rotation))
+        let jc = if self.is_orthographic() {
+            Matrix2x3::new(fx, T::zero(), T::zero(), T::zero(), fy, T::zero())
+        } else {
+            let z2 = z * z;
+            Matrix2x3::new(
+                fx / z,
+                T::zero(),
+                -fx * xc.x / z2,
+                T::zero(),
+                fy / z,
+                -fy * xc.y / z2,
+            )
+        };
+        Ok((self.pixel(&xc, z), jc * self.rotation))
     }
 
     /// The ray through pixel `(u, v)`: origin (the camera centre; for an orthographic camera,

@@ -14,12 +14,10 @@ use crate::material::{Lame, TangentProjection, element_energy_gradient_tangent};
 use crate::mesh::{Mesh, MeshInput};
 use crate::real::Real;
 use crate::solve::{SolverConfig, build_scatter};
-use crate::sparse::{
-    Graph, PrecomputedAnalysis, Symbolic, UpperCsc, block_upper_len, block_upper_pattern,
-};
+use crate::sparse::{PrecomputedAnalysis, Symbolic, UpperCsc};
 use crate::storage::{Slab, prefix, sum, times};
 
-use super::size::{ModelSize, order_free_nodes};
+use super::size::{ModelSize, free_node_pattern, order_free_nodes};
 
 /// One half of a model's topology-dependent storage.
 #[derive(Debug)]
@@ -121,12 +119,14 @@ impl<'a, T: Real> Discretization<'a, T> {
         let n_free = mesh.n_free();
         let n = 3 * n_free;
         let mut slab = Slab::new(work, Resource::Workspace);
-        let g_ptr = slab.take(sum(&[n_free, 1]))?;
-        let g_adj = slab.take(times(12, mesh.tets().len()))?;
-        let scratch = slab.take(slab.remaining())?;
-        let graph = Graph::from_tets(mesh.tets(), mesh.free_index(), g_ptr, g_adj, scratch)?;
-        let entries = block_upper_len(&graph, 3);
-        block_upper_pattern(&graph, 3, col_ptr, row_idx)?;
+        let (_, entries, scratch) = free_node_pattern(
+            mesh.tets(),
+            mesh.free_index(),
+            n_free,
+            col_ptr,
+            row_idx,
+            &mut slab,
+        )?;
         let a = UpperCsc::new(
             n,
             prefix(col_ptr, n + 1, Resource::ColumnPointers)?,

@@ -589,20 +589,37 @@ pub(crate) fn order_free_nodes<'w>(
     row_idx: &mut [u32],
     slab: &mut Slab<'w, u32>,
 ) -> Result<Ordered<'w>, Error> {
-    let g_ptr = slab.take(sum(&[n_free, 1]))?;
-    let g_adj = slab.take(times(12, tets.len()))?;
-    let node_perm = slab.take(n_free)?;
-    let perm = slab.take(times(3, n_free))?;
-    // The rest of the slab is scratch for each phase in turn.
-    let scratch = slab.take(slab.remaining())?;
-    let graph = Graph::from_tets(tets, free, g_ptr, g_adj, scratch)?;
+    let (graph, nnz_a, rest) = free_node_pattern(tets, free, n_free, col_ptr, row_idx, slab)?;
+    let mut rest = Slab::new(rest, Resource::Workspace);
+    let node_perm = rest.take(n_free)?;
+    let perm = rest.take(times(3, n_free))?;
+    let scratch = rest.take(rest.remaining())?;
     minimum_degree(&graph, node_perm, scratch)?;
     expand_block_permutation(node_perm, 3, perm)?;
-    let nnz_a = block_upper_len(&graph, 3);
-    block_upper_pattern(&graph, 3, col_ptr, row_idx)?;
     Ok(Ordered {
         perm,
         nnz_a,
         scratch,
     })
+}
+
+/// Builds the node graph of the free nodes (numbered by `free`) in storage from `slab`, and
+/// from it the block pattern of the stiffness matrix into `col_ptr` / `row_idx`: what both an
+/// analysis and a precomputed one ([`crate::Model::from_precomputed`]) start from. Returns the
+/// graph, the pattern's stored entries, and the rest of the slab (scratch, no meaning).
+pub(crate) fn free_node_pattern<'w>(
+    tets: &[[u32; 4]],
+    free: &[u32],
+    n_free: usize,
+    col_ptr: &mut [u32],
+    row_idx: &mut [u32],
+    slab: &mut Slab<'w, u32>,
+) -> Result<(Graph<'w>, usize, &'w mut [u32]), Error> {
+    let g_ptr = slab.take(sum(&[n_free, 1]))?;
+    let g_adj = slab.take(times(12, tets.len()))?;
+    let rest = slab.take(slab.remaining())?;
+    let graph = Graph::from_tets(tets, free, g_ptr, g_adj, rest)?;
+    let nnz_a = block_upper_len(&graph, 3);
+    block_upper_pattern(&graph, 3, col_ptr, row_idx)?;
+    Ok((graph, nnz_a, rest))
 }

@@ -199,20 +199,7 @@ impl<'a> Symbolic<'a> {
         work: &mut [u32],
     ) -> Result<(), Error> {
         let size = Self::size(a, perm, work)?;
-        let cap = self.capacity;
-        for (resource, needed, available) in [
-            (Resource::Unknowns, size.n, cap.n),
-            (Resource::MatrixEntries, size.nnz_a, cap.nnz_a),
-            (Resource::FactorEntries, size.nnz_l, cap.nnz_l),
-        ] {
-            if needed > available {
-                return Err(Error::Capacity {
-                    resource,
-                    needed,
-                    available,
-                });
-            }
-        }
+        self.check_capacity(&size)?;
         let n = size.n;
         let (perm_s, iperm, etree) = (
             &mut self.perm[..n],
@@ -315,20 +302,7 @@ impl<'a> Symbolic<'a> {
                 problem: PrecomputedProblem::Matrix,
             });
         }
-        let cap = self.capacity;
-        for (resource, needed, available) in [
-            (Resource::Unknowns, size.n, cap.n),
-            (Resource::MatrixEntries, size.nnz_a, cap.nnz_a),
-            (Resource::FactorEntries, size.nnz_l, cap.nnz_l),
-        ] {
-            if needed > available {
-                return Err(Error::Capacity {
-                    resource,
-                    needed,
-                    available,
-                });
-            }
-        }
+        self.check_capacity(&size)?;
         ensure_len(
             work,
             check_work_len(size.n, size.nnz_a),
@@ -382,6 +356,26 @@ impl<'a> Symbolic<'a> {
         };
         pre.checksum = pre.compute_checksum();
         pre
+    }
+
+    /// `Err(Capacity)` naming the first of the unknowns, matrix entries and factor entries of
+    /// `size` that exceeds the storage.
+    fn check_capacity(&self, size: &SymbolicSize) -> Result<(), Error> {
+        let cap = self.capacity;
+        for (resource, needed, available) in [
+            (Resource::Unknowns, size.n, cap.n),
+            (Resource::MatrixEntries, size.nnz_a, cap.nnz_a),
+            (Resource::FactorEntries, size.nnz_l, cap.nnz_l),
+        ] {
+            if needed > available {
+                return Err(Error::Capacity {
+                    resource,
+                    needed,
+                    available,
+                });
+            }
+        }
+        Ok(())
     }
 
     /// The sizes of the current analysis.
