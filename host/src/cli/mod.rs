@@ -40,7 +40,8 @@ pub enum Command {
         #[arg(long)]
         out: Option<PathBuf>,
         /// Also run with the mesh cut along the true cut (ground truth) instead of the
-        /// detected one: `dice_final_true_cut`, `tre_mm_final_true_cut`.
+        /// detected one: `dice_final_true_cut`, `tre_mm_final_true_cut` (with --out, its
+        /// pictures and meshes go to OUT/true-cut/).
         #[arg(long, conflicts_with = "video")]
         true_cut: bool,
         // --- OpenCV video driver (options present in every build; they need `opencv`) ---

@@ -486,11 +486,13 @@ pub fn run_scene_with(
     )?;
     let mut summary = Summary::new(scene, &trace, &uncut);
     if options.true_cut && scene.file.ground_truth.cut_open_frame.is_some() {
+        // Its pictures and meshes beside the detected run's, to compare the two.
+        let out = options.out.as_ref().map(|o| o.join("true-cut"));
         let along = run_pass(
             scene,
             &mut TrackSource::new(&trace.observations),
             Cutting::AlongTruth,
-            None,
+            out.as_deref(),
             None,
             false,
         )?;
