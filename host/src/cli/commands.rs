@@ -144,6 +144,47 @@ pub(super) fn sweep_command(dir: &Path, out: Option<&Path>) -> Result<(), Failur
     Ok(())
 }
 
+pub(super) fn report_command(dirs: &[PathBuf], out: &Path, quick: bool) -> Result<(), Failure> {
+    let scenes = dirs
+        .iter()
+        .map(|d| Scene::load(d).map_err(|e| e.to_string()))
+        .collect::<Result<Vec<_>, _>>()?;
+    let options = crate::report::page::ReportOptions {
+        quick,
+        progress: true,
+    };
+    let report = crate::report::page::write_report(&scenes, out, options)?;
+    outln!(
+        "{}: {} scenes; instructions {}",
+        out.join("index.html").display(),
+        report.scenes.len(),
+        report.instructions
+    )?;
+    Ok(())
+}
+
+pub(super) fn count_frames_command(
+    dir: &Path,
+    strategy: &str,
+    newton: u32,
+    pcg: u32,
+    frames: usize,
+) -> Result<(), Failure> {
+    let strategy = match strategy {
+        "refactor" => "refactor",
+        "frozen" => "frozen",
+        "factor-once" => "factor-once",
+        other => return Err(format!("unknown strategy {other:?}").into()),
+    };
+    let setting = crate::report::SweepSetting {
+        strategy,
+        newton,
+        pcg,
+    };
+    crate::report::page::count_frames(dir, &setting, frames)?;
+    Ok(())
+}
+
 pub(super) fn gen_command(
     scenarios: &[PathBuf],
     out: Option<PathBuf>,

@@ -82,6 +82,41 @@ pub enum Command {
         #[arg(long)]
         true_cut: bool,
     },
+    /// Write one page (index.html, with its figures as SVG and its data as CSV and JSON) on
+    /// the scenes: error against run time over solver settings with the Pareto front and a
+    /// recommended setting, the worst case (every work counter against its formula, and
+    /// instructions per frame counted by callgrind if valgrind is installed) and the memory.
+    Report {
+        /// Scene directories.
+        #[arg(required = true)]
+        scenes: Vec<PathBuf>,
+        /// Where to write the page and its files.
+        #[arg(long)]
+        out: PathBuf,
+        /// Two settings per scene and a few frames counted: a check that the page is made,
+        /// in about a minute.
+        #[arg(long)]
+        quick: bool,
+    },
+    /// Steps a scene's model with one solver setting and prints nothing: what `report` counts
+    /// under callgrind.
+    #[command(hide = true)]
+    CountFrames {
+        /// The scene directory.
+        scene: PathBuf,
+        /// `refactor`, `frozen` or `factor-once`.
+        #[arg(long)]
+        strategy: String,
+        /// Newton steps per frame.
+        #[arg(long)]
+        newton: u32,
+        /// PCG steps.
+        #[arg(long)]
+        pcg: u32,
+        /// Frames to step after frame 0.
+        #[arg(long)]
+        frames: usize,
+    },
     /// Error against run time: run a scene under several solver settings (strategy, Newton
     /// steps, PCG steps) and report Dice, target error and step time for each, as a table and
     /// as plots (`--out DIR`: error_vs_time.svg).
@@ -293,6 +328,14 @@ pub fn run(cli: Cli) -> i32 {
         } => codegen_command(&scene, &out, frames, footprint, ram_budget_kib),
         Command::Table { scenes, true_cut } => table_command(&scenes, true_cut),
         Command::Sweep { scene, out } => sweep_command(&scene, out.as_deref()),
+        Command::Report { scenes, out, quick } => report_command(&scenes, &out, quick),
+        Command::CountFrames {
+            scene,
+            strategy,
+            newton,
+            pcg,
+            frames,
+        } => count_frames_command(&scene, &strategy, newton, pcg, frames),
     };
     match result {
         Ok(()) => 0,

@@ -25,7 +25,7 @@ pub use sinks::FrameSink;
 #[cfg(feature = "opencv")]
 pub use sources::VideoFrames;
 pub use sources::{FrameSource, SourceFrame, TrackSource, rest_silhouette};
-pub use trace::{CutTrace, DetectionTrace, FrameRecord, Summary, Trace};
+pub use trace::{CutTrace, DetectionTrace, FrameRecord, FrameWork, Summary, Trace};
 
 use crate::render::overlay::{self, Overlay};
 use crate::render::silhouette;
@@ -127,6 +127,28 @@ pub(crate) fn scene_storage(scene: &Scene) -> Result<ModelStorage<f64>, RunError
     })
 }
 
+/// Embeds the internal targets of the ground truth (their frame-0 positions) in `model`,
+/// which carries them from then on (through cuts, each on its own side).
+fn embed_targets(truth: Option<&Truth>, model: &mut Model<'_, f64>) -> Result<(), RunError> {
+    if let Some(points) = truth.and_then(Truth::first_targets) {
+        model
+            .embed_targets(points)
+            .map_err(core("embedding the internal targets"))?;
+    }
+    Ok(())
+}
+
+/// Loads `scene`'s ground truth and embeds its internal targets in `model`, as a run does.
+///
+/// # Errors
+/// A [`RunError`] for a ground truth that cannot be read or targets the core refuses.
+pub(crate) fn embed_scene_targets(
+    scene: &Scene,
+    model: &mut Model<'_, f64>,
+) -> Result<(), RunError> {
+    embed_targets(Truth::load(scene)?.as_ref(), model)
+}
+
 /// A progress bar over `len` frames (unknown: 0) headed `prefix`.
 pub(crate) fn progress_bar(len: Option<usize>, prefix: &str) -> ProgressBar {
     let bar = ProgressBar::new(len.unwrap_or(0) as u64);
@@ -218,12 +240,7 @@ pub fn run_pass(
         .embed_features(&first.observations)
         .map_err(core("placing the frame-0 features on the model"))?;
     let truth = Truth::load(scene)?;
-    // The model carries the internal targets (through cuts, each on its own side).
-    if let Some(points) = truth.as_ref().and_then(Truth::first_targets) {
-        model
-            .embed_targets(points)
-            .map_err(core("embedding the internal targets"))?;
-    }
+    embed_targets(truth.as_ref(), &mut model)?;
     let rest_targets = target_positions(&model);
     let mut outputs = Outputs::new(out, sink)?;
     let bar = if progress {
@@ -355,6 +372,7 @@ impl Pass {
             outlier_pairs: 0,
             separation_points: 0,
             cut_vertices: 0,
+            work: None,
         };
         if f == 0 {
             return record;
@@ -366,6 +384,12 @@ impl Pass {
             .filter(|o| model.features().slot_of(o.id).is_some())
             .collect();
         record.observed = known.len();
+        // The formulas of the model this frame starts with (a cut at its end changes them).
+        let bounds = (
+            model.worst_case_work(),
+            model.worst_case_detection_work(),
+            model.worst_case_cut_work(),
+        );
         let t0 = Instant::now();
         // A frame the core refuses (nothing seen, a non-finite or out-of-image point, a solve
         // that breaks down) leaves the model as it was: the run notes it and goes on with the
@@ -378,6 +402,18 @@ impl Pass {
                 record.outlier_pairs = report.detection.outliers;
                 record.separation_points = report.detection.separation_points;
                 record.cut_vertices = report.cut_line.vertices;
+                record.work = Some(FrameWork {
+                    solve: report.work,
+                    solve_bound: bounds.0,
+                    detection: report.detection.work,
+                    line: report.cut_line.work,
+                    detection_bound: bounds.1,
+                    cut: report
+                        .cut
+                        .applied
+                        .then_some((report.cut.event.work, report.cut.work)),
+                    cut_bound: bounds.2,
+                });
                 self.cuts.record(f, &report.cut);
                 let d = &mut self.detection;
                 d.pairs = report.detection.pairs;

@@ -1,7 +1,7 @@
 //! What a run records: the trace of one pass over a scene, frame by frame, and the summary
 //! `incise run --json` prints.
 
-use incise_core::Observation;
+use incise_core::{CutWork, DetectionWork, LineWork, Observation, WorkCount};
 use serde::Serialize;
 
 use crate::scene::Scene;
@@ -105,6 +105,31 @@ pub struct FrameRecord {
     pub separation_points: usize,
     /// Vertices of the cut line.
     pub cut_vertices: usize,
+    /// The work the core counted in this frame, beside its worst-case formulas (`None` for
+    /// frame 0 and for a refused frame).
+    #[serde(skip)]
+    pub work: Option<FrameWork>,
+}
+
+/// The work the core counted in one frame ([`incise_core::StepReport`]'s counters), beside the
+/// worst-case formulas of the model the frame started with.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct FrameWork {
+    /// The steady part of the frame (the solve).
+    pub solve: WorkCount,
+    /// Its formula ([`incise_core::Model::worst_case_work`]).
+    pub solve_bound: WorkCount,
+    /// The cut detection.
+    pub detection: DetectionWork,
+    /// The cut line.
+    pub line: LineWork,
+    /// Their formula ([`incise_core::Model::worst_case_detection_work`]).
+    pub detection_bound: (DetectionWork, LineWork),
+    /// A cut event of this frame that went into service: its geometry and the rebuild of the
+    /// linear system.
+    pub cut: Option<(CutWork, WorkCount)>,
+    /// Its formula ([`incise_core::Model::worst_case_cut_work`]).
+    pub cut_bound: (CutWork, WorkCount),
 }
 
 /// What the cut detection did over a run.

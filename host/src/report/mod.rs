@@ -1,4 +1,7 @@
-//! Reports: a human summary, an overview picture of a run, and plots.
+//! Reports: a human summary, an overview picture of a run, and plots; `page`, the page of
+//! `incise report`.
+
+pub mod page;
 
 use std::path::Path;
 

@@ -1,0 +1,227 @@
+//! The report's figures (SVG): error against cost per scene, and instructions per frame.
+
+use std::path::Path;
+
+use plotters::prelude::*;
+
+use super::{SceneReport, SettingResult};
+
+/// The colour of a strategy.
+fn colour(strategy: &str) -> RGBColor {
+    match strategy {
+        "frozen" => RGBColor(214, 39, 40),
+        "factor-once" => RGBColor(44, 160, 44),
+        _ => RGBColor(31, 119, 180),
+    }
+}
+
+/// The cost of a setting on the figure's axis: instructions in millions, or milliseconds.
+fn cost(s: &SettingResult, counting: bool) -> f64 {
+    if counting {
+        s.instructions_median.map_or(f64::NAN, |i| i / 1e6)
+    } else {
+        s.ms_median
+    }
+}
+
+/// Dice and target error against the cost of a steady frame, one point per setting (colour:
+/// strategy), the Pareto front joined by a line, the recommended setting ringed and the
+/// scene's own setting marked with a cross.
+///
+/// # Errors
+/// If the figure cannot be written.
+pub(super) fn error_vs_cost(
+    scene: &SceneReport,
+    counting: bool,
+    path: &Path,
+) -> Result<(), String> {
+    let e = |e: &dyn std::fmt::Display| e.to_string();
+    let root = SVGBackend::new(path, (1000, 400)).into_drawing_area();
+    root.fill(&WHITE).map_err(|x| e(&x))?;
+    let (left, right) = root.split_horizontally(500);
+    let x_desc = if counting {
+        "instructions per steady frame, millions (median, callgrind)"
+    } else {
+        "step time, ms (median)"
+    };
+    let costs: Vec<f64> = scene.settings.iter().map(|s| cost(s, counting)).collect();
+    let x_max = costs
+        .iter()
+        .copied()
+        .filter(|c| c.is_finite())
+        .fold(0.0, f64::max)
+        * 1.1
+        + 1e-6;
+    type Metric = fn(&SettingResult) -> f64;
+    let panels: [(&str, &str, Metric); 2] = [
+        ("Dice, last frame", "Dice", |s| s.dice_final),
+        ("target error, last frame", "target error, mm", |s| {
+            s.tre_mm_final
+        }),
+    ];
+    for (area, (title, y_desc, metric)) in [left, right].iter().zip(panels) {
+        let values: Vec<f64> = scene
+            .settings
+            .iter()
+            .map(metric)
+            .filter(|v| v.is_finite())
+            .collect();
+        let lo = values.iter().copied().fold(f64::INFINITY, f64::min);
+        let hi = values.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        let pad = ((hi - lo) * 0.15).max(1e-3);
+        // Room above the points for the legend.
+        let (lo, hi) = if lo.is_finite() {
+            (lo - pad, hi + 5.0 * pad)
+        } else {
+            (0.0, 1.0)
+        };
+        let mut chart = ChartBuilder::on(area)
+            .caption(format!("{}: {title}", scene.name), ("sans-serif", 16))
+            .margin(12)
+            .x_label_area_size(40)
+            .y_label_area_size(60)
+            .build_cartesian_2d(0.0..x_max, lo..hi)
+            .map_err(|x| e(&x))?;
+        chart
+            .configure_mesh()
+            .x_desc(x_desc)
+            .y_desc(y_desc)
+            .draw()
+            .map_err(|x| e(&x))?;
+        let front: Vec<(f64, f64)> = scene
+            .front
+            .iter()
+            .map(|&i| (costs[i], metric(&scene.settings[i])))
+            .collect();
+        chart
+            .draw_series(LineSeries::new(front, BLACK.mix(0.5).stroke_width(1)))
+            .map_err(|x| e(&x))?
+            .label("Pareto front")
+            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], BLACK.mix(0.5)));
+        for strategy in ["refactor", "frozen", "factor-once"] {
+            let c = colour(strategy);
+            let points: Vec<(f64, f64)> = scene
+                .settings
+                .iter()
+                .zip(&costs)
+                .filter(|(s, c)| s.strategy == strategy && c.is_finite() && metric(s).is_finite())
+                .map(|(s, &c)| (c, metric(s)))
+                .collect();
+            if points.is_empty() {
+                continue;
+            }
+            chart
+                .draw_series(points.into_iter().map(|p| Circle::new(p, 4, c.filled())))
+                .map_err(|x| e(&x))?
+                .label(strategy)
+                .legend(move |(x, y)| Circle::new((x + 8, y), 4, c.filled()));
+        }
+        if let Some(r) = scene.recommended {
+            let p = (costs[r], metric(&scene.settings[r]));
+            chart
+                .draw_series(std::iter::once(Circle::new(p, 9, BLACK.stroke_width(2))))
+                .map_err(|x| e(&x))?
+                .label("recommended")
+                .legend(|(x, y)| Circle::new((x + 8, y), 6, BLACK.stroke_width(2)));
+        }
+        if let Some(own) = scene.settings.iter().position(|s| s.own) {
+            let p = (costs[own], metric(&scene.settings[own]));
+            if p.0.is_finite() && p.1.is_finite() {
+                let square = |(x, y): (i32, i32), r: i32| {
+                    Rectangle::new([(x - r, y - r), (x + r, y + r)], BLACK.stroke_width(2))
+                };
+                chart
+                    .draw_series(std::iter::once(EmptyElement::at(p) + square((0, 0), 7)))
+                    .map_err(|x| e(&x))?
+                    .label("the scene's own setting")
+                    .legend(move |(x, y)| square((x + 8, y), 5));
+            }
+        }
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::UpperRight)
+            .border_style(BLACK)
+            .background_style(WHITE.mix(0.85))
+            .draw()
+            .map_err(|x| e(&x))?;
+    }
+    root.present().map_err(|x| e(&x))
+}
+
+/// Instructions of each frame with the scene's own setting (millions), the frames that cut
+/// the mesh in red, and the steady median as a dashed line.
+///
+/// # Errors
+/// If the figure cannot be written.
+pub(super) fn instructions_per_frame(
+    scene: &SceneReport,
+    median: Option<f64>,
+    path: &Path,
+) -> Result<(), String> {
+    let e = |e: &dyn std::fmt::Display| e.to_string();
+    let root = SVGBackend::new(path, (1000, 320)).into_drawing_area();
+    root.fill(&WHITE).map_err(|x| e(&x))?;
+    let counts: Vec<(f64, f64)> = scene
+        .instructions_per_frame
+        .iter()
+        .enumerate()
+        .map(|(k, &c)| ((k + 1) as f64, c as f64 / 1e6))
+        .collect();
+    let y_max = counts.iter().map(|c| c.1).fold(0.0, f64::max) * 1.1 + 1e-6;
+    let x_max = counts.len() as f64 + 1.0;
+    let mut chart = ChartBuilder::on(&root)
+        .caption(
+            format!("{}: instructions per frame (its own setting)", scene.name),
+            ("sans-serif", 16),
+        )
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(60)
+        .build_cartesian_2d(0.0..x_max, 0.0..y_max)
+        .map_err(|x| e(&x))?;
+    chart
+        .configure_mesh()
+        .x_desc("frame")
+        .x_label_formatter(&|x| format!("{x:.0}"))
+        .y_desc("instructions, millions")
+        .draw()
+        .map_err(|x| e(&x))?;
+    chart
+        .draw_series(LineSeries::new(counts.clone(), RGBColor(31, 119, 180)))
+        .map_err(|x| e(&x))?
+        .label("a frame (the solve, detection, cut line and any cut event)")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], RGBColor(31, 119, 180)));
+    let cuts: Vec<(f64, f64)> = counts
+        .iter()
+        .copied()
+        .filter(|(f, _)| scene.cut_frames.contains(&(*f as usize)))
+        .collect();
+    if !cuts.is_empty() {
+        chart
+            .draw_series(cuts.into_iter().map(|p| Circle::new(p, 5, RED.filled())))
+            .map_err(|x| e(&x))?
+            .label("a frame that cuts the mesh")
+            .legend(|(x, y)| Circle::new((x + 8, y), 5, RED.filled()));
+    }
+    if let Some(m) = median {
+        let m = m / 1e6;
+        chart
+            .draw_series(DashedLineSeries::new(
+                vec![(0.0, m), (x_max, m)],
+                6,
+                4,
+                BLACK.stroke_width(1),
+            ))
+            .map_err(|x| e(&x))?
+            .label("median of the steady frames")
+            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], BLACK));
+    }
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::LowerRight)
+        .border_style(BLACK)
+        .background_style(WHITE.mix(0.85))
+        .draw()
+        .map_err(|x| e(&x))?;
+    root.present().map_err(|x| e(&x))
+}

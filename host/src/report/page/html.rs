@@ -1,0 +1,388 @@
+//! Writing the report: `index.html` (self-contained: figures inline), the figures as SVG and
+//! the data as CSV and `report.json`.
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use super::{Report, SceneReport, figures, steady_median};
+
+/// Writes every file of `report` into `out` (which exists).
+///
+/// # Errors
+/// A message naming the file that could not be written.
+pub(super) fn write(report: &Report, out: &Path) -> Result<(), String> {
+    let counting = report
+        .scenes
+        .iter()
+        .any(|s| !s.instructions_per_frame.is_empty());
+    let mut figures_of = vec![];
+    for scene in &report.scenes {
+        let cost = out.join(format!("error_vs_cost_{}.svg", scene.name));
+        figures::error_vs_cost(scene, counting, &cost).map_err(|e| at(&cost, &e))?;
+        let frames = if scene.instructions_per_frame.is_empty() {
+            None
+        } else {
+            let path = out.join(format!("instructions_{}.svg", scene.name));
+            let median = steady_median(&scene.instructions_per_frame, &scene.cut_frames);
+            figures::instructions_per_frame(scene, median, &path).map_err(|e| at(&path, &e))?;
+            Some(path)
+        };
+        figures_of.push((cost, frames));
+    }
+    let files: [(&str, String); 6] = [
+        ("summary.md", summary_markdown(report)),
+        ("error_vs_cost.csv", error_vs_cost_csv(report)),
+        ("worst_case.csv", worst_case_csv(report)),
+        ("instructions.csv", instructions_csv(report)),
+        ("memory.csv", memory_csv(report)),
+        (
+            "report.json",
+            serde_json::to_string_pretty(report).map_err(|e| e.to_string())?,
+        ),
+    ];
+    for (name, text) in &files {
+        let path = out.join(name);
+        std::fs::write(&path, text).map_err(|e| at(&path, &e.to_string()))?;
+    }
+    let page = page(report, &figures_of)?;
+    let path = out.join("index.html");
+    std::fs::write(&path, page).map_err(|e| at(&path, &e.to_string()))
+}
+
+fn at(path: &Path, e: &str) -> String {
+    format!("{}: {e}", path.display())
+}
+
+/// `s` with the characters HTML gives a meaning escaped.
+fn esc(s: &str) -> String {
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+        .replace('"', "&quot;")
+}
+
+/// An SVG file's text, to put inline (its XML declaration dropped).
+fn inline_svg(path: &Path) -> Result<String, String> {
+    let text = std::fs::read_to_string(path).map_err(|e| at(path, &e.to_string()))?;
+    let start = text.find("<svg").unwrap_or(0);
+    Ok(format!(
+        "<figure>{}<figcaption>{}</figcaption></figure>",
+        &text[start..],
+        esc(&path
+            .file_name()
+            .map_or(String::new(), |n| n.to_string_lossy().to_string()))
+    ))
+}
+
+/// The page in brief, as Markdown (for the README): per scene its own setting and the
+/// recommended one with their cost and errors, the steady frames' spread of instructions, the
+/// largest ratio of a work counter to its formula, and the model's storage.
+pub(super) fn summary_markdown(report: &Report) -> String {
+    let mut s = String::from(
+        "| scene | own setting | instructions / frame (M) | Dice | TRE mm | recommended | instructions / frame (M) | Dice | TRE mm | steady max / median | counted / formula (max) | storage KiB |\n\
+         | --- | --- | ---: | ---: | ---: | --- | ---: | ---: | ---: | ---: | ---: | ---: |\n",
+    );
+    let millions = |v: Option<f64>| v.map_or("–".to_string(), |v| format!("{:.1}", v / 1e6));
+    for scene in &report.scenes {
+        let Some(own) = scene.settings.iter().find(|r| r.own) else {
+            continue;
+        };
+        let rec = scene.recommended.map(|r| &scene.settings[r]);
+        let worst = scene
+            .worst_case
+            .iter()
+            .chain(&scene.cut_events)
+            .map(|r| r.max_over_formula)
+            .fold(0.0, f64::max);
+        let total: usize = scene.memory.iter().map(|m| m.bytes).sum();
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {:.3} | {:.2} | {} | {} | {} | {} | {} | {worst:.3} | {:.0} |",
+            scene.name,
+            own.label,
+            millions(own.instructions_median),
+            own.dice_final,
+            own.tre_mm_final,
+            rec.map_or("–".to_string(), |r| r.label.clone()),
+            millions(rec.and_then(|r| r.instructions_median)),
+            rec.map_or("–".to_string(), |r| format!("{:.3}", r.dice_final)),
+            rec.map_or("–".to_string(), |r| format!("{:.2}", r.tre_mm_final)),
+            scene
+                .steady_max_over_median
+                .map_or("–".to_string(), |r| format!("{r:.3}")),
+            total as f64 / 1024.0
+        );
+    }
+    s
+}
+
+fn error_vs_cost_csv(report: &Report) -> String {
+    let mut s = String::from(
+        "scene,setting,strategy,newton,pcg,own,on_front,recommended,dice_final,dice_mean_after_cut,tre_mm_final,surface_mm_final,ms_median,ms_max,instructions_median,instructions_frames\n",
+    );
+    for scene in &report.scenes {
+        for (i, r) in scene.settings.iter().enumerate() {
+            let _ = writeln!(
+                s,
+                "{},\"{}\",{},{},{},{},{},{},{:.5},{:.5},{:.4},{:.4},{:.4},{:.4},{},{}",
+                scene.name,
+                r.label,
+                r.strategy,
+                r.newton,
+                r.pcg,
+                r.own,
+                scene.front.contains(&i),
+                scene.recommended == Some(i),
+                r.dice_final,
+                r.dice_mean_after_cut,
+                r.tre_mm_final,
+                r.surface_mm_final,
+                r.ms_median,
+                r.ms_max,
+                r.instructions_median
+                    .map_or(String::new(), |v| format!("{v:.0}")),
+                r.instructions_frames
+            );
+        }
+    }
+    s
+}
+
+fn worst_case_csv(report: &Report) -> String {
+    let mut s = String::from("scene,kind,stage,counter,formula,max,median,max_over_formula\n");
+    for scene in &report.scenes {
+        for (kind, rows) in [
+            ("frame", &scene.worst_case),
+            ("cut event", &scene.cut_events),
+        ] {
+            for r in rows {
+                let _ = writeln!(
+                    s,
+                    "{},{kind},{},{},{},{},{:.1},{:.4}",
+                    scene.name, r.stage, r.counter, r.formula, r.max, r.median, r.max_over_formula
+                );
+            }
+        }
+    }
+    s
+}
+
+fn instructions_csv(report: &Report) -> String {
+    let mut s = String::from("scene,frame,instructions,cuts_the_mesh\n");
+    for scene in &report.scenes {
+        for (k, c) in scene.instructions_per_frame.iter().enumerate() {
+            let _ = writeln!(
+                s,
+                "{},{},{c},{}",
+                scene.name,
+                k + 1,
+                scene.cut_frames.contains(&(k + 1))
+            );
+        }
+    }
+    s
+}
+
+fn memory_csv(report: &Report) -> String {
+    let mut s = String::from("scene,part,grows_with,bytes\n");
+    for scene in &report.scenes {
+        for m in &scene.memory {
+            let _ = writeln!(
+                s,
+                "{},\"{}\",\"{}\",{}",
+                scene.name, m.part, m.grows_with, m.bytes
+            );
+        }
+    }
+    s
+}
+
+const STYLE: &str = "body{font-family:sans-serif;max-width:1060px;margin:2em auto;padding:0 1em;color:#222}\
+table{border-collapse:collapse;margin:0.8em 0;font-size:0.9em}\
+td,th{border:1px solid #bbb;padding:3px 8px;text-align:right}\
+td:first-child,th:first-child{text-align:left}\
+tr.front td{background:#eef6ee}tr.rec td{font-weight:bold}\
+figure{margin:1em 0}figcaption{font-size:0.8em;color:#666}\
+.note{background:#fff8e0;border:1px solid #e0c060;padding:0.5em 1em}\
+svg{max-width:100%;height:auto}";
+
+/// The page.
+fn page(
+    report: &Report,
+    figures_of: &[(std::path::PathBuf, Option<std::path::PathBuf>)],
+) -> Result<String, String> {
+    let mut h = String::new();
+    let _ = write!(
+        h,
+        "<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\">\
+         <title>incise report</title><style>{STYLE}</style></head><body>\
+         <h1>incise report</h1><p>Scenes: {}. {}</p>",
+        report
+            .scenes
+            .iter()
+            .map(|s| esc(&s.name))
+            .collect::<Vec<_>>()
+            .join(", "),
+        if report.quick {
+            "Made with <code>--quick</code>: two settings per scene and a few frames counted."
+        } else {
+            ""
+        }
+    );
+    h.push_str(
+        "<p class=\"note\">Not in this report yet (issue 14): the stability envelope (a grid \
+         over material, spring stiffness, compression and noise), runs in <code>f32</code> and \
+         mixed precision, and the mesh-resolution axis.</p>",
+    );
+    // 1. Error against run time.
+    let _ = write!(
+        h,
+        "<h2 id=\"error\">1. Error against run time</h2><p>Each scene under several solver \
+         settings: Dice and target error of the last frame against the cost of a steady frame. \
+         Instructions are {}. The Pareto front (no other setting is cheaper, more accurate in \
+         3D and in Dice at once) is shaded; the recommended setting, in bold, is {}.</p>",
+        esc(&report.instructions),
+        esc(report.recommendation_rule)
+    );
+    for (scene, (cost, _)) in report.scenes.iter().zip(figures_of) {
+        let _ = write!(h, "<h3>{}</h3>", esc(&scene.name));
+        if let Some(r) = scene.recommended {
+            let _ = write!(
+                h,
+                "<p>Recommended: <b>{}</b>{}.</p>",
+                esc(&scene.settings[r].label),
+                if scene.settings[r].own {
+                    " (the scene's own setting)"
+                } else {
+                    ""
+                }
+            );
+        }
+        h.push_str(&inline_svg(cost)?);
+        settings_table(&mut h, scene);
+    }
+    // 2. Worst case.
+    h.push_str(
+        "<h2 id=\"worst\">2. Worst case</h2><p>With each scene's own setting: every work \
+         counter of the core in every frame against its formula in the scene's sizes \
+         (<code>Model::worst_case_work</code>, <code>worst_case_detection_work</code>, \
+         <code>worst_case_cut_work</code>), evaluated for the topology the frame starts \
+         with. A ratio above 1 would be a broken formula. Cut events are reported apart.</p>",
+    );
+    for (scene, (_, frames)) in report.scenes.iter().zip(figures_of) {
+        let _ = write!(h, "<h3>{}</h3>", esc(&scene.name));
+        if let Some(r) = scene.steady_max_over_median {
+            let _ = write!(
+                h,
+                "<p>Instructions of a steady frame: largest / median = {r:.3} over {} frames \
+                 ({} cutting the mesh: {}).</p>",
+                scene.instructions_per_frame.len(),
+                scene.cut_frames.len(),
+                scene
+                    .cut_frames
+                    .iter()
+                    .map(ToString::to_string)
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            );
+        }
+        if let Some(path) = frames {
+            h.push_str(&inline_svg(path)?);
+        }
+        work_table(&mut h, "A frame", &scene.worst_case);
+        if !scene.cut_events.is_empty() {
+            work_table(&mut h, "A cut event", &scene.cut_events);
+        }
+    }
+    // 3. Memory.
+    h.push_str(
+        "<h2 id=\"memory\">3. Memory</h2><p>The static storage of each scene's model as the \
+         core sizes it (<code>ModelSize::parts</code>, f64 scalars and u32 indices), from the \
+         scene's capacities: what a firmware build reserves.</p>",
+    );
+    memory_table(&mut h, report);
+    h.push_str(
+        "<p>Data: <code>error_vs_cost.csv</code>, <code>worst_case.csv</code>, \
+         <code>instructions.csv</code>, <code>memory.csv</code>, <code>report.json</code>; \
+         in brief, <code>summary.md</code>.</p>\
+         </body></html>\n",
+    );
+    Ok(h)
+}
+
+fn settings_table(h: &mut String, scene: &SceneReport) {
+    h.push_str(
+        "<table><tr><th>setting</th><th>instructions / frame (M)</th><th>ms / frame</th>\
+         <th>ms max</th><th>Dice</th><th>Dice after cut</th><th>target error mm</th>\
+         <th>surface mm</th></tr>",
+    );
+    for (i, r) in scene.settings.iter().enumerate() {
+        let class = match (scene.recommended == Some(i), scene.front.contains(&i)) {
+            (true, _) => " class=\"front rec\"",
+            (false, true) => " class=\"front\"",
+            _ => "",
+        };
+        let _ = write!(
+            h,
+            "<tr{class}><td>{}{}</td><td>{}</td><td>{:.2}</td><td>{:.2}</td><td>{:.4}</td>\
+             <td>{:.4}</td><td>{:.2}</td><td>{:.2}</td></tr>",
+            esc(&r.label),
+            if r.own { " (own)" } else { "" },
+            r.instructions_median
+                .map_or("–".into(), |v| format!("{:.2}", v / 1e6)),
+            r.ms_median,
+            r.ms_max,
+            r.dice_final,
+            r.dice_mean_after_cut,
+            r.tre_mm_final,
+            r.surface_mm_final
+        );
+    }
+    h.push_str("</table>");
+}
+
+fn work_table(h: &mut String, title: &str, rows: &[super::WorstCaseRow]) {
+    let _ = write!(
+        h,
+        "<table><tr><th>{title}: stage, counter</th><th>formula</th><th>counted max</th>\
+         <th>counted median</th><th>max / formula</th></tr>"
+    );
+    for r in rows {
+        let _ = write!(
+            h,
+            "<tr><td>{}, {}</td><td>{}</td><td>{}</td><td>{:.0}</td><td>{:.3}</td></tr>",
+            r.stage, r.counter, r.formula, r.max, r.median, r.max_over_formula
+        );
+    }
+    h.push_str("</table>");
+}
+
+fn memory_table(h: &mut String, report: &Report) {
+    let Some(first) = report.scenes.first() else {
+        return;
+    };
+    h.push_str("<table><tr><th>part, KiB</th>");
+    for s in &report.scenes {
+        let _ = write!(h, "<th>{}</th>", esc(&s.name));
+    }
+    h.push_str("<th>grows with</th></tr>");
+    for (k, part) in first.memory.iter().enumerate() {
+        let _ = write!(h, "<tr><td>{}</td>", esc(part.part));
+        for s in &report.scenes {
+            let _ = write!(
+                h,
+                "<td>{}</td>",
+                s.memory
+                    .get(k)
+                    .map_or("–".into(), |m| format!("{:.1}", m.bytes as f64 / 1024.0))
+            );
+        }
+        let _ = write!(h, "<td>{}</td></tr>", esc(part.grows_with));
+    }
+    h.push_str("<tr><td>total</td>");
+    for s in &report.scenes {
+        let total: usize = s.memory.iter().map(|m| m.bytes).sum();
+        let _ = write!(h, "<td>{:.1}</td>", total as f64 / 1024.0);
+    }
+    h.push_str("<td></td></tr></table>");
+}

@@ -1,0 +1,152 @@
+//! Instructions per frame, counted by callgrind: the deterministic cost axis of the report.
+//!
+//! `incise report` runs its own binary again under `valgrind --tool=callgrind` with the hidden
+//! subcommand `count-frames` ([`count_frames`]), which builds the scene's model with one solver
+//! setting and steps it over the scene's frames. Callgrind writes a dump before each
+//! `Model::step`, so each dump after the first (the set-up) holds one frame's instructions, the
+//! cut events included, plus the few thousand instructions of the loop between two steps. Wall time swings with the machine; these counts do
+//! not.
+
+use std::path::Path;
+use std::process::Command;
+
+use incise_core::Observation;
+
+use crate::run::{embed_scene_targets, scene_storage};
+use crate::scene::Scene;
+
+use super::super::SweepSetting;
+
+/// Instructions of each stepped frame (frame 1 first), or why they could not be counted.
+///
+/// # Errors
+/// A message if valgrind is missing or the counted run fails.
+pub(super) fn per_frame(
+    scene_dir: &Path,
+    setting: &SweepSetting,
+    frames: usize,
+) -> Result<Vec<u64>, String> {
+    let exe = std::env::current_exe().map_err(|e| format!("the incise binary: {e}"))?;
+    let dir = tempfile_dir()?;
+    let out = dir.join("cg");
+    let output = Command::new("valgrind")
+        .arg("--tool=callgrind")
+        .arg("--dump-before=*incise_core*Model*step*")
+        .arg(format!("--callgrind-out-file={}", out.display()))
+        .arg(&exe)
+        .arg("count-frames")
+        .arg(scene_dir)
+        .args(["--strategy", setting.strategy])
+        .args(["--newton", &setting.newton.to_string()])
+        .args(["--pcg", &setting.pcg.to_string()])
+        .args(["--frames", &frames.to_string()])
+        .output();
+    let result = match output {
+        Err(e) => Err(format!("valgrind could not be started ({e})")),
+        Ok(o) if !o.status.success() => Err(format!(
+            "the counted run failed: {}",
+            String::from_utf8_lossy(&o.stderr)
+                .lines()
+                .last()
+                .unwrap_or("")
+        )),
+        Ok(_) => read_dumps(&dir),
+    };
+    let _ = std::fs::remove_dir_all(&dir);
+    result
+}
+
+/// Whether callgrind can be run here.
+pub(super) fn available() -> bool {
+    Command::new("valgrind")
+        .arg("--version")
+        .output()
+        .is_ok_and(|o| o.status.success())
+}
+
+/// A fresh directory for one counted run's dumps.
+fn tempfile_dir() -> Result<std::path::PathBuf, String> {
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    static NEXT: AtomicUsize = AtomicUsize::new(0);
+    let dir = std::env::temp_dir().join(format!(
+        "incise-report-{}-{}",
+        std::process::id(),
+        NEXT.fetch_add(1, Ordering::Relaxed)
+    ));
+    std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    Ok(dir)
+}
+
+/// The instructions of each step from the dumps in `dir`: `cg.1` holds the set-up, `cg.n`
+/// (n ≥ 2) the step n − 1, and `cg`, written at exit, the last step.
+fn read_dumps(dir: &Path) -> Result<Vec<u64>, String> {
+    let mut counts = vec![];
+    let mut last = None;
+    for entry in std::fs::read_dir(dir).map_err(|e| e.to_string())? {
+        let path = entry.map_err(|e| e.to_string())?.path();
+        let name = path
+            .file_name()
+            .map(|n| n.to_string_lossy().to_string())
+            .unwrap_or_default();
+        let n = match name.strip_prefix("cg") {
+            Some("") => None,
+            Some(n) => match n.strip_prefix('.').and_then(|n| n.parse::<usize>().ok()) {
+                Some(n) => Some(n),
+                None => continue,
+            },
+            None => continue,
+        };
+        let text = std::fs::read_to_string(&path).map_err(|e| e.to_string())?;
+        let total = text
+            .lines()
+            .find_map(|l| l.strip_prefix("totals: ").or(l.strip_prefix("summary: ")))
+            .and_then(|t| t.split_whitespace().next())
+            .and_then(|t| t.parse::<u64>().ok())
+            .ok_or_else(|| format!("{}: no instruction total", path.display()))?;
+        match n {
+            None => last = Some(total),
+            Some(1) => {}
+            Some(n) => counts.push((n, total)),
+        }
+    }
+    counts.sort_unstable();
+    let Some(last) = last else {
+        return Err("callgrind wrote no dump at exit".into());
+    };
+    if counts.is_empty() && !dir.join("cg.1").exists() {
+        return Err("callgrind wrote no dump before a step".into());
+    }
+    Ok(counts.into_iter().map(|c| c.1).chain([last]).collect())
+}
+
+/// The hidden `count-frames` subcommand: builds the model of the scene in `dir` with
+/// `setting`, embeds the frame-0 features and steps frames 1 to `frames` (all if fewer),
+/// printing nothing. What callgrind counts in [`per_frame`].
+///
+/// # Errors
+/// A message naming the scene or the frame the core refuses.
+pub fn count_frames(dir: &Path, setting: &SweepSetting, frames: usize) -> Result<(), String> {
+    let mut scene = Scene::load(dir).map_err(|e| e.to_string())?;
+    setting.apply(&mut scene.file.solver);
+    let config = scene.model_config().map_err(|e| e.to_string())?;
+    let mut storage = scene_storage(&scene).map_err(|e| e.to_string())?;
+    let mut model = storage
+        .model(&scene.mesh_input(), &config)
+        .map_err(|e| format!("building the model: {e}"))?;
+    let first = scene.frames.first().ok_or("the scene holds no frame")?;
+    model
+        .embed_features(first)
+        .map_err(|e| format!("placing the frame-0 features: {e}"))?;
+    embed_scene_targets(&scene, &mut model).map_err(|e| e.to_string())?;
+    for frame in scene.frames.iter().skip(1).take(frames) {
+        // As `incise run` does: features that missed the model at frame 0 are unknown to it.
+        let known: Vec<Observation<f64>> = frame
+            .iter()
+            .copied()
+            .filter(|o| model.features().slot_of(o.id).is_some())
+            .collect();
+        // A refused frame leaves the model as it was; the run goes on, as `incise run` does.
+        let _ = model.step(&known);
+    }
+    Ok(())
+}

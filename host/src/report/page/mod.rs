@@ -1,0 +1,502 @@
+//! `incise report`: for each scene, its error against run time over solver settings (with the
+//! Pareto front and a recommended setting), its worst case (the core's counted work against
+//! the formulas, and instructions per frame), and its memory; as one self-contained HTML page
+//! (`index.html`, figures inline) beside the same figures as SVG and the data as CSV and JSON.
+//!
+//! Not in it yet (issue 14): the stability envelope, runs in `f32` and mixed precision, and
+//! the mesh-resolution axis; the page says so.
+
+mod figures;
+mod html;
+mod instructions;
+mod pareto;
+
+use std::path::Path;
+
+use serde::Serialize;
+
+use crate::run::{FrameWork, RunOptions, Summary, Trace, progress_bar, run_scene, scene_storage};
+use crate::scene::{Scene, SolverSection};
+
+use super::{SweepSetting, sweep_settings};
+
+pub use instructions::count_frames;
+
+/// What `incise report` does.
+#[derive(Clone, Copy, Debug)]
+pub struct ReportOptions {
+    /// Fewer settings and sampled frames: a check that the page is made, in about a minute.
+    pub quick: bool,
+    /// Show a progress bar.
+    pub progress: bool,
+}
+
+/// Everything the page shows; `report.json`.
+#[derive(Clone, Debug, Serialize)]
+pub struct Report {
+    /// Made with `--quick`.
+    pub quick: bool,
+    /// How instructions were counted, or why they were not.
+    pub instructions: String,
+    /// The rule that picks the recommended setting.
+    pub recommendation_rule: &'static str,
+    /// One entry per scene, in the order given.
+    pub scenes: Vec<SceneReport>,
+}
+
+/// One scene's part of the report.
+#[derive(Clone, Debug, Serialize)]
+pub struct SceneReport {
+    /// Scene name.
+    pub name: String,
+    /// The settings tried, the scene's own first.
+    pub settings: Vec<SettingResult>,
+    /// Indices into `settings` of the Pareto front (cost, target error, Dice), cheapest first.
+    pub front: Vec<usize>,
+    /// Index into `settings` of the recommended setting.
+    pub recommended: Option<usize>,
+    /// The scene's own setting: each work counter of the steady frame, the detection and the
+    /// cut line against its formula.
+    pub worst_case: Vec<WorstCaseRow>,
+    /// The same for the cut events (empty if none).
+    pub cut_events: Vec<WorstCaseRow>,
+    /// The scene's own setting: instructions of each stepped frame (frame 1 first), if counted.
+    pub instructions_per_frame: Vec<u64>,
+    /// Frames (numbers) that cut the mesh, with the scene's own setting.
+    pub cut_frames: Vec<usize>,
+    /// Steady frames (no cut event): largest instructions over the median.
+    pub steady_max_over_median: Option<f64>,
+    /// The model's storage, part by part (f64).
+    pub memory: Vec<MemoryRow>,
+}
+
+/// One setting of one scene.
+#[derive(Clone, Debug, Serialize)]
+pub struct SettingResult {
+    /// A short label.
+    pub label: String,
+    /// `"refactor"`, `"frozen"` or `"factor-once"`.
+    pub strategy: &'static str,
+    /// Newton steps per frame.
+    pub newton: u32,
+    /// PCG steps.
+    pub pcg: u32,
+    /// The scene's own setting.
+    pub own: bool,
+    /// Dice of the last frame.
+    pub dice_final: f64,
+    /// Mean Dice after the cut opens (over all frames without a cut).
+    pub dice_mean_after_cut: f64,
+    /// Target error of the last frame, millimetres.
+    pub tre_mm_final: f64,
+    /// Surface error of the last frame, millimetres (RMS).
+    pub surface_mm_final: f64,
+    /// Wall time of a step, milliseconds: median and largest.
+    pub ms_median: f64,
+    /// Largest step time, milliseconds.
+    pub ms_max: f64,
+    /// Instructions of a steady frame (median over the counted frames without a cut event).
+    pub instructions_median: Option<f64>,
+    /// Frames counted.
+    pub instructions_frames: usize,
+}
+
+/// One work counter against its formula.
+#[derive(Clone, Debug, Serialize)]
+pub struct WorstCaseRow {
+    /// The stage that counts it.
+    pub stage: &'static str,
+    /// What it counts.
+    pub counter: &'static str,
+    /// The formula's value (the largest over the frames: it changes with the topology).
+    pub formula: u64,
+    /// The largest counted value.
+    pub max: u64,
+    /// The median counted value.
+    pub median: f64,
+    /// The largest ratio of the counted value to the frame's formula (≤ 1: the formula holds).
+    pub max_over_formula: f64,
+}
+
+/// One part of a model's storage.
+#[derive(Clone, Debug, Serialize)]
+pub struct MemoryRow {
+    /// What it holds.
+    pub part: &'static str,
+    /// What it grows with.
+    pub grows_with: &'static str,
+    /// Bytes (f64 scalars, u32 indices).
+    pub bytes: usize,
+}
+
+/// Frames counted per setting: every frame of the scene's own setting (the worst case needs
+/// them all) and, for the other settings, the first ten (five and three with `--quick`), whose
+/// median is the steady cost.
+fn frames_counted(own: bool, quick: bool) -> usize {
+    match (own, quick) {
+        (true, false) => usize::MAX,
+        (true, true) => 5,
+        (false, false) => 10,
+        (false, true) => 3,
+    }
+}
+
+/// The settings tried on a scene: its own first, then the sweep's (`--quick`: refactoring
+/// once per frame, the cheapest).
+fn settings_for(solver: &SolverSection, quick: bool) -> Vec<(SweepSetting, bool)> {
+    let strategy = match solver.strategy.as_str() {
+        "frozen" => "frozen",
+        "factor-once" => "factor-once",
+        _ => "refactor",
+    };
+    let own = SweepSetting {
+        strategy,
+        newton: solver.newton_iterations,
+        pcg: solver.pcg_iterations,
+    };
+    let others = if quick {
+        vec![SweepSetting {
+            strategy: "refactor",
+            newton: 1,
+            pcg: 10,
+        }]
+    } else {
+        sweep_settings()
+    };
+    let same = |s: &SweepSetting| {
+        s.strategy == own.strategy
+            && s.newton == own.newton
+            && (s.strategy == "refactor" || s.pcg == own.pcg)
+    };
+    std::iter::once((own, true))
+        .chain(others.into_iter().filter(|s| !same(s)).map(|s| (s, false)))
+        .collect()
+}
+
+/// Runs the report over `scenes` and writes it into `out`.
+///
+/// # Errors
+/// A message naming the scene and setting that failed, or the file that could not be written.
+pub fn write_report(
+    scenes: &[Scene],
+    out: &Path,
+    options: ReportOptions,
+) -> Result<Report, String> {
+    std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
+    let counting = instructions::available();
+    let runs: usize = scenes
+        .iter()
+        .map(|s| settings_for(&s.file.solver, options.quick).len())
+        .sum();
+    let bar = if options.progress {
+        let bar = progress_bar(Some(runs), "report");
+        bar.set_message("settings");
+        bar
+    } else {
+        indicatif::ProgressBar::hidden()
+    };
+    let mut report = Report {
+        quick: options.quick,
+        instructions: if counting {
+            format!(
+                "counted by callgrind inside Model::step, one dump per frame; the scene's own \
+                 setting over {}, the others over the first {} frames (their median without \
+                 cut events is the steady cost)",
+                if options.quick {
+                    "its first 5 frames"
+                } else {
+                    "every frame"
+                },
+                frames_counted(false, options.quick)
+            )
+        } else {
+            "not counted: valgrind (callgrind) is not installed; the cost axis is wall time".into()
+        },
+        recommendation_rule: pareto::RULE,
+        scenes: vec![],
+    };
+    for scene in scenes {
+        let name = scene.file.name.clone();
+        bar.set_prefix(name.clone());
+        let mut settings = vec![];
+        let mut own_trace = None;
+        let mut own_counts = vec![];
+        for (setting, own) in settings_for(&scene.file.solver, options.quick) {
+            let mut s = scene.clone();
+            setting.apply(&mut s.file.solver);
+            let (summary, trace) = run_scene(&s, &RunOptions::default())
+                .map_err(|e| format!("{name}, {}: {e}", setting.label()))?;
+            let counts = if counting {
+                instructions::per_frame(&scene.dir, &setting, frames_counted(own, options.quick))
+                    .map_err(|e| format!("{name}, {}: instructions: {e}", setting.label()))?
+            } else {
+                vec![]
+            };
+            settings.push(setting_result(&setting, own, &summary, &trace, &counts));
+            if own {
+                own_trace = Some(trace);
+                own_counts = counts;
+            }
+            bar.inc(1);
+        }
+        let trace = own_trace.ok_or("no run with the scene's own setting")?;
+        report
+            .scenes
+            .push(scene_report(scene, settings, &trace, own_counts, counting)?);
+    }
+    bar.finish_and_clear();
+    html::write(&report, out)?;
+    Ok(report)
+}
+
+/// Frame numbers of `trace` that cut the mesh.
+fn cut_frames(trace: &Trace) -> Vec<usize> {
+    trace
+        .frames
+        .iter()
+        .filter(|r| r.work.is_some_and(|w| w.cut.is_some()))
+        .map(|r| r.frame)
+        .collect()
+}
+
+/// The median of the counts of frames (dump `k` is frame `k + 1`) that did not cut.
+fn steady_median(counts: &[u64], cuts: &[usize]) -> Option<f64> {
+    let steady: Vec<f64> = counts
+        .iter()
+        .enumerate()
+        .filter(|(k, _)| !cuts.contains(&(k + 1)))
+        .map(|(_, &c)| c as f64)
+        .collect();
+    median(&steady)
+}
+
+fn median(values: &[f64]) -> Option<f64> {
+    let mut v = values.to_vec();
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    match n {
+        0 => None,
+        _ if n % 2 == 1 => Some(v[n / 2]),
+        _ => Some(0.5 * (v[n / 2 - 1] + v[n / 2])),
+    }
+}
+
+fn setting_result(
+    setting: &SweepSetting,
+    own: bool,
+    summary: &Summary,
+    trace: &Trace,
+    counts: &[u64],
+) -> SettingResult {
+    SettingResult {
+        label: setting.label(),
+        strategy: setting.strategy,
+        newton: setting.newton,
+        pcg: setting.pcg,
+        own,
+        dice_final: summary.dice_final,
+        dice_mean_after_cut: summary.dice_mean_after_cut,
+        tre_mm_final: summary.tre_mm_final,
+        surface_mm_final: summary.surface_rmse_mm_final,
+        ms_median: summary.ms_per_frame_median,
+        ms_max: summary.ms_per_frame_max,
+        instructions_median: steady_median(counts, &cut_frames(trace)),
+        instructions_frames: counts.len(),
+    }
+}
+
+fn scene_report(
+    scene: &Scene,
+    settings: Vec<SettingResult>,
+    trace: &Trace,
+    counts: Vec<u64>,
+    counting: bool,
+) -> Result<SceneReport, String> {
+    let points: Vec<pareto::Point> = settings
+        .iter()
+        .map(|s| pareto::Point {
+            cost: if counting {
+                s.instructions_median.unwrap_or(f64::NAN)
+            } else {
+                s.ms_median
+            },
+            tre_mm: s.tre_mm_final,
+            dice: s.dice_final,
+        })
+        .collect();
+    let front = pareto::front(&points);
+    let recommended = pareto::recommend(&points, &front);
+    let cuts = cut_frames(trace);
+    let steady_max_over_median = {
+        let steady: Vec<u64> = counts
+            .iter()
+            .enumerate()
+            .filter(|(k, _)| !cuts.contains(&(k + 1)))
+            .map(|(_, &c)| c)
+            .collect();
+        let max = steady.iter().copied().max();
+        steady_median(&counts, &cuts)
+            .zip(max)
+            .map(|(m, max)| max as f64 / m)
+    };
+    let works: Vec<FrameWork> = trace.frames.iter().filter_map(|r| r.work).collect();
+    let memory = scene_storage(scene)
+        .map_err(|e| e.to_string())?
+        .size()
+        .parts()
+        .iter()
+        .map(|p| MemoryRow {
+            part: p.name,
+            grows_with: p.grows_with,
+            bytes: p.bytes::<f64>(),
+        })
+        .collect();
+    Ok(SceneReport {
+        name: scene.file.name.clone(),
+        settings,
+        front,
+        recommended,
+        worst_case: worst_case_rows(&works, STEADY_COUNTERS),
+        cut_events: worst_case_rows(
+            &works
+                .iter()
+                .copied()
+                .filter(|w| w.cut.is_some())
+                .collect::<Vec<_>>(),
+            CUT_COUNTERS,
+        ),
+        instructions_per_frame: counts,
+        cut_frames: cuts,
+        steady_max_over_median,
+        memory,
+    })
+}
+
+/// A work counter of a frame: stage, name, and (counted, formula).
+type Counter = (&'static str, &'static str, fn(&FrameWork) -> (u64, u64));
+
+/// The counters of every frame.
+const STEADY_COUNTERS: &[Counter] = &[
+    ("solve", "element tangents", |w| {
+        (w.solve.element_tangents, w.solve_bound.element_tangents)
+    }),
+    ("solve", "element evaluations", |w| {
+        (
+            w.solve.element_evaluations,
+            w.solve_bound.element_evaluations,
+        )
+    }),
+    ("solve", "feature evaluations", |w| {
+        (
+            w.solve.feature_evaluations,
+            w.solve_bound.feature_evaluations,
+        )
+    }),
+    ("solve", "factorization multiply-adds", |w| {
+        (w.solve.factor_flops, w.solve_bound.factor_flops)
+    }),
+    ("solve", "solve multiply-adds", |w| {
+        (w.solve.solve_flops, w.solve_bound.solve_flops)
+    }),
+    ("solve", "PCG product multiply-adds", |w| {
+        (w.solve.matvec_flops, w.solve_bound.matvec_flops)
+    }),
+    ("solve", "state copies", |w| {
+        (w.solve.state_copies, w.solve_bound.state_copies)
+    }),
+    ("detection", "feature visits", |w| {
+        (
+            w.detection.feature_visits,
+            w.detection_bound.0.feature_visits,
+        )
+    }),
+    ("detection", "pair visits", |w| {
+        (w.detection.pair_visits, w.detection_bound.0.pair_visits)
+    }),
+    ("detection", "sort comparisons", |w| {
+        (w.detection.comparisons, w.detection_bound.0.comparisons)
+    }),
+    ("cut line", "fit tests", |w| {
+        (w.line.fit_tests, w.detection_bound.1.fit_tests)
+    }),
+    ("cut line", "point visits", |w| {
+        (w.line.point_visits, w.detection_bound.1.point_visits)
+    }),
+    ("cut line", "anchor visits", |w| {
+        (w.line.anchor_visits, w.detection_bound.1.anchor_visits)
+    }),
+];
+
+/// The counters of a cut event (frames that cut only).
+const CUT_COUNTERS: &[Counter] = &[
+    ("cut", "node tests", |w| {
+        (
+            w.cut.map_or(0, |c| c.0.node_tests),
+            w.cut_bound.0.node_tests,
+        )
+    }),
+    ("cut", "element visits", |w| {
+        (
+            w.cut.map_or(0, |c| c.0.element_tests),
+            w.cut_bound.0.element_tests,
+        )
+    }),
+    ("cut", "faces sorted", |w| {
+        (
+            w.cut.map_or(0, |c| c.0.faces_sorted),
+            w.cut_bound.0.faces_sorted,
+        )
+    }),
+    ("cut", "star entries", |w| {
+        (
+            w.cut.map_or(0, |c| c.0.star_entries),
+            w.cut_bound.0.star_entries,
+        )
+    }),
+    ("cut", "re-embedding tests", |w| {
+        (
+            w.cut.map_or(0, |c| c.0.embed_tests),
+            w.cut_bound.0.embed_tests,
+        )
+    }),
+    ("rebuild", "element tangents", |w| {
+        (
+            w.cut.map_or(0, |c| c.1.element_tangents),
+            w.cut_bound.1.element_tangents,
+        )
+    }),
+    ("rebuild", "factorization multiply-adds", |w| {
+        (
+            w.cut.map_or(0, |c| c.1.factor_flops),
+            w.cut_bound.1.factor_flops,
+        )
+    }),
+];
+
+fn worst_case_rows(works: &[FrameWork], counters: &[Counter]) -> Vec<WorstCaseRow> {
+    if works.is_empty() {
+        return vec![];
+    }
+    counters
+        .iter()
+        .map(|&(stage, counter, read)| {
+            let pairs: Vec<(u64, u64)> = works.iter().map(read).collect();
+            let counted: Vec<f64> = pairs.iter().map(|p| p.0 as f64).collect();
+            WorstCaseRow {
+                stage,
+                counter,
+                formula: pairs.iter().map(|p| p.1).max().unwrap_or(0),
+                max: pairs.iter().map(|p| p.0).max().unwrap_or(0),
+                median: median(&counted).unwrap_or(0.0),
+                max_over_formula: pairs
+                    .iter()
+                    .map(|&(c, f)| match (c, f) {
+                        (0, _) => 0.0,
+                        (_, 0) => f64::INFINITY,
+                        _ => c as f64 / f as f64,
+                    })
+                    .fold(0.0, f64::max),
+            }
+        })
+        .collect()
+}

@@ -1,0 +1,147 @@
+//! `incise report --quick` on every committed scene: the page, its figures and its data are
+//! written and well formed, and no work counter of any frame exceeds its worst-case formula.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use serde_json::Value;
+
+fn scenes() -> Vec<PathBuf> {
+    let fixtures = Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures");
+    let mut dirs: Vec<PathBuf> = std::fs::read_dir(&fixtures)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.join("scene.toml").exists())
+        .collect();
+    dirs.sort();
+    dirs
+}
+
+/// The fields of one CSV line (double quotes around a field that holds commas).
+fn fields(line: &str) -> Vec<String> {
+    let mut out = vec![String::new()];
+    let mut quoted = false;
+    for c in line.chars() {
+        match c {
+            '"' => quoted = !quoted,
+            ',' if !quoted => out.push(String::new()),
+            c => out.last_mut().unwrap().push(c),
+        }
+    }
+    assert!(!quoted, "unbalanced quotes: {line}");
+    out
+}
+
+/// Every line of the CSV file has as many fields as its header; the rows.
+fn csv_rows(path: &Path) -> Vec<Vec<String>> {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut lines = text.lines();
+    let header = fields(lines.next().expect("a header"));
+    let rows: Vec<Vec<String>> = lines.map(fields).collect();
+    for row in &rows {
+        assert_eq!(row.len(), header.len(), "{}: {row:?}", path.display());
+    }
+    rows
+}
+
+#[test]
+fn quick_report_on_every_committed_scene_is_written_and_well_formed() {
+    let scenes = scenes();
+    assert!(scenes.len() >= 7, "{scenes:?}");
+    let out = tempfile::tempdir().unwrap();
+    let status = Command::new(env!("CARGO_BIN_EXE_incise"))
+        .arg("report")
+        .args(&scenes)
+        .arg("--out")
+        .arg(out.path())
+        .arg("--quick")
+        .output()
+        .unwrap();
+    assert!(
+        status.status.success(),
+        "{}",
+        String::from_utf8_lossy(&status.stderr)
+    );
+
+    let json: Value =
+        serde_json::from_str(&std::fs::read_to_string(out.path().join("report.json")).unwrap())
+            .unwrap();
+    let reported = json["scenes"].as_array().unwrap();
+    assert_eq!(reported.len(), scenes.len());
+    let counting = Command::new("valgrind").arg("--version").output().is_ok();
+    for scene in reported {
+        let name = scene["name"].as_str().unwrap();
+        let settings = scene["settings"].as_array().unwrap();
+        assert!(settings.len() >= 2, "{name}");
+        assert_eq!(settings[0]["own"], true, "{name}: its own setting first");
+        for s in settings {
+            for key in ["dice_final", "tre_mm_final", "ms_median"] {
+                let v = s[key].as_f64().unwrap();
+                assert!(v.is_finite() && v >= 0.0, "{name}: {key} = {v}");
+            }
+        }
+        // The front is not empty and the recommendation is on it.
+        let front: Vec<u64> = scene["front"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_u64().unwrap())
+            .collect();
+        assert!(!front.is_empty(), "{name}");
+        let recommended = scene["recommended"].as_u64().unwrap();
+        assert!(front.contains(&recommended), "{name}");
+        // No counter exceeds its formula, in a frame or in a cut event.
+        let rows = scene["worst_case"].as_array().unwrap();
+        assert!(rows.len() >= 10, "{name}");
+        for row in rows.iter().chain(scene["cut_events"].as_array().unwrap()) {
+            let ratio = row["max_over_formula"].as_f64().unwrap();
+            assert!(ratio <= 1.0, "{name}: {row}");
+        }
+        let memory = scene["memory"].as_array().unwrap();
+        assert_eq!(memory.len(), 9, "{name}");
+        if counting {
+            let frames = scene["instructions_per_frame"].as_array().unwrap();
+            assert_eq!(frames.len(), 5, "{name}");
+            assert!(
+                frames.iter().all(|c| c.as_u64().unwrap() > 1_000_000),
+                "{name}"
+            );
+        }
+    }
+
+    let rows = csv_rows(&out.path().join("error_vs_cost.csv"));
+    assert_eq!(rows.len(), 2 * scenes.len());
+    assert!(csv_rows(&out.path().join("worst_case.csv")).len() >= 13 * scenes.len());
+    assert_eq!(
+        csv_rows(&out.path().join("memory.csv")).len(),
+        9 * scenes.len()
+    );
+    let instructions = csv_rows(&out.path().join("instructions.csv"));
+    assert_eq!(
+        instructions.len(),
+        if counting { 5 * scenes.len() } else { 0 }
+    );
+
+    let summary = std::fs::read_to_string(out.path().join("summary.md")).unwrap();
+    assert_eq!(summary.lines().count(), 2 + scenes.len(), "{summary}");
+
+    let html = std::fs::read_to_string(out.path().join("index.html")).unwrap();
+    for section in ["id=\"error\"", "id=\"worst\"", "id=\"memory\""] {
+        assert!(html.contains(section), "{section}");
+    }
+    assert!(html.trim_end().ends_with("</html>"));
+    // Every figure is inline, and also a file of its own.
+    let figures = if counting { 2 } else { 1 } * scenes.len();
+    assert_eq!(html.matches("<svg").count(), figures);
+    let svgs = std::fs::read_dir(out.path())
+        .unwrap()
+        .filter(|e| {
+            e.as_ref()
+                .unwrap()
+                .path()
+                .extension()
+                .is_some_and(|x| x == "svg")
+        })
+        .count();
+    assert_eq!(svgs, figures);
+}
