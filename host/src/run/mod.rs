@@ -18,7 +18,7 @@ use std::fmt;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use incise_core::{Error as CoreError, Model, Observation};
+use incise_core::{CutWork, Error as CoreError, Model, Observation};
 use indicatif::{ProgressBar, ProgressStyle};
 
 pub use sinks::FrameSink;
@@ -408,9 +408,8 @@ impl Pass {
                     detection: report.detection.work,
                     line: report.cut_line.work,
                     detection_bound: bounds.1,
-                    cut: report
-                        .cut
-                        .applied
+                    // A cut event that found nothing new to cut still did its work.
+                    cut: (report.cut.applied || report.cut.event.work != CutWork::default())
                         .then_some((report.cut.event.work, report.cut.work)),
                     cut_bound: bounds.2,
                 });

@@ -125,8 +125,8 @@ pub struct FrameWork {
     pub line: LineWork,
     /// Their formula ([`incise_core::Model::worst_case_detection_work`]).
     pub detection_bound: (DetectionWork, LineWork),
-    /// A cut event of this frame that went into service: its geometry and the rebuild of the
-    /// linear system.
+    /// A cut event of this frame (one that went into service, or one that found nothing new
+    /// to cut): its geometry and the rebuild of the linear system.
     pub cut: Option<(CutWork, WorkCount)>,
     /// Its formula ([`incise_core::Model::worst_case_cut_work`]).
     pub cut_bound: (CutWork, WorkCount),

@@ -200,7 +200,7 @@ fn memory_csv(report: &Report) -> String {
 const STYLE: &str = "body{font-family:sans-serif;max-width:1060px;margin:2em auto;padding:0 1em;color:#222}\
 table{border-collapse:collapse;margin:0.8em 0;font-size:0.9em}\
 td,th{border:1px solid #bbb;padding:3px 8px;text-align:right}\
-td:first-child,th:first-child{text-align:left}\
+td:first-child,th:first-child,td.text,th.text{text-align:left}\
 tr.front td{background:#eef6ee}tr.rec td{font-weight:bold}\
 figure{margin:1em 0}figcaption{font-size:0.8em;color:#666}\
 .note{background:#fff8e0;border:1px solid #e0c060;padding:0.5em 1em}\
@@ -365,7 +365,7 @@ fn memory_table(h: &mut String, report: &Report) {
     for s in &report.scenes {
         let _ = write!(h, "<th>{}</th>", esc(&s.name));
     }
-    h.push_str("<th>grows with</th></tr>");
+    h.push_str("<th class=\"text\">grows with</th></tr>");
     for (k, part) in first.memory.iter().enumerate() {
         let _ = write!(h, "<tr><td>{}</td>", esc(part.part));
         for s in &report.scenes {
@@ -377,7 +377,7 @@ fn memory_table(h: &mut String, report: &Report) {
                     .map_or("–".into(), |m| format!("{:.1}", m.bytes as f64 / 1024.0))
             );
         }
-        let _ = write!(h, "<td>{}</td></tr>", esc(part.grows_with));
+        let _ = write!(h, "<td class=\"text\">{}</td></tr>", esc(part.grows_with));
     }
     h.push_str("<tr><td>total</td>");
     for s in &report.scenes {
