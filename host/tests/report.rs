@@ -1,5 +1,6 @@
 //! `incise report --quick` on every committed scene: the page, its figures and its data are
-//! written and well formed, and no work counter of any frame exceeds its worst-case formula.
+//! written and well formed, no work counter of any frame exceeds its worst-case formula, and
+//! the stability grid holds no failure.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -97,6 +98,24 @@ fn quick_report_on_every_committed_scene_is_written_and_well_formed() {
             let ratio = row["max_over_formula"].as_f64().unwrap();
             assert!(ratio <= 1.0, "{name}: {row}");
         }
+        // The stability grid (`--quick`: the scene's own material, springs at 10⁻³, 1 and
+        // 10³ times its own k / E): nothing non-finite and no panic anywhere; at the scene's
+        // own k the targets end nearer the truth than the rest model's; on the intact scenes
+        // no cell places them more than 1.2 times farther than the rest model's.
+        let cells = scene["stability"].as_array().unwrap();
+        assert_eq!(cells.len(), 3, "{name}");
+        let intact = ["band-no-cut", "band-stiff", "block-extreme"].contains(&name);
+        for cell in cells {
+            assert_ne!(cell["status"], "failure", "{name}: {cell}");
+            let tre = cell["tre_mm_final"].as_f64().unwrap();
+            let rest = cell["tre_mm_rest"].as_f64().unwrap();
+            if cell["k_scale"].as_f64().unwrap() == 1.0 {
+                assert!(tre < rest, "{name}: {cell}");
+            }
+            if intact {
+                assert!(tre <= 1.2 * rest, "{name}: {cell}");
+            }
+        }
         let memory = scene["memory"].as_array().unwrap();
         assert_eq!(memory.len(), 9, "{name}");
         if counting {
@@ -126,7 +145,16 @@ fn quick_report_on_every_committed_scene_is_written_and_well_formed() {
     assert_eq!(summary.lines().count(), 2 + scenes.len(), "{summary}");
 
     let html = std::fs::read_to_string(out.path().join("index.html")).unwrap();
-    for section in ["id=\"error\"", "id=\"worst\"", "id=\"memory\""] {
+    assert_eq!(
+        csv_rows(&out.path().join("stability.csv")).len(),
+        3 * scenes.len()
+    );
+    for section in [
+        "id=\"error\"",
+        "id=\"worst\"",
+        "id=\"stability\"",
+        "id=\"memory\"",
+    ] {
         assert!(html.contains(section), "{section}");
     }
     assert!(html.trim_end().ends_with("</html>"));

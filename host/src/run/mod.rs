@@ -25,7 +25,7 @@ pub use sinks::FrameSink;
 #[cfg(feature = "opencv")]
 pub use sources::VideoFrames;
 pub use sources::{FrameSource, SourceFrame, TrackSource, rest_silhouette};
-pub use trace::{CutTrace, DetectionTrace, FrameRecord, FrameWork, Summary, Trace};
+pub use trace::{CutTrace, DetectionTrace, FrameHealth, FrameRecord, FrameWork, Summary, Trace};
 
 use crate::render::overlay::{self, Overlay};
 use crate::render::silhouette;
@@ -373,6 +373,7 @@ impl Pass {
             separation_points: 0,
             cut_vertices: 0,
             work: None,
+            health: None,
         };
         if f == 0 {
             return record;
@@ -412,6 +413,18 @@ impl Pass {
                     cut: (report.cut.applied || report.cut.event.work != CutWork::default())
                         .then_some((report.cut.event.work, report.cut.work)),
                     cut_bound: bounds.2,
+                });
+                let pivots = model.factor().d_values().map_or((f64::NAN, f64::NAN), |d| {
+                    d.iter()
+                        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| {
+                            (lo.min(v), hi.max(v))
+                        })
+                });
+                record.health = Some(FrameHealth {
+                    gradient_before: report.gradient_norm_before,
+                    gradient_after: report.gradient_norm_after,
+                    pivots,
+                    finite: model.positions().iter().flatten().all(|v| v.is_finite()),
                 });
                 self.cuts.record(f, &report.cut);
                 let d = &mut self.detection;

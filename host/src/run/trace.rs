@@ -109,6 +109,23 @@ pub struct FrameRecord {
     /// frame 0 and for a refused frame).
     #[serde(skip)]
     pub work: Option<FrameWork>,
+    /// The numerical health of the frame's solve (`None` for frame 0 and a refused frame).
+    #[serde(skip)]
+    pub health: Option<FrameHealth>,
+}
+
+/// The numerical health of one frame's solve.
+#[derive(Clone, Copy, Debug)]
+pub struct FrameHealth {
+    /// Norm of the gradient over the free unknowns at the start of the frame.
+    pub gradient_before: f64,
+    /// ... and at its end.
+    pub gradient_after: f64,
+    /// Smallest and largest pivot `dᵢ` of the factor in service after the frame (their ratio
+    /// is a lower bound of the condition number of the factored matrix); NaN if none.
+    pub pivots: (f64, f64),
+    /// Every node position finite after the frame.
+    pub finite: bool,
 }
 
 /// The work the core counted in one frame ([`incise_core::StepReport`]'s counters), beside the

@@ -4,6 +4,7 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
+use super::stability::{self, Status};
 use super::{Report, SceneReport, figures, steady_median};
 
 /// Writes every file of `report` into `out` (which exists).
@@ -29,7 +30,8 @@ pub(super) fn write(report: &Report, out: &Path) -> Result<(), String> {
         };
         figures_of.push((cost, frames));
     }
-    let files: [(&str, String); 6] = [
+    let files: [(&str, String); 7] = [
+        ("stability.csv", stability_csv(report)),
         ("summary.md", summary_markdown(report)),
         ("error_vs_cost.csv", error_vs_cost_csv(report)),
         ("worst_case.csv", worst_case_csv(report)),
@@ -79,8 +81,8 @@ fn inline_svg(path: &Path) -> Result<String, String> {
 /// largest ratio of a work counter to its formula, and the model's storage.
 pub(super) fn summary_markdown(report: &Report) -> String {
     let mut s = String::from(
-        "| scene | own setting | instructions / frame (M) | Dice | TRE mm | recommended | instructions / frame (M) | Dice | TRE mm | steady max / median | counted / formula (max) | storage KiB |\n\
-         | --- | --- | ---: | ---: | ---: | --- | ---: | ---: | ---: | ---: | ---: | ---: |\n",
+        "| scene | own setting | instructions / frame (M) | Dice | TRE mm | recommended | instructions / frame (M) | Dice | TRE mm | steady max / median | counted / formula (max) | stability cells: converged / not / typed error / failure | cells with TRE > 1.2 × rest | storage KiB |\n\
+         | --- | --- | ---: | ---: | ---: | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n",
     );
     let millions = |v: Option<f64>| v.map_or("–".to_string(), |v| format!("{:.1}", v / 1e6));
     for scene in &report.scenes {
@@ -95,9 +97,28 @@ pub(super) fn summary_markdown(report: &Report) -> String {
             .map(|r| r.max_over_formula)
             .fold(0.0, f64::max);
         let total: usize = scene.memory.iter().map(|m| m.bytes).sum();
+        let count = |status: Status| {
+            scene
+                .stability
+                .iter()
+                .filter(|c| c.status == status)
+                .count()
+        };
+        let statuses = format!(
+            "{} / {} / {} / {}",
+            count(Status::Converged),
+            count(Status::NotConverged),
+            count(Status::TypedError),
+            count(Status::Failure)
+        );
+        let worse = scene
+            .stability
+            .iter()
+            .filter(|c| c.tre_mm_final.is_nan() || c.tre_mm_final > 1.2 * c.tre_mm_rest)
+            .count();
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {:.3} | {:.2} | {} | {} | {} | {} | {} | {worst:.3} | {:.0} |",
+            "| {} | {} | {} | {:.3} | {:.2} | {} | {} | {} | {} | {} | {worst:.3} | {statuses} | {worse} of {} | {:.0} |",
             scene.name,
             own.label,
             millions(own.instructions_median),
@@ -110,10 +131,99 @@ pub(super) fn summary_markdown(report: &Report) -> String {
             scene
                 .steady_max_over_median
                 .map_or("–".to_string(), |r| format!("{r:.3}")),
+            scene.stability.len(),
             total as f64 / 1024.0
         );
     }
     s
+}
+
+fn stability_csv(report: &Report) -> String {
+    let mut s = String::from(
+        "scene,young_pa,poisson,k_scale,spring_stiffness,status,frames_rejected,first_error,converged_frames,min_pivot,pivot_ratio,dice_final,tre_mm_final,tre_mm_rest\n",
+    );
+    for scene in &report.scenes {
+        for c in &scene.stability {
+            let _ = writeln!(
+                s,
+                "{},{:e},{},{:e},{:e},{},{},\"{}\",{:.3},{:e},{:e},{:.5},{:.4},{:.4}",
+                scene.name,
+                c.young,
+                c.poisson,
+                c.k_scale,
+                c.spring_stiffness,
+                c.status.label(),
+                c.frames_rejected,
+                c.first_error.as_deref().unwrap_or("").replace('"', "'"),
+                c.converged_frames,
+                c.min_pivot,
+                c.pivot_ratio,
+                c.dice_final,
+                c.tre_mm_final,
+                c.tre_mm_rest
+            );
+        }
+    }
+    s
+}
+
+/// The stability grid of one scene as a table: a row per (E, ν), a column per spring scale;
+/// each cell coloured by its status and showing the target error over the rest model's.
+fn stability_table(h: &mut String, scene: &SceneReport) {
+    let mut scales: Vec<f64> = scene.stability.iter().map(|c| c.k_scale).collect();
+    scales.sort_by(f64::total_cmp);
+    scales.dedup();
+    let mut rows: Vec<(f64, f64)> = scene
+        .stability
+        .iter()
+        .map(|c| (c.young, c.poisson))
+        .collect();
+    rows.dedup();
+    h.push_str("<table><tr><th>E Pa, ν \\ k / k<sub>scene</sub></th>");
+    for s in &scales {
+        let _ = write!(h, "<th>{s:e}</th>");
+    }
+    h.push_str("</tr>");
+    for (e, nu) in rows {
+        let _ = write!(h, "<tr><td>{e:e}, {nu}</td>");
+        for s in &scales {
+            let Some(c) = scene
+                .stability
+                .iter()
+                .find(|c| c.young == e && c.poisson == nu && c.k_scale == *s)
+            else {
+                h.push_str("<td></td>");
+                continue;
+            };
+            let colour = match c.status {
+                Status::Converged => "#d8f0d8",
+                Status::NotConverged => "#fff2c0",
+                Status::TypedError => "#d8e4f8",
+                Status::Failure => "#f8c8c8",
+            };
+            let ratio = c.tre_mm_final / c.tre_mm_rest;
+            let _ = write!(
+                h,
+                "<td style=\"background:{colour}\" title=\"{}; converged frames {:.0} %; \
+                 smallest pivot {:.2e}; pivot ratio {:.2e}; Dice {:.3}; target error {:.2} mm \
+                 (rest {:.2} mm){}\">{}<br>{:.2}× rest</td>",
+                c.status.label(),
+                100.0 * c.converged_frames,
+                c.min_pivot,
+                c.pivot_ratio,
+                c.dice_final,
+                c.tre_mm_final,
+                c.tre_mm_rest,
+                c.first_error
+                    .as_deref()
+                    .map_or(String::new(), |e| format!("; {}", esc(e))),
+                c.status.label(),
+                ratio
+            );
+        }
+        h.push_str("</tr>");
+    }
+    h.push_str("</table>");
 }
 
 fn error_vs_cost_csv(report: &Report) -> String {
@@ -230,9 +340,9 @@ fn page(
         }
     );
     h.push_str(
-        "<p class=\"note\">Not in this report yet (issue 14): the stability envelope (a grid \
-         over material, spring stiffness, compression and noise), runs in <code>f32</code> and \
-         mixed precision, and the mesh-resolution axis.</p>",
+        "<p class=\"note\">Not in this report yet (issue 14): the compression, inversion, noise \
+         and outlier axes of the stability envelope, runs in <code>f32</code> and mixed \
+         precision, and the mesh-resolution axis.</p>",
     );
     // 1. Error against run time.
     let _ = write!(
@@ -294,16 +404,38 @@ fn page(
             work_table(&mut h, "A cut event", &scene.cut_events);
         }
     }
-    // 3. Memory.
+    // 3. Stability.
+    let _ = write!(
+        h,
+        "<h2 id=\"stability\">3. Stability envelope</h2><p>Each scene with cutting on, over a \
+         grid of Young's modulus E, Poisson ratio ν and spring stiffness k (as a multiple of the \
+         scene's own k / E, so that E alone tests the numerics and the multiple tests the \
+         coupling). A cell is <b>converged</b> when every position stays finite, no frame is \
+         refused and the gradient falls to {} of its start in at least {:.0} % of the frames; \
+         <b>not converged</b> otherwise; <b>typed error</b> when the core refused frames (the \
+         model going on as it was); <b>failure</b> on a non-finite position or a panic. Each \
+         cell shows the last frame's target error over the rest model's (above 1: the \
+         registration places the targets worse than not moving); hover for the pivots, Dice \
+         and the first error. Not in the grid yet: compression, element inversion, noise and \
+         outlier rates, and <code>f32</code>.</p>",
+        stability::CONVERGED_REDUCTION,
+        100.0 * stability::CONVERGED_FRAMES
+    );
+    for scene in &report.scenes {
+        let _ = write!(h, "<h3>{}</h3>", esc(&scene.name));
+        stability_table(&mut h, scene);
+    }
+    // 4. Memory.
     h.push_str(
-        "<h2 id=\"memory\">3. Memory</h2><p>The static storage of each scene's model as the \
+        "<h2 id=\"memory\">4. Memory</h2><p>The static storage of each scene's model as the \
          core sizes it (<code>ModelSize::parts</code>, f64 scalars and u32 indices), from the \
          scene's capacities: what a firmware build reserves.</p>",
     );
     memory_table(&mut h, report);
     h.push_str(
         "<p>Data: <code>error_vs_cost.csv</code>, <code>worst_case.csv</code>, \
-         <code>instructions.csv</code>, <code>memory.csv</code>, <code>report.json</code>; \
+         <code>instructions.csv</code>, <code>stability.csv</code>, <code>memory.csv</code>, \
+         <code>report.json</code>; \
          in brief, <code>summary.md</code>.</p>\
          </body></html>\n",
     );

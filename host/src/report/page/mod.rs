@@ -3,19 +3,23 @@
 //! the formulas, and instructions per frame), and its memory; as one self-contained HTML page
 //! (`index.html`, figures inline) beside the same figures as SVG and the data as CSV and JSON.
 //!
-//! Not in it yet (issue 14): the stability envelope, runs in `f32` and mixed precision, and
-//! the mesh-resolution axis; the page says so.
+//! A fourth section, the stability envelope (`stability`), runs each scene over a grid of
+//! material and spring stiffness and classifies every cell.
+//!
+//! Not in it yet (issue 14): compression, noise and outlier axes of the envelope, runs in
+//! `f32` and mixed precision, and the mesh-resolution axis; the page says so.
 
 mod figures;
 mod html;
 mod instructions;
 mod pareto;
+mod stability;
 
 use std::path::Path;
 
 use serde::Serialize;
 
-use crate::run::{FrameWork, RunOptions, Summary, Trace, progress_bar, run_scene, scene_storage};
+use crate::run::{FrameWork, RunOptions, Summary, Trace, run_scene, scene_storage};
 use crate::scene::{Scene, SolverSection};
 
 use super::{SweepSetting, sweep_settings};
@@ -68,6 +72,8 @@ pub struct SceneReport {
     pub steady_max_over_median: Option<f64>,
     /// The model's storage, part by part (f64).
     pub memory: Vec<MemoryRow>,
+    /// The stability grid.
+    pub stability: Vec<stability::Cell>,
 }
 
 /// One setting of one scene.
@@ -186,11 +192,18 @@ pub fn write_report(
     let counting = instructions::available();
     let runs: usize = scenes
         .iter()
-        .map(|s| settings_for(&s.file.solver, options.quick).len())
+        .map(|s| {
+            settings_for(&s.file.solver, options.quick).len()
+                + stability::grid(s, options.quick).len()
+        })
         .sum();
     let bar = if options.progress {
-        let bar = progress_bar(Some(runs), "report");
-        bar.set_message("settings");
+        let bar = indicatif::ProgressBar::new(runs as u64);
+        if let Ok(style) =
+            indicatif::ProgressStyle::with_template("{prefix:>16} [{bar:30}] {pos}/{len} runs")
+        {
+            bar.set_style(style.progress_chars("=> "));
+        }
         bar
     } else {
         indicatif::ProgressBar::hidden()
@@ -240,9 +253,14 @@ pub fn write_report(
             bar.inc(1);
         }
         let trace = own_trace.ok_or("no run with the scene's own setting")?;
-        report
-            .scenes
-            .push(scene_report(scene, settings, &trace, own_counts, counting)?);
+        let mut scene_report = scene_report(scene, settings, &trace, own_counts, counting)?;
+        for cell in stability::grid(scene, options.quick) {
+            scene_report
+                .stability
+                .push(stability::run_cell(scene, cell));
+            bar.inc(1);
+        }
+        report.scenes.push(scene_report);
     }
     bar.finish_and_clear();
     html::write(&report, out)?;
@@ -369,6 +387,7 @@ fn scene_report(
         cut_frames: cuts,
         steady_max_over_median,
         memory,
+        stability: vec![],
     })
 }
 
