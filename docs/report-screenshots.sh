@@ -14,13 +14,14 @@ import sys
 d = sys.argv[1]
 page = open(f"{d}/index.html").read()
 head = page[: page.index("<h1>")]
-ids = ["error", "worst", "stability", "memory"]
+ids = ["error", "worst", "growth", "stability", "memory"]
+starts = [page.index(f' id="{k}"') for k in ids]
+starts = [page.rindex("<h", 0, a) for a in starts]
 for i, k in enumerate(ids):
-    a = page.index(f'<h2 id="{k}"')
-    b = page.index(f'<h2 id="{ids[i + 1]}"') if i + 1 < len(ids) else len(page)
-    open(f"{d}/section-{k}.html", "w").write(head + page[a:b] + "</body></html>")
+    b = starts[i + 1] if i + 1 < len(ids) else len(page)
+    open(f"{d}/section-{k}.html", "w").write(head + page[starts[i]:b] + "</body></html>")
 PY
-for s in error:1000 worst:1000 stability:1000 memory:620; do
+for s in error:1000 worst:1000 growth:760 stability:1000 memory:620; do
     name=${s%%:*}
     height=${s##*:}
     chromium --headless --no-sandbox --disable-gpu --hide-scrollbars \

@@ -67,6 +67,8 @@ fn quick_report_on_every_committed_scene_is_written_and_well_formed() {
     let json: Value =
         serde_json::from_str(&std::fs::read_to_string(out.path().join("report.json")).unwrap())
             .unwrap();
+    // The cost-growth variants are generated only without --quick.
+    assert!(json["scaling"].is_null());
     let reported = json["scenes"].as_array().unwrap();
     assert_eq!(reported.len(), scenes.len());
     let counting = Command::new("valgrind").arg("--version").output().is_ok();

@@ -225,3 +225,89 @@ pub(super) fn instructions_per_frame(
         .map_err(|x| e(&x))?;
     root.present().map_err(|x| e(&x))
 }
+
+/// The cost of a steady frame against the model's nodes and against the features, on
+/// logarithmic axes, with the fitted exponents in the titles.
+///
+/// # Errors
+/// If the figure cannot be written.
+pub(super) fn cost_growth(scaling: &super::scaling::Scaling, path: &Path) -> Result<(), String> {
+    let e = |e: &dyn std::fmt::Display| e.to_string();
+    let root = SVGBackend::new(path, (1000, 380)).into_drawing_area();
+    root.fill(&WHITE).map_err(|x| e(&x))?;
+    let (left, right) = root.split_horizontally(500);
+    let counted = scaling.nodes.iter().all(|p| p.instructions.is_some());
+    let cost = |p: &super::scaling::Point| {
+        if counted {
+            p.instructions.unwrap_or(f64::NAN) / 1e6
+        } else {
+            p.ms_median
+        }
+    };
+    let y_desc = if counted {
+        "instructions per steady frame, millions"
+    } else {
+        "step time, ms (median)"
+    };
+    type Axis = fn(&super::scaling::Point) -> usize;
+    let panels: [(&str, &[super::scaling::Point], Option<f64>, Axis); 2] = [
+        ("model nodes", &scaling.nodes, scaling.nodes_exponent, |p| {
+            p.nodes
+        }),
+        (
+            "features",
+            &scaling.features,
+            scaling.features_exponent,
+            |p| p.features,
+        ),
+    ];
+    for (area, (name, points, b, x)) in [left, right].iter().zip(panels) {
+        let xs: Vec<f64> = points.iter().map(|p| x(p) as f64).collect();
+        let ys: Vec<f64> = points.iter().map(cost).filter(|v| v.is_finite()).collect();
+        let (x_lo, x_hi) = (
+            xs.iter().copied().fold(f64::INFINITY, f64::min) * 0.8,
+            xs.iter().copied().fold(1.0, f64::max) * 1.25,
+        );
+        let (y_lo, y_hi) = (
+            ys.iter().copied().fold(f64::INFINITY, f64::min) * 0.7,
+            ys.iter().copied().fold(1e-9, f64::max) * 1.4,
+        );
+        if !(x_lo.is_finite() && y_lo.is_finite() && x_lo > 0.0 && y_lo > 0.0) {
+            continue;
+        }
+        let title = match b {
+            Some(b) => format!("cost against {name}: exponent {b:.2}"),
+            None => format!("cost against {name}"),
+        };
+        let mut chart = ChartBuilder::on(area)
+            .caption(title, ("sans-serif", 16))
+            .margin(12)
+            .x_label_area_size(40)
+            .y_label_area_size(60)
+            .build_cartesian_2d((x_lo..x_hi).log_scale(), (y_lo..y_hi).log_scale())
+            .map_err(|x| e(&x))?;
+        chart
+            .configure_mesh()
+            .light_line_style(WHITE)
+            .x_labels(8)
+            .y_labels(8)
+            .x_label_formatter(&|v| format!("{v:.0}"))
+            .y_label_formatter(&|v| format!("{v:.0}"))
+            .x_desc(format!("{name} (logarithmic)"))
+            .y_desc(y_desc)
+            .draw()
+            .map_err(|x| e(&x))?;
+        let series: Vec<(f64, f64)> = points.iter().map(|p| (x(p) as f64, cost(p))).collect();
+        chart
+            .draw_series(LineSeries::new(series.clone(), RGBColor(31, 119, 180)))
+            .map_err(|x| e(&x))?;
+        chart
+            .draw_series(
+                series
+                    .into_iter()
+                    .map(|p| Circle::new(p, 4, RGBColor(31, 119, 180).filled())),
+            )
+            .map_err(|x| e(&x))?;
+    }
+    root.present().map_err(|x| e(&x))
+}

@@ -30,6 +30,14 @@ pub(super) fn write(report: &Report, out: &Path) -> Result<(), String> {
         };
         figures_of.push((cost, frames));
     }
+    let growth = match &report.scaling {
+        Some(scaling) => {
+            let path = out.join("cost_growth.svg");
+            figures::cost_growth(scaling, &path).map_err(|e| at(&path, &e))?;
+            Some(path)
+        }
+        None => None,
+    };
     let files: [(&str, String); 7] = [
         ("stability.csv", stability_csv(report)),
         ("summary.md", summary_markdown(report)),
@@ -46,7 +54,7 @@ pub(super) fn write(report: &Report, out: &Path) -> Result<(), String> {
         let path = out.join(name);
         std::fs::write(&path, text).map_err(|e| at(&path, &e.to_string()))?;
     }
-    let page = page(report, &figures_of)?;
+    let page = page(report, &figures_of, growth.as_deref())?;
     let path = out.join("index.html");
     std::fs::write(&path, page).map_err(|e| at(&path, &e.to_string()))
 }
@@ -320,6 +328,7 @@ svg{max-width:100%;height:auto}";
 fn page(
     report: &Report,
     figures_of: &[(std::path::PathBuf, Option<std::path::PathBuf>)],
+    growth: Option<&Path>,
 ) -> Result<String, String> {
     let mut h = String::new();
     let _ = write!(
@@ -403,6 +412,48 @@ fn page(
         if !scene.cut_events.is_empty() {
             work_table(&mut h, "A cut event", &scene.cut_events);
         }
+    }
+    // How the cost grows.
+    if let (Some(scaling), Some(path)) = (&report.scaling, growth) {
+        let _ = write!(
+            h,
+            "<h3 id=\"growth\">How the cost grows</h3><p>Variants of <code>{}</code> \
+             generated at four model resolutions (300 features) and four feature counts (the \
+             committed resolution), run with the scene's own setting: the {} against the \
+             model's nodes and the features, with the exponent of a power law fitted to the \
+             logarithms (nodes: {}, features: {}). The fine liver (4293 nodes) is not among \
+             them yet.</p>",
+            super::scaling::BASE,
+            esc(scaling.cost),
+            scaling
+                .nodes_exponent
+                .map_or("–".into(), |b| format!("{b:.2}")),
+            scaling
+                .features_exponent
+                .map_or("–".into(), |b| format!("{b:.2}"))
+        );
+        h.push_str(&inline_svg(path)?);
+        h.push_str(
+            "<table><tr><th>nodes</th><th>features</th><th>instructions / frame (M)</th>\
+             <th>ms / frame</th></tr>",
+        );
+        let base = scaling.nodes.first().map(|p| (p.nodes, p.features));
+        let others = scaling
+            .features
+            .iter()
+            .filter(|p| Some((p.nodes, p.features)) != base);
+        for p in scaling.nodes.iter().chain(others) {
+            let _ = write!(
+                h,
+                "<tr><td>{}</td><td>{}</td><td>{}</td><td>{:.2}</td></tr>",
+                p.nodes,
+                p.features,
+                p.instructions
+                    .map_or("–".into(), |v| format!("{:.1}", v / 1e6)),
+                p.ms_median
+            );
+        }
+        h.push_str("</table>");
     }
     // 3. Stability.
     let _ = write!(

@@ -13,6 +13,7 @@ mod figures;
 mod html;
 mod instructions;
 mod pareto;
+mod scaling;
 mod stability;
 
 use std::path::Path;
@@ -46,6 +47,9 @@ pub struct Report {
     pub recommendation_rule: &'static str,
     /// One entry per scene, in the order given.
     pub scenes: Vec<SceneReport>,
+    /// How the cost grows with nodes and features (not with `--quick`, and only when
+    /// `band-no-cut`, whose scenario the variants are made from, is among the scenes).
+    pub scaling: Option<scaling::Scaling>,
 }
 
 /// One scene's part of the report.
@@ -197,6 +201,10 @@ pub fn write_report(
                 + stability::grid(s, options.quick).len()
         })
         .sum();
+    let scaling_base = (!options.quick)
+        .then(|| scenes.iter().find(|s| s.file.name == scaling::BASE))
+        .flatten();
+    let runs = runs + scaling_base.map_or(0, |_| scaling::len());
     let bar = if options.progress {
         let bar = indicatif::ProgressBar::new(runs as u64);
         if let Ok(style) =
@@ -227,6 +235,7 @@ pub fn write_report(
         },
         recommendation_rule: pareto::RULE,
         scenes: vec![],
+        scaling: None,
     };
     for scene in scenes {
         let name = scene.file.name.clone();
@@ -261,6 +270,10 @@ pub fn write_report(
             bar.inc(1);
         }
         report.scenes.push(scene_report);
+    }
+    if let Some(base) = scaling_base {
+        bar.set_prefix("cost growth");
+        report.scaling = Some(scaling::measure(&base.dir, counting, || bar.inc(1))?);
     }
     bar.finish_and_clear();
     html::write(&report, out)?;
