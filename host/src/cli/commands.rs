@@ -170,12 +170,8 @@ pub(super) fn count_frames_command(
     pcg: u32,
     frames: usize,
 ) -> Result<(), Failure> {
-    let strategy = match strategy {
-        "refactor" => "refactor",
-        "frozen" => "frozen",
-        "factor-once" => "factor-once",
-        other => return Err(format!("unknown strategy {other:?}").into()),
-    };
+    let strategy = crate::report::SweepSetting::strategy_name(strategy)
+        .ok_or_else(|| format!("unknown strategy {strategy:?}"))?;
     let setting = crate::report::SweepSetting {
         strategy,
         newton,

@@ -289,6 +289,23 @@ pub struct SweepSetting {
 }
 
 impl SweepSetting {
+    /// The strategy name as a setting holds it, or `None` for a name that is none of the three.
+    pub fn strategy_name(name: &str) -> Option<&'static str> {
+        ["refactor", "frozen", "factor-once"]
+            .into_iter()
+            .find(|&s| s == name)
+    }
+
+    /// The setting a scene's solver section holds (a strategy name the scene would refuse is
+    /// read as `"refactor"`; a loaded scene holds none).
+    pub fn of(solver: &SolverSection) -> Self {
+        SweepSetting {
+            strategy: Self::strategy_name(&solver.strategy).unwrap_or("refactor"),
+            newton: solver.newton_iterations,
+            pcg: solver.pcg_iterations,
+        }
+    }
+
     /// Puts this setting into a scene's solver section.
     pub fn apply(&self, solver: &mut SolverSection) {
         solver.strategy = self.strategy.to_string();

@@ -154,16 +154,7 @@ fn frames_counted(own: bool, quick: bool) -> usize {
 /// The settings tried on a scene: its own first, then the sweep's (`--quick`: refactoring
 /// once per frame, the cheapest).
 fn settings_for(solver: &SolverSection, quick: bool) -> Vec<(SweepSetting, bool)> {
-    let strategy = match solver.strategy.as_str() {
-        "frozen" => "frozen",
-        "factor-once" => "factor-once",
-        _ => "refactor",
-    };
-    let own = SweepSetting {
-        strategy,
-        newton: solver.newton_iterations,
-        pcg: solver.pcg_iterations,
-    };
+    let own = SweepSetting::of(solver);
     let others = if quick {
         vec![SweepSetting {
             strategy: "refactor",

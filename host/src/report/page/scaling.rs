@@ -176,7 +176,7 @@ fn measure_variant(
     let mut ms: Vec<f64> = trace.frames.iter().skip(1).map(|r| r.ms).collect();
     ms.sort_by(f64::total_cmp);
     let instructions = if counting {
-        let setting = own_setting(&scene);
+        let setting = SweepSetting::of(&scene.file.solver);
         let counts = instructions::per_frame(dir, &setting, COUNTED_FRAMES)?;
         Some(counts.iter().map(|&c| c as f64).sum::<f64>() / counts.len().max(1) as f64)
     } else {
@@ -188,20 +188,6 @@ fn measure_variant(
         instructions,
         ms_median: ms.get(ms.len() / 2).copied().unwrap_or(f64::NAN),
     })
-}
-
-/// The scene's own solver setting as a sweep setting.
-fn own_setting(scene: &Scene) -> SweepSetting {
-    let solver = &scene.file.solver;
-    SweepSetting {
-        strategy: match solver.strategy.as_str() {
-            "frozen" => "frozen",
-            "factor-once" => "factor-once",
-            _ => "refactor",
-        },
-        newton: solver.newton_iterations,
-        pcg: solver.pcg_iterations,
-    }
 }
 
 /// The exponent `b` of `y = a xᵇ` by least squares on `(ln x, ln y)`; `None` with fewer than
