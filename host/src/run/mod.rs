@@ -127,6 +127,19 @@ pub(crate) fn scene_storage(scene: &Scene) -> Result<ModelStorage<f64>, RunError
     })
 }
 
+/// The observations of `frame` whose features the model knows: those that missed the model at
+/// frame 0 were never embedded.
+pub(crate) fn known_observations(
+    model: &Model<'_, f64>,
+    frame: &[Observation<f64>],
+) -> Vec<Observation<f64>> {
+    frame
+        .iter()
+        .copied()
+        .filter(|o| model.features().slot_of(o.id).is_some())
+        .collect()
+}
+
 /// Embeds the internal targets of the ground truth (their frame-0 positions) in `model`,
 /// which carries them from then on (through cuts, each on its own side).
 fn embed_targets(truth: Option<&Truth>, model: &mut Model<'_, f64>) -> Result<(), RunError> {
@@ -378,12 +391,7 @@ impl Pass {
         if f == 0 {
             return record;
         }
-        // Features that missed the model at frame 0 are unknown to it.
-        let known: Vec<Observation<f64>> = obs
-            .iter()
-            .copied()
-            .filter(|o| model.features().slot_of(o.id).is_some())
-            .collect();
+        let known = known_observations(model, obs);
         record.observed = known.len();
         // The formulas of the model this frame starts with (a cut at its end changes them).
         let bounds = (

@@ -10,9 +10,7 @@
 use std::path::Path;
 use std::process::Command;
 
-use incise_core::Observation;
-
-use crate::run::{embed_scene_targets, scene_storage};
+use crate::run::{embed_scene_targets, known_observations, scene_storage};
 use crate::scene::Scene;
 
 use super::super::SweepSetting;
@@ -139,14 +137,8 @@ pub fn count_frames(dir: &Path, setting: &SweepSetting, frames: usize) -> Result
         .map_err(|e| format!("placing the frame-0 features: {e}"))?;
     embed_scene_targets(&scene, &mut model).map_err(|e| e.to_string())?;
     for frame in scene.frames.iter().skip(1).take(frames) {
-        // As `incise run` does: features that missed the model at frame 0 are unknown to it.
-        let known: Vec<Observation<f64>> = frame
-            .iter()
-            .copied()
-            .filter(|o| model.features().slot_of(o.id).is_some())
-            .collect();
         // A refused frame leaves the model as it was; the run goes on, as `incise run` does.
-        let _ = model.step(&known);
+        let _ = model.step(&known_observations(&model, frame));
     }
     Ok(())
 }

@@ -281,17 +281,22 @@ fn cut_frames(trace: &Trace) -> Vec<usize> {
         .collect()
 }
 
-/// The median of the counts of frames (dump `k` is frame `k + 1`) that did not cut.
-fn steady_median(counts: &[u64], cuts: &[usize]) -> Option<f64> {
-    let steady: Vec<f64> = counts
+/// The counts of frames (count `k` is frame `k + 1`) that did not cut.
+fn steady_counts(counts: &[u64], cuts: &[usize]) -> Vec<f64> {
+    counts
         .iter()
         .enumerate()
         .filter(|(k, _)| !cuts.contains(&(k + 1)))
         .map(|(_, &c)| c as f64)
-        .collect();
-    median(&steady)
+        .collect()
 }
 
+/// The median of [`steady_counts`].
+fn steady_median(counts: &[u64], cuts: &[usize]) -> Option<f64> {
+    median(&steady_counts(counts, cuts))
+}
+
+/// The median (the mean of the two middle values for an even count); `None` if empty.
 fn median(values: &[f64]) -> Option<f64> {
     let mut v = values.to_vec();
     v.sort_by(f64::total_cmp);
@@ -349,18 +354,9 @@ fn scene_report(
     let front = pareto::front(&points);
     let recommended = pareto::recommend(&points, &front);
     let cuts = cut_frames(trace);
-    let steady_max_over_median = {
-        let steady: Vec<u64> = counts
-            .iter()
-            .enumerate()
-            .filter(|(k, _)| !cuts.contains(&(k + 1)))
-            .map(|(_, &c)| c)
-            .collect();
-        let max = steady.iter().copied().max();
-        steady_median(&counts, &cuts)
-            .zip(max)
-            .map(|(m, max)| max as f64 / m)
-    };
+    let steady = steady_counts(&counts, &cuts);
+    let steady_max_over_median =
+        median(&steady).map(|m| steady.iter().copied().fold(0.0, f64::max) / m);
     let works: Vec<FrameWork> = trace.frames.iter().filter_map(|r| r.work).collect();
     let memory = scene_storage(scene)
         .map_err(|e| e.to_string())?

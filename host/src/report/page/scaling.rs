@@ -7,7 +7,7 @@ use std::path::Path;
 use serde::Serialize;
 
 use crate::generate::pipeline::{simulate, write_scene};
-use crate::run::{Cutting, TrackSource, run_pass};
+use crate::run::run_once;
 use crate::scene::Scene;
 
 use super::super::SweepSetting;
@@ -164,17 +164,8 @@ fn measure_variant(
     let sim = simulate(&path, false).map_err(|e| e.to_string())?;
     write_scene(&sim, &path, dir, false).map_err(|e| e.to_string())?;
     let scene = Scene::load(dir).map_err(|e| e.to_string())?;
-    let trace = run_pass(
-        &scene,
-        &mut TrackSource::new(&scene.frames),
-        Cutting::Detected,
-        None,
-        None,
-        false,
-    )
-    .map_err(|e| e.to_string())?;
-    let mut ms: Vec<f64> = trace.frames.iter().skip(1).map(|r| r.ms).collect();
-    ms.sort_by(f64::total_cmp);
+    let trace = run_once(&scene, true, None, false).map_err(|e| e.to_string())?;
+    let ms: Vec<f64> = trace.frames.iter().skip(1).map(|r| r.ms).collect();
     let instructions = if counting {
         let setting = SweepSetting::of(&scene.file.solver);
         let counts = instructions::per_frame(dir, &setting, COUNTED_FRAMES)?;
@@ -186,7 +177,7 @@ fn measure_variant(
         nodes: scene.rest.len(),
         features: scene.frames.first().map_or(0, Vec::len),
         instructions,
-        ms_median: ms.get(ms.len() / 2).copied().unwrap_or(f64::NAN),
+        ms_median: super::median(&ms).unwrap_or(f64::NAN),
     })
 }
 

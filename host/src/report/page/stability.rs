@@ -10,7 +10,7 @@ use std::panic::{AssertUnwindSafe, catch_unwind};
 
 use serde::Serialize;
 
-use crate::run::{Cutting, Trace, TrackSource, run_pass};
+use crate::run::{Trace, run_once};
 use crate::scene::Scene;
 
 /// A frame converges when the gradient at its end is at most this fraction of its start.
@@ -110,16 +110,7 @@ pub(super) fn run_cell(scene: &Scene, (young, poisson, k_scale): (f64, f64, f64)
     s.file.model.young = young;
     s.file.model.poisson = poisson;
     s.file.solver.spring_stiffness = spring_stiffness;
-    let run = catch_unwind(AssertUnwindSafe(|| {
-        run_pass(
-            &s,
-            &mut TrackSource::new(&s.frames),
-            Cutting::Detected,
-            None,
-            None,
-            false,
-        )
-    }));
+    let run = catch_unwind(AssertUnwindSafe(|| run_once(&s, true, None, false)));
     let mut cell = Cell {
         young,
         poisson,
