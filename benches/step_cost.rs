@@ -23,7 +23,8 @@ use faer::sparse::linalg::cholesky::{
     CholeskySymbolicParams, SymmetricOrdering, factorize_symbolic_cholesky,
 };
 use incise_core::{
-    Material, MeshInput, Model, ModelConfig, Observation, SolverConfig, StepReport, Strategy,
+    Coupling, Material, MeshInput, Model, ModelConfig, Observation, SolverConfig, StepReport,
+    Strategy,
 };
 use incise_validation::callgrind;
 use incise_validation::oracle::to_faer;
@@ -105,7 +106,7 @@ fn config(cam: incise_core::Camera<f64>, strategy: Strategy) -> ModelConfig<f64>
             strategy,
             newton_iterations: 2,
             line_search_steps: 3,
-            spring_stiffness: 1e-7,
+            coupling: Coupling::Stiffness(1e-7),
             damping: 1e-3,
             depth_prior: 0.0,
             image_margin: 50.0,

@@ -4,8 +4,8 @@
 //! set every capacity, down to one too small.
 
 use incise_core::{
-    Camera, Capacities, DetectionConfig, Material, MeshCapacity, MeshInput, Model, ModelConfig,
-    Observation, SolverConfig, Strategy, analyse_mesh, analyse_mesh_work_len,
+    Camera, Capacities, Coupling, DetectionConfig, Material, MeshCapacity, MeshInput, Model,
+    ModelConfig, Observation, SolverConfig, Strategy, analyse_mesh, analyse_mesh_work_len,
 };
 
 use crate::scene::{camera, observe};
@@ -102,7 +102,7 @@ impl Bench {
                 strategy,
                 newton_iterations: 2,
                 line_search_steps: 3,
-                spring_stiffness: 1e-6,
+                coupling: Coupling::Stiffness(1e-6),
                 damping: 0.01,
                 depth_prior: 0.0,
                 image_margin: 50.0,

@@ -14,8 +14,8 @@ use incise::storage::{ModelStorage, SceneCapacities};
 use incise_core::cut::SNAP_TOLERANCE;
 use incise_core::nalgebra::{Matrix3, Rotation3, Vector3};
 use incise_core::{
-    Camera, DetectionConfig, Intrinsics, Material, MeshInput, Model, ModelConfig, Observation,
-    SolverConfig, Strategy as Linear,
+    Camera, Coupling, DetectionConfig, Intrinsics, Material, MeshInput, Model, ModelConfig,
+    Observation, SolverConfig, Strategy as Linear,
 };
 use incise_validation::cutcheck::{
     check_embeddings, check_factor, check_feature_sides, check_mesh, check_targets_stay,
@@ -278,7 +278,7 @@ fn run(c: &Case) -> Result<Outcome, TestCaseError> {
             strategy: Linear::Refactor,
             newton_iterations: 1,
             line_search_steps: 2,
-            spring_stiffness: 1e-6,
+            coupling: Coupling::Stiffness(1e-6),
             damping: 0.01,
             depth_prior: 0.0,
             image_margin: 50.0,

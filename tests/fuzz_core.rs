@@ -24,7 +24,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 use incise::storage::OwnedStorage;
 use incise_core::solve::{MAX_LINE_SEARCH_STEPS, MAX_NEWTON_ITERATIONS, MAX_PCG_ITERATIONS};
-use incise_core::{Capacities, Error, Model, Observation, Strategy as Linear};
+use incise_core::{Capacities, Coupling, Error, Model, Observation, Strategy as Linear};
 use incise_validation::bench_model::{Bench, SIZE, Snapshot};
 use incise_validation::rng::Rng;
 use proptest::prelude::*;
@@ -451,7 +451,13 @@ fn run_mesh(cells: [usize; 3], fault: MeshFault, seed: u64) -> Result<(), TestCa
                     s.line_search_steps =
                         [0, 1, MAX_LINE_SEARCH_STEPS, MAX_LINE_SEARCH_STEPS + 1][pick(&mut rng, 4)]
                 }
-                2 => s.spring_stiffness = nasty(&mut rng, 1e-6),
+                2 => {
+                    s.coupling = if pick(&mut rng, 2) == 0 {
+                        Coupling::Stiffness(nasty(&mut rng, 1e-6))
+                    } else {
+                        Coupling::Relative(nasty(&mut rng, 100.0))
+                    }
+                }
                 3 => s.damping = nasty(&mut rng, 0.01),
                 4 => s.depth_prior = nasty(&mut rng, 0.1),
                 5 => s.image_margin = nasty(&mut rng, 50.0),

@@ -3,7 +3,8 @@
 //! solves, and the registration of a box to a deformation made by the same model.
 
 use incise_core::{
-    Material, MeshInput, ModelConfig, Observation, Projection, SolverConfig, StepReport, Strategy,
+    Coupling, Material, MeshInput, ModelConfig, Observation, Projection, SolverConfig, StepReport,
+    Strategy,
 };
 use incise_validation::oracle::faer_solve;
 use incise_validation::scene::{ModelStorage, camera, nodes_where, observe};
@@ -29,7 +30,7 @@ fn config(
             strategy,
             newton_iterations: 4,
             line_search_steps: 4,
-            spring_stiffness: k,
+            coupling: Coupling::Stiffness(k),
             damping,
             depth_prior: 0.0,
             image_margin: 50.0,
@@ -149,7 +150,7 @@ fn cantilever_tip_deflection_matches_euler_bernoulli() {
         // The load: the spring force on each virtual feature at equilibrium, and where it acts.
         let (e, i) = (YOUNG, beam.side.powi(4) / 12.0);
         let mut predicted = 0.0;
-        let k = cfg.solver.spring_stiffness;
+        let k = model.spring_stiffness();
         for (slot, target) in model.features().targets().iter().enumerate() {
             let p = nalgebra::Vector3::from(model.feature_position(slot).unwrap());
             let (uv, j) = beam.cam.project_with_jacobian(&p, slot).unwrap();
@@ -187,6 +188,53 @@ fn cantilever_tip_deflection_matches_euler_bernoulli() {
     // finest mesh must be within 5%.
     assert!(errors.windows(2).all(|w| w[1] < w[0]), "{errors:?}");
     assert!(*errors.last().unwrap() <= 0.05, "{errors:?}");
+}
+
+/// `Coupling::Relative(β)` sets `k = β·E·s/m³` when the features are embedded: checked
+/// against the closed form for features on a face square to the camera's axis (the feature
+/// spacing from the bounding box of their pixels, the scale `f/z` at their depth), linear in
+/// `E`, and a given `k` kept as it is.
+#[test]
+fn the_coupling_derived_from_the_scene_matches_its_closed_form() {
+    let beam = Cantilever::new([20, 2, 2]);
+    let input = beam.input();
+    let (beta, focal, depth) = (100.0, 5000.0, 0.5 - beam.side);
+    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+    for o in &beam.frame0 {
+        for a in 0..2 {
+            lo[a] = lo[a].min(o.uv[a]);
+            hi[a] = hi[a].max(o.uv[a]);
+        }
+    }
+    let spacing = ((hi[0] - lo[0]) * (hi[1] - lo[1]) / beam.frame0.len() as f64).sqrt();
+    let mut derived = vec![];
+    for young in [YOUNG, 2.0 * YOUNG] {
+        let mut cfg = config(beam.cam, 1.0, Strategy::Refactor, 0.0);
+        cfg.material.young = young;
+        cfg.solver.coupling = Coupling::Relative(beta);
+        let mut storage = ModelStorage::with_features(&input, 64).unwrap();
+        let mut model = storage.model(&input, &cfg).unwrap();
+        assert_eq!(
+            model.spring_stiffness(),
+            0.0,
+            "no spring before the features"
+        );
+        model.embed_features(&beam.frame0).unwrap();
+        let expected = beta * young * spacing * (depth / focal).powi(3);
+        let k = model.spring_stiffness();
+        assert!(
+            (k - expected).abs() <= 1e-9 * expected,
+            "k {k:e}, closed form {expected:e}"
+        );
+        derived.push(k);
+    }
+    assert!((derived[1] / derived[0] - 2.0).abs() < 1e-12);
+
+    let cfg = config(beam.cam, 2.5e-7, Strategy::Refactor, 0.0);
+    let mut storage = ModelStorage::with_features(&input, 64).unwrap();
+    let mut model = storage.model(&input, &cfg).unwrap();
+    model.embed_features(&beam.frame0).unwrap();
+    assert_eq!(model.spring_stiffness(), 2.5e-7);
 }
 
 #[test]
@@ -476,7 +524,7 @@ fn the_model_runs_in_f32() {
             strategy: Strategy::Refactor,
             newton_iterations: 4,
             line_search_steps: 4,
-            spring_stiffness: 2.0e-6,
+            coupling: Coupling::Stiffness(2.0e-6),
             damping: 1e-3,
             depth_prior: 0.0,
             image_margin: 50.0,

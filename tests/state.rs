@@ -7,7 +7,7 @@
 use incise::storage::OwnedStorage;
 use incise_core::sparse::{LdlFactor, Symbolic, UpperCsc, analyse_work_len};
 use incise_core::{
-    Capacities, DetectionConfig, Error, Model, Observation, Parameter, Resource, Strategy,
+    Capacities, Coupling, DetectionConfig, Error, Model, Observation, Parameter, Resource, Strategy,
 };
 use incise_validation::bench_model::{Bench, Snapshot};
 
@@ -118,7 +118,7 @@ fn model_new_names_the_parameter_resource_and_index_at_fault() {
         invalid(Parameter::PcgIterations)
     );
     assert_eq!(
-        with(&|c| c.solver.spring_stiffness = 0.0),
+        with(&|c| c.solver.coupling = Coupling::Stiffness(0.0)),
         invalid(Parameter::SpringStiffness)
     );
     assert_eq!(

@@ -90,7 +90,8 @@ pub enum Parameter {
     YoungModulus,
     /// Poisson ratio (must lie in `(-1, 0.5)`).
     PoissonRatio,
-    /// Spring stiffness of the feature coupling (positive, finite).
+    /// Spring stiffness of the feature coupling, given or derived from the scene (positive,
+    /// finite).
     SpringStiffness,
     /// Damping ratio (non-negative, finite).
     Damping,
@@ -153,7 +154,9 @@ impl fmt::Display for Parameter {
         let s = match self {
             Parameter::YoungModulus => "Young's modulus must be positive and finite",
             Parameter::PoissonRatio => "Poisson ratio must lie in (-1, 0.5)",
-            Parameter::SpringStiffness => "spring stiffness must be positive and finite",
+            Parameter::SpringStiffness => {
+                "spring coupling must be positive and finite (given, or derived from the scene)"
+            }
             Parameter::Damping => "damping must be non-negative and finite",
             Parameter::DepthPrior => "the depth prior must be non-negative and finite",
             Parameter::Intrinsics => {

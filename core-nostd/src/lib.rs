@@ -112,4 +112,4 @@ pub use model::{
     Capacities, Linearization, MAX_STORAGE_LEN, Material, MeshAnalysis, Model, ModelBuffers,
     ModelConfig, ModelSize, StepReport, StoragePart, analyse_mesh, analyse_mesh_work_len,
 };
-pub use solve::{Energies, SolverConfig, Strategy, WorkCount};
+pub use solve::{Coupling, Energies, SolverConfig, Strategy, WorkCount};

@@ -56,7 +56,7 @@ fn scene_sizes_beyond_their_bounds_are_refused_naming_the_key_and_line() {
     run_refuses(
         "features = 1024",
         "features = 10000000000",
-        &["scene.toml:34:", "[capacities] features", "65536"],
+        &["scene.toml:33:", "[capacities] features", "65536"],
     );
     run_refuses(
         "cut_tets = 1024",
@@ -71,7 +71,7 @@ fn scene_sizes_beyond_their_bounds_are_refused_naming_the_key_and_line() {
     run_refuses(
         "pairs = 32768",
         "pairs = 100000000",
-        &["scene.toml:38:", "[capacities] pairs"],
+        &["scene.toml:37:", "[capacities] pairs"],
     );
     run_refuses(
         "width = 640",
@@ -81,7 +81,7 @@ fn scene_sizes_beyond_their_bounds_are_refused_naming_the_key_and_line() {
     run_refuses(
         "frames = 40",
         "frames = 1000000",
-        &["scene.toml:43:", "[ground_truth] frames"],
+        &["scene.toml:42:", "[ground_truth] frames"],
     );
 }
 
@@ -91,12 +91,12 @@ fn unknown_keys_are_refused() {
     run_refuses(
         "cut_vertices = 64",
         "cut_vertices = 64\nfactor_headroom_percent = 4000000000",
-        &["scene.toml:40:", "unknown field `factor_headroom_percent`"],
+        &["scene.toml:39:", "unknown field `factor_headroom_percent`"],
     );
     run_refuses(
         "frames = 40",
         "frames = 40\nframe_rate = 25",
-        &["scene.toml:44:", "unknown field `frame_rate`"],
+        &["scene.toml:43:", "unknown field `frame_rate`"],
     );
 }
 
@@ -105,13 +105,13 @@ fn a_scene_that_cannot_work_is_refused_saying_why() {
     let e = run_refuses(
         "cut_vertices = 64",
         "cut_vertices = 0",
-        &["scene.toml:39:", "[capacities] cut_vertices", "detection"],
+        &["scene.toml:38:", "[capacities] cut_vertices", "detection"],
     );
     assert!(e.contains("enabled = false"), "{e}");
     run_refuses(
         "pairs = 32768",
         "pairs = 0",
-        &["scene.toml:38:", "[capacities] pairs", "detection"],
+        &["scene.toml:37:", "[capacities] pairs", "detection"],
     );
     run_refuses(
         "features = 1024",
@@ -122,7 +122,7 @@ fn a_scene_that_cannot_work_is_refused_saying_why() {
     run_refuses(
         "features = 1024",
         "features = 100",
-        &["scene.toml:34:", "[capacities] features", "tracks.csv"],
+        &["scene.toml:33:", "[capacities] features", "tracks.csv"],
     );
     // Every one of the 204 nodes fixed.
     let all: Vec<String> = (0..204).map(|v| v.to_string()).collect();
@@ -146,7 +146,7 @@ fn the_ground_truth_frames_are_read() {
     run_refuses(
         "frames = 40",
         "frames = 30",
-        &["scene.toml:43:", "[ground_truth] frames", "40 frames"],
+        &["scene.toml:42:", "[ground_truth] frames", "40 frames"],
     );
     // More: the frames after the last row lost every feature.
     let tmp = scene_with("frames = 40", "frames = 42");

@@ -35,7 +35,7 @@ pub extern "C" fn incise_nostd_check_step() -> i32 {
 fn step() -> Result<bool, incise_core::Error> {
     use incise_core::nalgebra::{Matrix3, Vector3};
     use incise_core::{
-        Camera, Capacities, Intrinsics, Material, MeshCapacity, MeshInput, Model, ModelBuffers,
+        Camera, Capacities, Coupling, Intrinsics, Material, MeshCapacity, MeshInput, Model, ModelBuffers,
         ModelConfig, ModelSize, Observation, SolverConfig, Strategy,
     };
     const CX: usize = 4;
@@ -85,7 +85,7 @@ fn step() -> Result<bool, incise_core::Error> {
             strategy: Strategy::Refactor,
             newton_iterations: 3,
             line_search_steps: 4,
-            spring_stiffness: 2e-7,
+            coupling: Coupling::Stiffness(2e-7),
             damping: 1e-3,
             depth_prior: 0.0,
             image_margin: 50.0,
@@ -221,7 +221,7 @@ pub extern "C" fn incise_nostd_check_cut() -> i32 {
 fn cut() -> Result<bool, incise_core::Error> {
     use incise_core::nalgebra::{Matrix3, Vector3};
     use incise_core::{
-        Camera, Intrinsics, Material, MeshInput, Model, ModelBuffers, ModelConfig, Observation,
+        Camera, Coupling, Intrinsics, Material, MeshInput, Model, ModelBuffers, ModelConfig, Observation,
         SolverConfig, Strategy,
     };
     use static_storage::{CELLS, NODES, SIZE, TETS};
@@ -266,7 +266,7 @@ fn cut() -> Result<bool, incise_core::Error> {
             strategy: Strategy::Refactor,
             newton_iterations: 2,
             line_search_steps: 4,
-            spring_stiffness: 2e-7,
+            coupling: Coupling::Stiffness(2e-7),
             damping: 1e-3,
             depth_prior: 0.0,
             image_margin: 50.0,

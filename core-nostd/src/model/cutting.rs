@@ -164,7 +164,10 @@ impl<'a, T: Real> Model<'a, T> {
         assemble_on(
             spare,
             &self.features,
-            &self.lame,
+            Coefficients {
+                lame: self.lame,
+                spring_stiffness: self.spring_stiffness,
+            },
             &self.config,
             &mut self.vectors.gradient[..],
             Some(&mut self.hessian[..]),

@@ -47,7 +47,8 @@ impl<T: Real> Model<'_, T> {
     /// Embeds the features of frame 0 (see [`Features::embed`]) at the current positions,
     /// replacing any held before, sets up the cut detection on them (`cut` feature: neighbour
     /// pairs, a fresh cut line, frame count back to 0) and prepares the frozen factor when
-    /// that strategy is configured.
+    /// that strategy is configured. With [`crate::Coupling::Relative`] it also sets the
+    /// springs' stiffness from these features ([`Model::spring_stiffness`]).
     ///
     /// All or nothing: the features and their embedding are copied aside first (once, `9 ·`
     /// [`Capacities::features`] entries at most), the detector counts its pairs before it
@@ -64,6 +65,7 @@ impl<T: Real> Model<'_, T> {
         self.saved.features.copy_from(&self.features);
         self.saved.embedding.copy_from(&self.live.features);
         let holds = self.holds;
+        let spring_stiffness = self.spring_stiffness;
         self.factor.checkpoint();
         match self.embed_features_uncommitted(frame0) {
             Ok(report) => {
@@ -74,6 +76,7 @@ impl<T: Real> Model<'_, T> {
                 self.features.copy_from(&self.saved.features);
                 self.live.features.copy_from(&self.saved.embedding);
                 self.holds = holds;
+                self.spring_stiffness = spring_stiffness;
                 self.factor.rollback();
                 Err(e)
             }
@@ -98,6 +101,7 @@ impl<T: Real> Model<'_, T> {
         if report.embedded == 0 {
             return Err(Error::NoFeatures);
         }
+        self.spring_stiffness = self.coupled_spring_stiffness()?;
         #[cfg(feature = "detect")]
         {
             // Scratch: the projections and residuals at frame 0.
@@ -145,5 +149,55 @@ impl<T: Real> Model<'_, T> {
             self.cut.line.reset();
         }
         Ok(report)
+    }
+
+    /// The springs' stiffness `k` for the embedded features ([`crate::Coupling`]): the feature
+    /// spacing from the bounding box of their frame-0 pixels, the image scale from the
+    /// projection's Jacobian at their virtual points.
+    ///
+    /// Cost: one projection with its Jacobian per embedded feature, once.
+    fn coupled_spring_stiffness(&self) -> Result<T, Error> {
+        let coupling = self.config.solver.coupling;
+        if let Coupling::Stiffness(k) = coupling {
+            return coupling.stiffness(k, T::one(), T::one());
+        }
+        let n = self.features.len();
+        let targets = self.features.targets();
+        let Some(&first) = targets.first() else {
+            return Err(Error::NoFeatures);
+        };
+        let (mut lo, mut hi) = (first, first);
+        for p in targets.iter().take(n) {
+            for ((l, h), &c) in lo.iter_mut().zip(hi.iter_mut()).zip(p) {
+                *l = l.min(c);
+                *h = h.max(c);
+            }
+        }
+        let [w, h] = [hi[0] - lo[0], hi[1] - lo[1]];
+        // The detector's spacing (`Detector::spacing`), so both speak of the same length.
+        let spacing = ((w * h).max(T::one()) / T::of(n as f64)).sqrt();
+        let x = &self.live.x[..self.live.mesh.n_nodes()];
+        let mut scale_sum = T::zero();
+        for slot in 0..n {
+            let p = self
+                .live
+                .features
+                .position(slot, &self.live.mesh, x)
+                .ok_or(Error::NoFeatures)?;
+            let (_, j) = self
+                .config
+                .camera
+                .project_with_jacobian(&Vector3::from(p), slot)
+                .map_err(|_| self.features.behind_camera(slot))?;
+            // The smaller singular value of the 2 × 3 Jacobian: the magnification of motion
+            // across the ray (`f / z` for a perspective camera; the larger one adds the
+            // obliquity of an off-axis ray).
+            let jjt = j * j.transpose();
+            let (tr, det) = (jjt.trace(), jjt.determinant());
+            let disc = (tr * tr - T::of(4.0) * det).max(T::zero()).sqrt();
+            scale_sum += (T::of(0.5) * (tr - disc)).max(T::zero()).sqrt();
+        }
+        let scale = scale_sum / T::of(n as f64);
+        coupling.stiffness(self.config.material.young, spacing, scale)
     }
 }

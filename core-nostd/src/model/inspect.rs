@@ -11,8 +11,13 @@ impl<'a, T: Real> Model<'a, T> {
     /// # Errors
     /// [`Error::FeatureBehindCamera`] if a virtual feature cannot be projected.
     pub fn energy(&self) -> Result<Energies<T>, Error> {
-        problem_of(&self.live, &self.features, &self.lame, &self.config)
-            .energy(self.positions(), &mut WorkCount::default())
+        problem_of(
+            &self.live,
+            &self.features,
+            self.coefficients(),
+            &self.config,
+        )
+        .energy(self.positions(), &mut WorkCount::default())
     }
 
     /// Assembles the system a Newton step solves at the current positions, for validation
@@ -118,6 +123,7 @@ impl<'a, T: Real> Model<'a, T> {
         h.reals(self.features.targets().iter().flatten());
         h.words(self.features.active());
         h.words(core::iter::once(&self.frame));
+        h.reals(core::iter::once(&self.spring_stiffness));
         let strategy = match self.config.solver.strategy {
             Strategy::Refactor => [0, 0],
             Strategy::Frozen { pcg_iterations } => [1, pcg_iterations],

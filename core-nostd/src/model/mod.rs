@@ -42,9 +42,9 @@ use crate::features::{EmbedReport, Features, Observation};
 use crate::material::Lame;
 use crate::mesh::{Mesh, MeshInput};
 use crate::real::Real;
-use crate::solve::{Energies, SolverConfig, Strategy, WorkCount, problem_of};
+use crate::solve::{Coupling, Energies, SolverConfig, Strategy, WorkCount, problem_of};
 #[cfg(feature = "cut")]
-use crate::solve::{assemble_on, factorize_on};
+use crate::solve::{Coefficients, assemble_on, factorize_on};
 use crate::sparse::{LdlFactor, NONE, PrecomputedAnalysis, Symbolic, UpperCsc};
 use crate::storage::{Fingerprint, Slab, ensure_exact_len, ensure_len};
 
@@ -159,6 +159,9 @@ pub struct Model<'a, T: Real> {
     pub(crate) hessian: &'a mut [T],
     pub(crate) factor: LdlFactor<'a, T>,
     pub(crate) holds: FactorHolds,
+    /// The springs' `k`, J/px²: given, or derived from the scene when the features are
+    /// embedded ([`crate::Coupling`]).
+    pub(crate) spring_stiffness: T,
     pub(crate) vectors: SolveVectors<'a, T>,
     /// Workspace of rebuilds and cuts (no meaning between calls).
     #[cfg(feature = "cut")]
@@ -319,6 +322,11 @@ impl<'a, T: Real> Model<'a, T> {
             hessian,
             factor,
             holds: FactorHolds::Nothing,
+            spring_stiffness: match config.solver.coupling {
+                Coupling::Stiffness(k) => k,
+                // Set when the features are embedded; no spring acts before.
+                Coupling::Relative(_) => T::zero(),
+            },
             vectors,
             #[cfg(feature = "cut")]
             work,
@@ -328,6 +336,12 @@ impl<'a, T: Real> Model<'a, T> {
             cut,
             frame: 0,
         })
+    }
+
+    /// The springs' stiffness `k` in service, J/px²: the given one, or the one derived from the
+    /// scene when the features were embedded ([`crate::Coupling::Relative`]; zero before).
+    pub fn spring_stiffness(&self) -> T {
+        self.spring_stiffness
     }
 
     /// The mesh in service.

@@ -112,9 +112,9 @@ impl<'a, T: Real> Model<'a, T> {
         with_hessian: bool,
         work: &mut WorkCount,
     ) -> Result<Energies<T>, Error> {
+        let coefficients = self.coefficients();
         let Model {
             live,
-            lame,
             config,
             features,
             vectors,
@@ -124,7 +124,7 @@ impl<'a, T: Real> Model<'a, T> {
         assemble_on(
             live,
             features,
-            lame,
+            coefficients,
             config,
             &mut vectors.gradient[..],
             with_hessian.then_some(&mut hessian[..]),
@@ -244,7 +244,12 @@ impl<'a, T: Real> Model<'a, T> {
         let mut best = (energy, T::zero());
         for _ in 0..trials {
             self.fill_trial(alpha);
-            let problem = problem_of(&self.live, &self.features, &self.lame, &self.config);
+            let problem = problem_of(
+                &self.live,
+                &self.features,
+                self.coefficients(),
+                &self.config,
+            );
             let e = match problem.energy(&self.vectors.trial[..n_nodes], work) {
                 Ok(e) => e.total(),
                 Err(Error::FeatureBehindCamera { .. }) => T::zero() / T::zero(),
@@ -286,21 +291,44 @@ impl<'a, T: Real> Model<'a, T> {
     }
 }
 
+/// The constants of the energy besides the mesh and the observations: the material's and the
+/// springs' stiffness.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Coefficients<T> {
+    pub(crate) lame: Lame<T>,
+    /// `k`, J/px² ([`crate::Model::spring_stiffness`]).
+    pub(crate) spring_stiffness: T,
+}
+
+impl<T: Real> Model<'_, T> {
+    /// The constants of this model's energy.
+    pub(crate) fn coefficients(&self) -> Coefficients<T> {
+        Coefficients {
+            lame: self.lame,
+            spring_stiffness: self.spring_stiffness,
+        }
+    }
+}
+
 /// The energy of a discretization with the features' observations.
 pub(crate) fn problem_of<'p, 'a, T: Real>(
     d: &'p Discretization<'a, T>,
     features: &'p Features<'a, T>,
-    lame: &Lame<T>,
+    coefficients: Coefficients<T>,
     config: &'p ModelConfig<T>,
 ) -> Problem<'p, 'a, T> {
     let n = d.mesh.n_nodes();
+    let Coefficients {
+        lame,
+        spring_stiffness,
+    } = coefficients;
     Problem {
         mesh: &d.mesh,
-        lame: *lame,
+        lame,
         camera: &config.camera,
         features,
         embedding: &d.features,
-        spring_stiffness: config.solver.spring_stiffness,
+        spring_stiffness,
         damping: &d.damping[..n],
         depth_weight: &d.depth_weight[..n],
         anchor: &d.previous[..n],
@@ -313,7 +341,7 @@ pub(crate) fn problem_of<'p, 'a, T: Real>(
 pub(crate) fn assemble_on<T: Real>(
     d: &Discretization<'_, T>,
     features: &Features<'_, T>,
-    lame: &Lame<T>,
+    coefficients: Coefficients<T>,
     config: &ModelConfig<T>,
     gradient: &mut [T],
     hessian: Option<&mut [T]>,
@@ -321,7 +349,7 @@ pub(crate) fn assemble_on<T: Real>(
 ) -> Result<Energies<T>, Error> {
     let n = d.n_unknowns();
     let nnz = d.nnz_a;
-    problem_of(d, features, lame, config).assemble(
+    problem_of(d, features, coefficients, config).assemble(
         &d.x[..d.mesh.n_nodes()],
         &mut gradient[..n],
         hessian.map(|h| &mut h[..nnz]),

@@ -20,7 +20,8 @@ use std::path::{Path, PathBuf};
 use incise_core::mesh::MeshCapacity;
 use incise_core::sparse::PrecomputedAnalysis;
 use incise_core::{
-    Capacities, ModelConfig, ModelSize, Observation, Projection, StoragePart, Strategy, WorkCount,
+    Capacities, Coupling, ModelConfig, ModelSize, Observation, Projection, StoragePart, Strategy,
+    WorkCount,
 };
 
 use crate::scene::Scene;
@@ -264,8 +265,8 @@ fn emit(s: &mut String, e: &Emit<'_>) {
          use incise_core::sparse::{PrecomputedAnalysis, SymbolicSize};\n\
          #[allow(unused_imports)]\n\
          use incise_core::{\n    \
-             Camera, Capacities, DetectionConfig, Error, Intrinsics, Material, MeshCapacity, \
-             MeshInput,\n    ModelConfig, ModelSize, Observation, Projection, SolverConfig, Strategy,\n};\n\n",
+             Camera, Capacities, Coupling, DetectionConfig, Error, Intrinsics, Material, \
+             MeshCapacity, MeshInput,\n    ModelConfig, ModelSize, Observation, Projection, SolverConfig, Strategy,\n};\n\n",
     );
     let _ = writeln!(
         s,
@@ -364,7 +365,7 @@ fn emit(s: &mut String, e: &Emit<'_>) {
          Matrix3::new({}, {}, {}, {}, {}, {}, {}, {}, {}),\n        Vector3::new({}, {}, {}),\n        {},\n    )?;\n    \
          Ok(ModelConfig {{\n        material: Material {{\n            young: {},\n            poisson: {},\n        }},\n        \
          camera,\n        solver: SolverConfig {{\n            strategy: {strategy},\n            \
-         newton_iterations: {},\n            line_search_steps: {},\n            spring_stiffness: {},\n            \
+         newton_iterations: {},\n            line_search_steps: {},\n            coupling: {},\n            \
          damping: {},\n            depth_prior: {},\n            image_margin: {},\n        }},\n        \
          detection: {:?},\n    }})\n}}\n",
         real(i.fx),
@@ -390,7 +391,10 @@ fn emit(s: &mut String, e: &Emit<'_>) {
         real(cfg.material.poisson),
         sv.newton_iterations,
         sv.line_search_steps,
-        real(sv.spring_stiffness),
+        match sv.coupling {
+            Coupling::Relative(beta) => format!("Coupling::Relative({})", real(beta)),
+            Coupling::Stiffness(k) => format!("Coupling::Stiffness({})", real(k)),
+        },
         real(sv.damping),
         real(sv.depth_prior),
         real(sv.image_margin),

@@ -332,6 +332,7 @@ pub fn run_pass(
         mesh_final: (model.mesh().n_nodes(), model.mesh().n_tets()),
         embedded: placed.embedded,
         missed: placed.missed,
+        spring_stiffness: model.spring_stiffness(),
         model_bytes,
     })
 }

@@ -25,6 +25,8 @@ pub struct Summary {
     pub features_filtered: usize,
     /// The features' spacing at frame 0, pixels: the unit of the cut line's lengths.
     pub feature_spacing_px: f64,
+    /// The springs' stiffness `k`, J/px²: the scene's, or derived from it (`[solver] coupling`).
+    pub spring_stiffness: f64,
     /// Frame at which a cut was detected, if any.
     pub cut_detected_frame: Option<u32>,
     /// Frame at which the true cut opens (ground truth), if the scene has one.
@@ -233,6 +235,8 @@ pub struct Trace {
     pub embedded: usize,
     /// Features missed.
     pub missed: usize,
+    /// The springs' stiffness in service, J/px² (given, or derived from the scene).
+    pub spring_stiffness: f64,
     /// Storage bytes.
     pub model_bytes: usize,
 }
@@ -259,6 +263,7 @@ impl Summary {
             pairs_lost: trace.detection.pairs_lost,
             features_filtered: trace.detection.features_filtered,
             feature_spacing_px: trace.detection.spacing_px,
+            spring_stiffness: trace.spring_stiffness,
             cut_detected_frame: trace.detection.detected_frame,
             cut_open_frame: open,
             cut_hausdorff_px: trace.detection.hausdorff_px,

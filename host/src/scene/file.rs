@@ -4,7 +4,7 @@
 use std::path::Path;
 
 use incise_core::nalgebra::{Matrix3, Vector3};
-use incise_core::{Camera, Intrinsics, Projection, SolverConfig, Strategy};
+use incise_core::{Camera, Coupling, Intrinsics, Projection, SolverConfig, Strategy};
 use serde::{Deserialize, Serialize};
 
 use super::SceneError;
@@ -113,8 +113,15 @@ pub struct SolverSection {
     pub newton_iterations: u32,
     /// Line-search trials per Newton step.
     pub line_search_steps: u32,
-    /// Spring stiffness, J/px².
-    pub spring_stiffness: f64,
+    /// The springs' stiffness relative to the material and the feature spacing (`β` of
+    /// `incise_core::Coupling::Relative`, dimensionless); the core's default when neither this
+    /// nor `spring_stiffness` is given.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub coupling: Option<f64>,
+    /// The springs' stiffness `k` as a number, J/px², in place of `coupling`: for a `k`
+    /// measured or taken from elsewhere.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub spring_stiffness: Option<f64>,
     /// Damping toward the previous frame, fraction of the rest stiffness.
     pub damping: f64,
     /// Prior on depth (against motion along the camera rays), fraction of the rest stiffness.
@@ -386,11 +393,24 @@ impl SolverSection {
                 ));
             }
         };
+        let coupling = match (s.coupling, s.spring_stiffness) {
+            (Some(_), Some(_)) => {
+                return Err(Refusal::new(
+                    "solver",
+                    "spring_stiffness",
+                    "give either `coupling` (relative to the scene) or `spring_stiffness` (J/px²), \
+                     not both",
+                ));
+            }
+            (Some(beta), None) => Coupling::Relative(beta),
+            (None, Some(k)) => Coupling::Stiffness(k),
+            (None, None) => Coupling::default(),
+        };
         let config = SolverConfig {
             strategy,
             newton_iterations: s.newton_iterations,
             line_search_steps: s.line_search_steps,
-            spring_stiffness: s.spring_stiffness,
+            coupling,
             damping: s.damping,
             depth_prior: s.depth_prior,
             image_margin: s.image_margin,

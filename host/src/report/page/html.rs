@@ -460,8 +460,8 @@ fn page(
         h,
         "<h2 id=\"stability\">3. Stability envelope</h2><p>Each scene with cutting on, over a \
          grid of Young's modulus E, Poisson ratio ν and spring stiffness k (as a multiple of the \
-         scene's own k / E, so that E alone tests the numerics and the multiple tests the \
-         coupling). A cell is <b>converged</b> when every position stays finite, no frame is \
+         scene's own coupling, k relative to E and the feature spacing, so that E alone tests \
+         the numerics and the multiple tests the coupling). A cell is <b>converged</b> when every position stays finite, no frame is \
          refused and the gradient falls to {} of its start in at least {:.0} % of the frames; \
          <b>not converged</b> otherwise; <b>typed error</b> when the core refused frames (the \
          model going on as it was); <b>failure</b> on a non-finite position or a panic. Each \

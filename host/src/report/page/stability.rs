@@ -1,13 +1,15 @@
 //! The stability envelope: each scene run over a grid of Young's modulus, Poisson ratio and
 //! spring stiffness relative to the material, and each cell classified.
 //!
-//! The registration depends on the springs only through `k / E`, so the grid holds `k / E`
-//! at the scene's own ratio times a scale while `E` sweeps eight decades: `E` alone tests the
-//! numerics (every energy and pivot scales with it), the scale tests how well posed the
+//! The registration depends on the springs only through `k / E`, so the grid holds the
+//! springs relative to the material at the scene's own coupling times a scale (`[solver]
+//! coupling`, whose `k` follows `E` by itself) while `E` sweeps eight decades: `E` alone tests
+//! the numerics (every energy and pivot scales with it), the scale tests how well posed the
 //! coupling is.
 
 use std::panic::{AssertUnwindSafe, catch_unwind};
 
+use incise_core::solve::DEFAULT_COUPLING;
 use serde::Serialize;
 
 use crate::run::{Trace, run_once};
@@ -52,9 +54,10 @@ pub struct Cell {
     pub young: f64,
     /// Poisson ratio.
     pub poisson: f64,
-    /// Spring stiffness over the scene's own `k / E`.
+    /// The springs' stiffness over the scene's own, relative to the material: the scene's
+    /// `coupling` times this (or its `k / E` times `E` times this, for a scene that gives `k`).
     pub k_scale: f64,
-    /// The spring stiffness used.
+    /// The spring stiffness `k` in service, J/px² (NaN when the run was refused).
     pub spring_stiffness: f64,
     /// What the cell came to.
     pub status: Status,
@@ -105,17 +108,23 @@ pub(super) fn grid(scene: &Scene, quick: bool) -> Vec<(f64, f64, f64)> {
 /// Runs `scene` (cutting on) with one cell's material and springs.
 pub(super) fn run_cell(scene: &Scene, (young, poisson, k_scale): (f64, f64, f64)) -> Cell {
     let own = &scene.file;
-    let spring_stiffness = own.solver.spring_stiffness / own.model.young * young * k_scale;
     let mut s = scene.clone();
     s.file.model.young = young;
     s.file.model.poisson = poisson;
-    s.file.solver.spring_stiffness = spring_stiffness;
+    // A derived `k` follows `E` by itself; a given one is scaled with it.
+    match own.solver.spring_stiffness {
+        Some(k) => s.file.solver.spring_stiffness = Some(k / own.model.young * young * k_scale),
+        None => {
+            let beta = own.solver.coupling.unwrap_or(DEFAULT_COUPLING);
+            s.file.solver.coupling = Some(beta * k_scale);
+        }
+    }
     let run = catch_unwind(AssertUnwindSafe(|| run_once(&s, true, None, false)));
     let mut cell = Cell {
         young,
         poisson,
         k_scale,
-        spring_stiffness,
+        spring_stiffness: f64::NAN,
         status: Status::Failure,
         frames_rejected: 0,
         first_error: None,
@@ -163,6 +172,7 @@ fn classify(cell: &mut Cell, trace: &Trace) {
         .rejected
         .first()
         .map(|(f, e)| format!("frame {f}: {e}"));
+    cell.spring_stiffness = trace.spring_stiffness;
     cell.dice_final = trace.dice_final;
     cell.tre_mm_final = trace.tre_final * 1e3;
     cell.tre_mm_rest = trace.tre_rest_final * 1e3;
