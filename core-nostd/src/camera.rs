@@ -117,6 +117,30 @@ impl<T: Real> Camera<T> {
         )
     }
 
+    /// The same camera in another scalar type (each value rounded to it).
+    ///
+    /// # Errors
+    /// As [`Camera::with_projection`], for values that do not fit `U` (a focal length or a
+    /// distance beyond its range).
+    pub fn cast<U: Real>(&self) -> Result<Camera<U>, Error> {
+        let c = |x: T| U::of(x.to_f64());
+        let i = &self.intrinsics;
+        Camera::with_projection(
+            self.projection,
+            Intrinsics {
+                fx: c(i.fx),
+                fy: c(i.fy),
+                cx: c(i.cx),
+                cy: c(i.cy),
+                width: i.width,
+                height: i.height,
+            },
+            self.rotation.map(c),
+            self.translation.map(c),
+            c(self.near),
+        )
+    }
+
     /// A camera of either projection ([`Camera::new`], [`Camera::orthographic`]).
     ///
     /// # Errors

@@ -186,6 +186,23 @@ pub struct SolverConfig<T> {
 }
 
 impl<T: Real> SolverConfig<T> {
+    /// The same settings in another scalar type (each value rounded to it).
+    pub fn cast<U: Real>(&self) -> SolverConfig<U> {
+        let c = |x: T| U::of(x.to_f64());
+        SolverConfig {
+            strategy: self.strategy,
+            newton_iterations: self.newton_iterations,
+            line_search_steps: self.line_search_steps,
+            coupling: match self.coupling {
+                Coupling::Relative(beta) => Coupling::Relative(c(beta)),
+                Coupling::Stiffness(k) => Coupling::Stiffness(c(k)),
+            },
+            damping: c(self.damping),
+            depth_prior: c(self.depth_prior),
+            image_margin: c(self.image_margin),
+        }
+    }
+
     /// Checks the ranges.
     ///
     /// # Errors

@@ -2,21 +2,13 @@
 //! written and well formed, no work counter of any frame exceeds its worst-case formula, and
 //! the stability grid holds no failure.
 
-use std::path::{Path, PathBuf};
+mod common;
+
+use std::path::Path;
 use std::process::Command;
 
+use common::committed_scenes;
 use serde_json::Value;
-
-fn scenes() -> Vec<PathBuf> {
-    let fixtures = Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures");
-    let mut dirs: Vec<PathBuf> = std::fs::read_dir(&fixtures)
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .filter(|p| p.join("scene.toml").exists())
-        .collect();
-    dirs.sort();
-    dirs
-}
 
 /// The fields of one CSV line (double quotes around a field that holds commas).
 fn fields(line: &str) -> Vec<String> {
@@ -47,7 +39,7 @@ fn csv_rows(path: &Path) -> Vec<Vec<String>> {
 
 #[test]
 fn quick_report_on_every_committed_scene_is_written_and_well_formed() {
-    let scenes = scenes();
+    let scenes = committed_scenes();
     assert!(scenes.len() >= 7, "{scenes:?}");
     let out = tempfile::tempdir().unwrap();
     let status = Command::new(env!("CARGO_BIN_EXE_incise"))
@@ -75,8 +67,16 @@ fn quick_report_on_every_committed_scene_is_written_and_well_formed() {
     for scene in reported {
         let name = scene["name"].as_str().unwrap();
         let settings = scene["settings"].as_array().unwrap();
-        assert!(settings.len() >= 2, "{name}");
+        assert!(settings.len() >= 3, "{name}");
         assert_eq!(settings[0]["own"], true, "{name}: its own setting first");
+        // Then the same in single precision, within the stated tolerance of it.
+        let single = &settings[1];
+        assert_eq!(single["precision"], "f32", "{name}");
+        assert_eq!(settings[0]["precision"], "f64", "{name}");
+        let delta =
+            |key: &str| (single[key].as_f64().unwrap() - settings[0][key].as_f64().unwrap()).abs();
+        assert!(delta("dice_final") <= 0.005, "{name}: {single}");
+        assert!(delta("tre_mm_final") <= 0.5, "{name}: {single}");
         for s in settings {
             for key in ["dice_final", "tre_mm_final", "ms_median"] {
                 let v = s[key].as_f64().unwrap();
@@ -101,7 +101,7 @@ fn quick_report_on_every_committed_scene_is_written_and_well_formed() {
             assert!(ratio <= 1.0, "{name}: {row}");
         }
         // The stability grid (`--quick`: the scene's own material, springs at 10⁻³, 1 and
-        // 10³ times its own k / E): nothing non-finite and no panic anywhere; at the scene's
+        // 10³ times its own coupling): nothing non-finite and no panic anywhere; at the scene's
         // own k the targets end nearer the truth than the rest model's; on the intact scenes
         // no cell places them more than 1.2 times farther than the rest model's.
         let cells = scene["stability"].as_array().unwrap();
@@ -131,7 +131,7 @@ fn quick_report_on_every_committed_scene_is_written_and_well_formed() {
     }
 
     let rows = csv_rows(&out.path().join("error_vs_cost.csv"));
-    assert_eq!(rows.len(), 2 * scenes.len());
+    assert_eq!(rows.len(), 3 * scenes.len());
     assert!(csv_rows(&out.path().join("worst_case.csv")).len() >= 13 * scenes.len());
     assert_eq!(
         csv_rows(&out.path().join("memory.csv")).len(),

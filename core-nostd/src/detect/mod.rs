@@ -114,6 +114,31 @@ impl<T: Real> DetectionConfig<T> {
         }
     }
 
+    /// The same settings in another scalar type (each value rounded to it).
+    pub fn cast<U: Real>(&self) -> DetectionConfig<U> {
+        let c = |x: T| U::of(x.to_f64());
+        DetectionConfig {
+            enabled: self.enabled,
+            radius_px: c(self.radius_px),
+            radius_spacings: c(self.radius_spacings),
+            max_surface_ratio: c(self.max_surface_ratio),
+            outlier_sigmas: c(self.outlier_sigmas),
+            temporal_sigmas: c(self.temporal_sigmas),
+            min_difference_px: c(self.min_difference_px),
+            persistence: self.persistence,
+            init_points: self.init_points,
+            alpha_degrees: c(self.alpha_degrees),
+            min_step: c(self.min_step),
+            max_step: c(self.max_step),
+            min_support: self.min_support,
+            line_tolerance: c(self.line_tolerance),
+            max_line_spread: c(self.max_line_spread),
+            max_outlier_fraction: c(self.max_outlier_fraction),
+            opening_only: self.opening_only,
+            depth: self.depth.map(|d| d.map(c)),
+        }
+    }
+
     /// Checks the ranges, field by field in declaration order (`max_step` before `min_step`,
     /// which must not exceed it).
     ///

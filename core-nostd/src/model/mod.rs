@@ -42,9 +42,9 @@ use crate::features::{EmbedReport, Features, Observation};
 use crate::material::Lame;
 use crate::mesh::{Mesh, MeshInput};
 use crate::real::Real;
-use crate::solve::{Coupling, Energies, SolverConfig, Strategy, WorkCount, problem_of};
 #[cfg(feature = "cut")]
 use crate::solve::{Coefficients, assemble_on, factorize_on};
+use crate::solve::{Coupling, Energies, SolverConfig, Strategy, WorkCount, problem_of};
 use crate::sparse::{LdlFactor, NONE, PrecomputedAnalysis, Symbolic, UpperCsc};
 use crate::storage::{Fingerprint, Slab, ensure_exact_len, ensure_len};
 
@@ -70,6 +70,25 @@ pub struct ModelConfig<T: Real> {
     pub solver: SolverConfig<T>,
     /// Cut detection (used only when the crate is built with the `detect` feature).
     pub detection: DetectionConfig<T>,
+}
+
+impl<T: Real> ModelConfig<T> {
+    /// The same configuration in another scalar type (each value rounded to it): how a host
+    /// that reads its scenes in `f64` runs a core built for `f32`.
+    ///
+    /// # Errors
+    /// As [`Camera::cast`].
+    pub fn cast<U: Real>(&self) -> Result<ModelConfig<U>, Error> {
+        Ok(ModelConfig {
+            material: Material {
+                young: U::of(self.material.young.to_f64()),
+                poisson: U::of(self.material.poisson.to_f64()),
+            },
+            camera: self.camera.cast()?,
+            solver: self.solver.cast(),
+            detection: self.detection.cast(),
+        })
+    }
 }
 
 /// Which matrix the factor in service holds.

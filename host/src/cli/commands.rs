@@ -8,8 +8,10 @@ pub(super) fn run_command(
     json: bool,
     out: Option<PathBuf>,
     true_cut: bool,
+    real: Precision,
 ) -> Result<(), Failure> {
-    let scene = Scene::load(dir).map_err(|e| e.to_string())?;
+    let mut scene = Scene::load(dir).map_err(|e| e.to_string())?;
+    scene.precision = real;
     let options = RunOptions {
         out: out.clone(),
         progress: !json,
@@ -39,14 +41,19 @@ pub(super) fn print_summary(
     Ok(())
 }
 
-pub(super) fn table_command(dirs: &[PathBuf], true_cut: bool) -> Result<(), Failure> {
+pub(super) fn table_command(
+    dirs: &[PathBuf],
+    true_cut: bool,
+    real: Precision,
+) -> Result<(), Failure> {
     let mut rows = vec![];
     let options = RunOptions {
         true_cut,
         ..RunOptions::default()
     };
     for dir in dirs {
-        let scene = Scene::load(dir).map_err(|e| e.to_string())?;
+        let mut scene = Scene::load(dir).map_err(|e| e.to_string())?;
+        scene.precision = real;
         let (summary, _) = run_scene(&scene, &options).map_err(|e| e.to_string())?;
         rows.push(summary);
     }
@@ -128,7 +135,7 @@ pub(super) fn sweep_command(dir: &Path, out: Option<&Path>) -> Result<(), Failur
     let mut rows = vec![];
     for setting in settings {
         let mut scene = base.clone();
-        setting.apply(&mut scene.file.solver);
+        setting.apply(&mut scene);
         let (summary, _) = run_scene(&scene, &RunOptions::default()).map_err(|e| e.to_string())?;
         rows.push((setting, summary));
         bar.inc(1);
@@ -169,6 +176,7 @@ pub(super) fn count_frames_command(
     newton: u32,
     pcg: u32,
     frames: usize,
+    real: Precision,
 ) -> Result<(), Failure> {
     let strategy = crate::report::SweepSetting::strategy_name(strategy)
         .ok_or_else(|| format!("unknown strategy {strategy:?}"))?;
@@ -176,6 +184,7 @@ pub(super) fn count_frames_command(
         strategy,
         newton,
         pcg,
+        precision: real,
     };
     crate::report::page::count_frames(dir, &setting, frames)?;
     Ok(())

@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use clap::{Parser, Subcommand};
 
 use crate::run::{RunOptions, run_scene};
-use crate::scene::Scene;
+use crate::scene::{Precision, Scene};
 
 /// incise: keeps a pre-operative organ model aligned with endoscopic video while the surgeon
 /// cuts (Paulus et al., MICCAI 2015).
@@ -44,6 +44,9 @@ pub enum Command {
         /// pictures and meshes go to OUT/true-cut/).
         #[arg(long, conflicts_with = "video")]
         true_cut: bool,
+        /// The scalar type the core computes in (the host measures in f64 either way).
+        #[arg(long, value_enum, default_value_t = Precision::F64)]
+        real: Precision,
         // --- OpenCV video driver (options present in every build; they need `opencv`) ---
         /// Track this video (KLT) instead of reading the scene's tracks.csv, in one streaming
         /// pass (needs the `opencv` feature).
@@ -81,6 +84,9 @@ pub enum Command {
         /// table: Dice and target error with the detected cut against the true one.
         #[arg(long)]
         true_cut: bool,
+        /// The scalar type the core computes in (the host measures in f64 either way).
+        #[arg(long, value_enum, default_value_t = Precision::F64)]
+        real: Precision,
     },
     /// Write one page (index.html, with its figures as SVG and its data as CSV and JSON) on
     /// the scenes: error against run time over solver settings with the Pareto front and a
@@ -116,6 +122,9 @@ pub enum Command {
         /// Frames to step after frame 0.
         #[arg(long)]
         frames: usize,
+        /// The scalar type the core computes in.
+        #[arg(long, value_enum, default_value_t = Precision::F64)]
+        real: Precision,
     },
     /// Error against run time: run a scene under several solver settings (strategy, Newton
     /// steps, PCG steps) and report Dice, target error and step time for each, as a table and
@@ -273,9 +282,10 @@ pub fn run(cli: Cli) -> i32 {
             json,
             out,
             true_cut,
+            real,
             video: None,
             calibration: _,
-        } => run_command(&scene, json, out, true_cut),
+        } => run_command(&scene, json, out, true_cut, real),
         Command::Run {
             scene,
             json,
@@ -326,7 +336,11 @@ pub fn run(cli: Cli) -> i32 {
             footprint,
             ram_budget_kib,
         } => codegen_command(&scene, &out, frames, footprint, ram_budget_kib),
-        Command::Table { scenes, true_cut } => table_command(&scenes, true_cut),
+        Command::Table {
+            scenes,
+            true_cut,
+            real,
+        } => table_command(&scenes, true_cut, real),
         Command::Sweep { scene, out } => sweep_command(&scene, out.as_deref()),
         Command::Report { scenes, out, quick } => report_command(&scenes, &out, quick),
         Command::CountFrames {
@@ -335,7 +349,8 @@ pub fn run(cli: Cli) -> i32 {
             newton,
             pcg,
             frames,
-        } => count_frames_command(&scene, &strategy, newton, pcg, frames),
+            real,
+        } => count_frames_command(&scene, &strategy, newton, pcg, frames, real),
     };
     match result {
         Ok(()) => 0,

@@ -3,7 +3,7 @@
 //! legend so that it reads on its own.
 
 use image::RgbImage;
-use incise_core::{Camera, Model, Observation};
+use incise_core::{Camera, Observation};
 use nalgebra::Vector3;
 
 use super::{Canvas, Mask, colour};
@@ -18,9 +18,11 @@ pub struct Overlay<'a> {
     pub camera: &'a Camera<f64>,
     /// The video picture, if there is one; otherwise the true silhouette is the background.
     pub picture: Option<&'a RgbImage>,
-    /// The model after the frame.
-    pub model: &'a Model<'a, f64>,
-    /// Its node positions and boundary triangles (copied out of the model by the caller, who
+    /// The model's virtual features projected into the image, pixels.
+    pub virtual_features: &'a [[f64; 2]],
+    /// The detector's separation points of the frame, pixels.
+    pub separation_points: &'a [[f64; 2]],
+    /// The model's node positions and boundary triangles (copied out of the model by the caller, who
     /// also measures with them).
     pub positions: &'a [[f64; 3]],
     /// Boundary triangles of the model.
@@ -69,16 +71,14 @@ pub fn draw(o: &Overlay<'_>) -> Canvas {
     for obs in o.observations {
         canvas.dot(obs.uv, 2.0, colour::FEATURE);
     }
-    for slot in 0..o.model.features().len() {
-        if let Ok(uv) = o.model.projected_feature(slot) {
-            canvas.cross_mark(uv, 1.5, colour::VIRTUAL);
-        }
+    for &uv in o.virtual_features {
+        canvas.cross_mark(uv, 1.5, colour::VIRTUAL);
     }
     if let Some(line) = o.true_cut {
         canvas.polyline(line, colour::TRUE_CUT, 1);
     }
-    for p in o.model.detector().points() {
-        canvas.dot(*p, 1.0, colour::CUT);
+    for &p in o.separation_points {
+        canvas.dot(p, 1.0, colour::CUT);
     }
     canvas.polyline(o.cut_line, colour::CUT, 3);
     for p in o.targets {

@@ -8,11 +8,11 @@ use std::path::Path;
 use image::{RgbImage, imageops};
 use plotters::prelude::*;
 
-use incise_core::Model;
+use incise_core::{Model, Real};
 
 use crate::render::Canvas;
 use crate::run::{FrameRecord, Summary, Trace};
-use crate::scene::SolverSection;
+use crate::scene::{Precision, Scene, SolverSection};
 use crate::vtu;
 
 /// A few lines a person reads after a run.
@@ -286,6 +286,8 @@ pub struct SweepSetting {
     pub newton: u32,
     /// PCG steps per Newton step (`"frozen"`; per later Newton step for `"factor-once"`).
     pub pcg: u32,
+    /// The scalar type the core computes in.
+    pub precision: Precision,
 }
 
 impl SweepSetting {
@@ -303,22 +305,29 @@ impl SweepSetting {
             strategy: Self::strategy_name(&solver.strategy).unwrap_or("refactor"),
             newton: solver.newton_iterations,
             pcg: solver.pcg_iterations,
+            precision: Precision::F64,
         }
     }
 
-    /// Puts this setting into a scene's solver section.
-    pub fn apply(&self, solver: &mut SolverSection) {
+    /// Puts this setting into a scene: its solver section and its precision.
+    pub fn apply(&self, scene: &mut Scene) {
+        let solver = &mut scene.file.solver;
         solver.strategy = self.strategy.to_string();
         solver.newton_iterations = self.newton;
         solver.pcg_iterations = self.pcg;
+        scene.precision = self.precision;
     }
 
     /// A short label.
     pub fn label(&self) -> String {
-        match self.strategy {
+        let label = match self.strategy {
             "frozen" => format!("frozen, {} Newton × {} PCG", self.newton, self.pcg),
             "factor-once" => format!("factor once, {} Newton, {} PCG", self.newton, self.pcg),
             _ => format!("refactor, {} Newton", self.newton),
+        };
+        match self.precision {
+            Precision::F64 => label,
+            Precision::F32 => format!("{label}, f32"),
         }
     }
 }
@@ -332,6 +341,7 @@ pub fn sweep_settings() -> Vec<SweepSetting> {
             strategy: "refactor",
             newton,
             pcg: 10,
+            precision: Precision::F64,
         })
         .collect();
     for newton in 1..=3 {
@@ -340,6 +350,7 @@ pub fn sweep_settings() -> Vec<SweepSetting> {
                 strategy: "frozen",
                 newton,
                 pcg,
+                precision: Precision::F64,
             });
         }
     }
@@ -349,6 +360,7 @@ pub fn sweep_settings() -> Vec<SweepSetting> {
                 strategy: "factor-once",
                 newton,
                 pcg,
+                precision: Precision::F64,
             });
         }
     }
@@ -450,16 +462,22 @@ pub fn plot_sweep(scene: &str, rows: &[(SweepSetting, Summary)], out: &Path) -> 
 ///
 /// # Errors
 /// The I/O error of writing `path`.
-pub fn write_mesh_vtu(path: &Path, model: &Model<'_, f64>) -> std::io::Result<()> {
-    let x = model.positions();
+pub fn write_mesh_vtu<T: Real>(path: &Path, model: &Model<'_, T>) -> std::io::Result<()> {
+    let x: Vec<[f64; 3]> = model.positions().iter().map(|p| p.map(T::to_f64)).collect();
     let disp: Vec<[f64; 3]> = x
         .iter()
         .zip(model.mesh().rest())
-        .map(|(a, b)| [a[0] - b[0], a[1] - b[1], a[2] - b[2]])
+        .map(|(a, b)| {
+            [
+                a[0] - b[0].to_f64(),
+                a[1] - b[1].to_f64(),
+                a[2] - b[2].to_f64(),
+            ]
+        })
         .collect();
     vtu::write_vtu(
         path,
-        x,
+        &x,
         model.mesh().tets(),
         &[("displacement", &disp)],
         &[],

@@ -18,7 +18,7 @@ use std::fmt;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use incise_core::{CutWork, Error as CoreError, Model, Observation};
+use incise_core::{CutWork, Error as CoreError, MeshInput, Model, Observation, Real};
 use indicatif::{ProgressBar, ProgressStyle};
 
 pub use sinks::FrameSink;
@@ -29,7 +29,7 @@ pub use trace::{CutTrace, DetectionTrace, FrameHealth, FrameRecord, FrameWork, S
 
 use crate::render::overlay::{self, Overlay};
 use crate::render::silhouette;
-use crate::scene::{Scene, SceneError};
+use crate::scene::{Precision, Scene, SceneError};
 use crate::storage::{ModelStorage, StorageError};
 use sinks::Outputs;
 use truth::{FrameMeasure, Truth, target_positions};
@@ -117,8 +117,16 @@ pub enum Cutting {
 /// A [`RunError::Scene`] naming `scene.toml` for capacities beyond their bounds or the memory
 /// budget; a [`RunError::Core`] for a mesh the core refuses.
 pub(crate) fn scene_storage(scene: &Scene) -> Result<ModelStorage<f64>, RunError> {
+    scene_storage_for(scene, &scene.mesh_input())
+}
+
+/// [`scene_storage`] for the scene's mesh given in the core's scalar type.
+pub(crate) fn scene_storage_for<T: Real>(
+    scene: &Scene,
+    mesh: &MeshInput<'_, T>,
+) -> Result<ModelStorage<T>, RunError> {
     let toml = scene.dir.join("scene.toml");
-    ModelStorage::new(&scene.mesh_input(), &scene.file.capacities).map_err(|e| match e {
+    ModelStorage::new(mesh, &scene.file.capacities).map_err(|e| match e {
         StorageError::Refused(r) => RunError::Scene(SceneError::new(&toml, 0, r.to_string())),
         StorageError::Core(error) => RunError::Core {
             context: "sizing the model".into(),
@@ -127,25 +135,44 @@ pub(crate) fn scene_storage(scene: &Scene) -> Result<ModelStorage<f64>, RunError
     })
 }
 
-/// The observations of `frame` whose features the model knows: those that missed the model at
-/// frame 0 were never embedded.
-pub(crate) fn known_observations(
-    model: &Model<'_, f64>,
+/// The observations of `frame` whose features the model knows (those that missed the model at
+/// frame 0 were never embedded), in the model's scalar type.
+pub(crate) fn known_observations<T: Real>(
+    model: &Model<'_, T>,
     frame: &[Observation<f64>],
-) -> Vec<Observation<f64>> {
+) -> Vec<Observation<T>> {
     frame
         .iter()
-        .copied()
         .filter(|o| model.features().slot_of(o.id).is_some())
+        .map(cast_observation)
         .collect()
+}
+
+/// An observation in the core's scalar type.
+pub(crate) fn cast_observation<T: Real>(o: &Observation<f64>) -> Observation<T> {
+    Observation {
+        id: o.id,
+        uv: o.uv.map(T::of),
+    }
+}
+
+/// A point in the core's scalar type.
+fn cast_point<T: Real, const N: usize>(p: &[f64; N]) -> [T; N] {
+    p.map(T::of)
+}
+
+/// A point of the core in `f64`.
+pub(crate) fn to_f64<T: Real, const N: usize>(p: &[T; N]) -> [f64; N] {
+    p.map(Real::to_f64)
 }
 
 /// Embeds the internal targets of the ground truth (their frame-0 positions) in `model`,
 /// which carries them from then on (through cuts, each on its own side).
-fn embed_targets(truth: Option<&Truth>, model: &mut Model<'_, f64>) -> Result<(), RunError> {
+fn embed_targets<T: Real>(truth: Option<&Truth>, model: &mut Model<'_, T>) -> Result<(), RunError> {
     if let Some(points) = truth.and_then(Truth::first_targets) {
+        let points: Vec<[T; 3]> = points.iter().map(cast_point).collect();
         model
-            .embed_targets(points)
+            .embed_targets(&points)
             .map_err(core("embedding the internal targets"))?;
     }
     Ok(())
@@ -155,9 +182,9 @@ fn embed_targets(truth: Option<&Truth>, model: &mut Model<'_, f64>) -> Result<()
 ///
 /// # Errors
 /// A [`RunError`] for a ground truth that cannot be read or targets the core refuses.
-pub(crate) fn embed_scene_targets(
+pub(crate) fn embed_scene_targets<T: Real>(
     scene: &Scene,
-    model: &mut Model<'_, f64>,
+    model: &mut Model<'_, T>,
 ) -> Result<(), RunError> {
     embed_targets(Truth::load(scene)?.as_ref(), model)
 }
@@ -220,11 +247,29 @@ pub fn run_with(
     run_pass(scene, source, mode, out, sink, progress)
 }
 
-/// [`run_with`] with the way the mesh is cut spelled out.
+/// [`run_with`] with the way the mesh is cut spelled out, in the scene's
+/// [`Precision`].
 ///
 /// # Errors
 /// As [`run_with`].
 pub fn run_pass(
+    scene: &Scene,
+    source: &mut dyn FrameSource,
+    cutting: Cutting,
+    out: Option<&Path>,
+    sink: Option<&mut dyn FrameSink>,
+    progress: bool,
+) -> Result<Trace, RunError> {
+    match scene.precision {
+        Precision::F64 => run_pass_in::<f64>(scene, source, cutting, out, sink, progress),
+        Precision::F32 => run_pass_in::<f32>(scene, source, cutting, out, sink, progress),
+    }
+}
+
+/// [`run_pass`] with the core in `T`: the scene, the observations and the true targets are
+/// rounded to `T` on their way in, the model's positions widened to `f64` on their way out,
+/// and everything the host measures and draws is `f64`.
+fn run_pass_in<T: Real>(
     scene: &Scene,
     source: &mut dyn FrameSource,
     cutting: Cutting,
@@ -240,17 +285,28 @@ pub fn run_pass(
         .validate()
         .map_err(|e| SceneError::new(&toml, 0, format!("[detection]: {e}")))?;
     let camera = config.camera;
-    let mut storage = scene_storage(scene)?;
+    let config = config.cast::<T>().map_err(core(format!(
+        "the scene's camera in {}",
+        scene.precision.name()
+    )))?;
+    let rest: Vec<[T; 3]> = scene.rest.iter().map(cast_point).collect();
+    let mesh = MeshInput {
+        rest: &rest,
+        tets: &scene.tets,
+        fixed: &scene.file.model.fixed,
+    };
+    let mut storage = scene_storage_for(scene, &mesh)?;
     let model_bytes = storage.bytes();
     let mut model = storage
-        .model(&scene.mesh_input(), &config)
+        .model(&mesh, &config)
         .map_err(core("building the model"))?;
     let rest_silhouette = silhouette(&camera, &scene.rest, model.mesh().surface());
     let first = source
         .next_frame(&rest_silhouette)?
         .ok_or_else(|| RunError::Input("the input holds no frame".into()))?;
+    let frame0: Vec<Observation<T>> = first.observations.iter().map(cast_observation).collect();
     let placed = model
-        .embed_features(&first.observations)
+        .embed_features(&frame0)
         .map_err(core("placing the frame-0 features on the model"))?;
     let truth = Truth::load(scene)?;
     embed_targets(truth.as_ref(), &mut model)?;
@@ -277,17 +333,24 @@ pub fn run_pass(
         {
             pass.cut_along_truth(&mut model, f, t, scene.file.ground_truth.cut_open_frame);
         }
-        let x = model.positions().to_vec();
+        let x: Vec<[f64; 3]> = model.positions().iter().map(to_f64).collect();
         let surface = model.mesh().surface().to_vec();
         pass.read_cut_line(&model, f)?;
         let measure = FrameMeasure::new(scene, truth.as_ref(), f, &camera, &model, (&x, &surface))?;
         if outputs.wants_overlay() {
+            let virtual_features: Vec<[f64; 2]> = (0..model.features().len())
+                .filter_map(|slot| model.projected_feature(slot).ok())
+                .map(|uv| to_f64(&uv))
+                .collect();
+            let separation_points: Vec<[f64; 2]> =
+                model.detector().points().iter().map(to_f64).collect();
             let canvas = overlay::draw(&Overlay {
                 scene: &scene.file.name,
                 frame: f,
                 camera: &camera,
                 picture: frame.image.as_ref(),
-                model: &model,
+                virtual_features: &virtual_features,
+                separation_points: &separation_points,
                 positions: &x,
                 surface: &surface,
                 model_mask: &measure.model_mask,
@@ -332,7 +395,7 @@ pub fn run_pass(
         mesh_final: (model.mesh().n_nodes(), model.mesh().n_tets()),
         embedded: placed.embedded,
         missed: placed.missed,
-        spring_stiffness: model.spring_stiffness(),
+        spring_stiffness: model.spring_stiffness().to_f64(),
         model_bytes,
     })
 }
@@ -347,8 +410,8 @@ struct Pass {
     cuts: CutTrace,
     /// Frames the core refused, with its reason.
     rejected: Vec<(usize, String)>,
-    /// Room for the whole cut line: `cut_vertices` entries.
-    polyline: Vec<[f64; 2]>,
+    /// Room the whole cut line needs: `cut_vertices` entries.
+    cut_vertices: usize,
     /// Dice and target error (metres) of the last frame.
     last: (f64, f64),
     /// Length of the true cut line last cut into the mesh ([`Cutting::AlongTruth`]), pixels.
@@ -363,7 +426,7 @@ impl Pass {
             detection: DetectionTrace::default(),
             cuts: CutTrace::default(),
             rejected: vec![],
-            polyline: vec![[0.0; 2]; cut_vertices.max(1)],
+            cut_vertices: cut_vertices.max(1),
             last: (0.0, 0.0),
             true_cut_px: 0.0,
         }
@@ -371,9 +434,9 @@ impl Pass {
 
     /// Steps the model over frame `f`'s observations (frame 0 only placed the features) and
     /// returns the frame's record, its measures still to fill.
-    fn step(
+    fn step<T: Real>(
         &mut self,
-        model: &mut Model<'_, f64>,
+        model: &mut Model<'_, T>,
         f: usize,
         obs: &[Observation<f64>],
     ) -> FrameRecord {
@@ -425,22 +488,23 @@ impl Pass {
                 });
                 let pivots = model.factor().d_values().map_or((f64::NAN, f64::NAN), |d| {
                     d.iter()
-                        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| {
+                        .map(|v| v.to_f64())
+                        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
                             (lo.min(v), hi.max(v))
                         })
                 });
                 record.health = Some(FrameHealth {
-                    gradient_before: report.gradient_norm_before,
-                    gradient_after: report.gradient_norm_after,
+                    gradient_before: report.gradient_norm_before.to_f64(),
+                    gradient_after: report.gradient_norm_after.to_f64(),
                     pivots,
-                    finite: model.positions().iter().flatten().all(|v| v.is_finite()),
+                    finite: model.positions().iter().flatten().all(|v| v.finite()),
                 });
                 self.cuts.record(f, &report.cut);
                 let d = &mut self.detection;
                 d.pairs = report.detection.pairs;
                 d.pairs_lost = report.detection.pairs_lost;
                 d.features_filtered = report.detection.features_filtered;
-                d.spacing_px = model.detector().spacing();
+                d.spacing_px = model.detector().spacing().to_f64();
                 if d.detected_frame.is_none() {
                     d.detected_frame = report.cut_line.detected_frame.map(|_| f as u32);
                 }
@@ -451,9 +515,9 @@ impl Pass {
 
     /// [`Cutting::AlongTruth`]: after frame `f`'s step, cuts the mesh along the true cut's
     /// straight line if the cut has opened (`open`) and its line is new or has grown by 5 %.
-    fn cut_along_truth(
+    fn cut_along_truth<T: Real>(
         &mut self,
-        model: &mut Model<'_, f64>,
+        model: &mut Model<'_, T>,
         f: usize,
         truth: &Truth,
         open: Option<u32>,
@@ -471,7 +535,7 @@ impl Pass {
         // Extended by a feature spacing, as the core extends a detected line's open ends.
         let extension = model.detector().spacing();
         let report = model
-            .cut_along(&line, extension)
+            .cut_along(&line.map(|p| cast_point(&p)), extension)
             .unwrap_or_else(incise_core::CutReport::refused);
         self.cuts.record(f, &report);
         if report.applied {
@@ -480,12 +544,13 @@ impl Pass {
     }
 
     /// Copies the model's cut line after frame `f` into the detection trace.
-    fn read_cut_line(&mut self, model: &Model<'_, f64>, f: usize) -> Result<(), RunError> {
-        // `polyline` holds `cut_vertices` entries: the whole line always fits.
+    fn read_cut_line<T: Real>(&mut self, model: &Model<'_, T>, f: usize) -> Result<(), RunError> {
+        // `cut_vertices` entries: the whole line always fits.
+        let mut polyline = vec![[T::zero(); 2]; self.cut_vertices];
         let n = model
-            .cut_polyline(&mut self.polyline)
+            .cut_polyline(&mut polyline)
             .map_err(core(format!("frame {f}: cut line")))?;
-        self.detection.polyline = self.polyline[..n].to_vec();
+        self.detection.polyline = polyline[..n].iter().map(to_f64).collect();
         Ok(())
     }
 }

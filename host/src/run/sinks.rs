@@ -5,7 +5,7 @@
 use std::path::Path;
 
 use image::RgbImage;
-use incise_core::Model;
+use incise_core::{Model, Real};
 
 use crate::render::Canvas;
 use crate::report::{write_frames_csv, write_mesh_vtu};
@@ -64,7 +64,7 @@ impl<'d, 's> Outputs<'d, 's> {
     }
 
     /// Writes the model as it is after frame `f` as `mesh_<f>.vtu`.
-    pub(crate) fn mesh(&mut self, f: usize, model: &Model<'_, f64>) -> Result<(), RunError> {
+    pub(crate) fn mesh<T: Real>(&mut self, f: usize, model: &Model<'_, T>) -> Result<(), RunError> {
         if let Some(dir) = self.dir {
             let name = format!("mesh_{f:04}.vtu");
             write_mesh_vtu(&dir.join(&name), model).map_err(output)?;

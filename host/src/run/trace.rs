@@ -4,11 +4,13 @@
 use incise_core::{CutWork, DetectionWork, LineWork, Observation, WorkCount};
 use serde::Serialize;
 
-use crate::scene::Scene;
+use crate::scene::{Precision, Scene};
 
 /// What `incise run --json` prints.
 #[derive(Clone, Debug, Serialize, PartialEq)]
 pub struct Summary {
+    /// The scalar type the core computed in.
+    pub precision: Precision,
     /// Scene name.
     pub scene: String,
     /// Frames, frame 0 included.
@@ -262,6 +264,7 @@ impl Summary {
             pairs: trace.detection.pairs,
             pairs_lost: trace.detection.pairs_lost,
             features_filtered: trace.detection.features_filtered,
+            precision: scene.precision,
             feature_spacing_px: trace.detection.spacing_px,
             spring_stiffness: trace.spring_stiffness,
             cut_detected_frame: trace.detection.detected_frame,

@@ -3,8 +3,9 @@
 
 use std::path::PathBuf;
 
-use incise_core::{Camera, Model};
+use incise_core::{Camera, Model, Real};
 
+use super::to_f64;
 use crate::metrics::{dice, hausdorff_polyline, paired_rms, surface_rms};
 use crate::render::{Mask, silhouette};
 use crate::scene::{Scene, SceneError, Surface, read_cut_csv, read_obj, read_points_csv};
@@ -91,15 +92,15 @@ impl Truth {
 
     /// RMS distance between the true surface and the model's, both ways (true surface points
     /// to the model's boundary, the model's boundary nodes to the true surface), metres.
-    pub(crate) fn surface_distance(&self, model: &Model<'_, f64>) -> f64 {
-        let x = model.positions();
+    pub(crate) fn surface_distance<T: Real>(&self, model: &Model<'_, T>) -> f64 {
+        let x: Vec<[f64; 3]> = model.positions().iter().map(to_f64).collect();
         let surface = model.mesh().surface();
         let (gt_pos, gt_tri) = (&self.surface.positions, &self.surface.triangles);
         let mut surface_nodes: Vec<u32> = surface.iter().flatten().copied().collect();
         surface_nodes.sort_unstable();
         surface_nodes.dedup();
         let model_points: Vec<[f64; 3]> = surface_nodes.iter().map(|&v| x[v as usize]).collect();
-        let a = surface_rms(gt_pos, x, surface);
+        let a = surface_rms(gt_pos, &x, surface);
         let b = surface_rms(&model_points, gt_pos, gt_tri);
         let (na, nb) = (gt_pos.len() as f64, model_points.len() as f64);
         ((a * a * na + b * b * nb) / (na + nb).max(1.0)).sqrt()
@@ -107,9 +108,10 @@ impl Truth {
 }
 
 /// The internal targets where the model carries them, metres.
-pub(crate) fn target_positions(model: &Model<'_, f64>) -> Vec<[f64; 3]> {
+pub(crate) fn target_positions<T: Real>(model: &Model<'_, T>) -> Vec<[f64; 3]> {
     (0..model.n_targets())
         .filter_map(|k| model.target_position(k))
+        .map(|p| to_f64(&p))
         .collect()
 }
 
@@ -129,12 +131,12 @@ pub(crate) struct FrameMeasure {
 
 impl FrameMeasure {
     /// Measures the model (node positions `x`, boundary triangles `surface`) at `frame`.
-    pub(crate) fn new(
+    pub(crate) fn new<T: Real>(
         scene: &Scene,
         truth: Option<&Truth>,
         frame: usize,
         camera: &Camera<f64>,
-        model: &Model<'_, f64>,
+        model: &Model<'_, T>,
         (x, surface): (&[[f64; 3]], &[[u32; 3]]),
     ) -> Result<Self, SceneError> {
         let model_mask = silhouette(camera, x, surface);

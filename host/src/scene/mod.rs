@@ -75,6 +75,8 @@ impl std::error::Error for SceneError {}
 /// A loaded scene.
 #[derive(Clone, Debug)]
 pub struct Scene {
+    /// The scalar type the core runs this scene in (`incise run --real`); `f64` as loaded.
+    pub precision: Precision,
     /// The scene directory.
     pub dir: PathBuf,
     /// `scene.toml` as read.
@@ -85,6 +87,28 @@ pub struct Scene {
     pub tets: Vec<[u32; 4]>,
     /// Tracked features per frame (index 0 is frame 0).
     pub frames: Vec<Vec<Observation<f64>>>,
+}
+
+/// The scalar type the core computes in. The host reads, measures and reports in `f64`
+/// whatever the core runs in: only the model and its inputs are rounded.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Serialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum Precision {
+    /// Single precision: what a vision co-processor with a single-precision unit runs.
+    F32,
+    /// Double precision.
+    #[default]
+    F64,
+}
+
+impl Precision {
+    /// `"f32"` or `"f64"`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Precision::F32 => "f32",
+            Precision::F64 => "f64",
+        }
+    }
 }
 
 fn read_text(path: &Path) -> Result<String, SceneError> {
@@ -236,6 +260,7 @@ impl Scene {
             return Err(SceneError::new(&toml_path, r.line(&text), r.to_string()));
         }
         Ok(Scene {
+            precision: Precision::F64,
             dir: dir.to_path_buf(),
             file,
             rest,

@@ -6,6 +6,7 @@ use std::path::Path;
 
 use super::stability::{self, Status};
 use super::{Report, SceneReport, figures, steady_median};
+use crate::scene::Precision;
 
 /// Writes every file of `report` into `out` (which exists).
 ///
@@ -89,8 +90,8 @@ fn inline_svg(path: &Path) -> Result<String, String> {
 /// largest ratio of a work counter to its formula, and the model's storage.
 pub(super) fn summary_markdown(report: &Report) -> String {
     let mut s = String::from(
-        "| scene | own setting | instructions / frame (M) | Dice | TRE mm | recommended | instructions / frame (M) | Dice | TRE mm | steady max / median | counted / formula (max) | stability cells: converged / not / typed error / failure | cells with TRE > 1.2 × rest | storage KiB |\n\
-         | --- | --- | ---: | ---: | ---: | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n",
+        "| scene | own setting | instructions / frame (M) | Dice | TRE mm | recommended | instructions / frame (M) | Dice | TRE mm | own setting in f32: instructions / frame (M), Dice − f64, TRE − f64 mm | steady max / median | counted / formula (max) | stability cells: converged / not / typed error / failure | cells with TRE > 1.2 × rest | storage KiB |\n\
+         | --- | --- | ---: | ---: | ---: | --- | ---: | ---: | ---: | --- | ---: | ---: | ---: | ---: | ---: |\n",
     );
     let millions = |v: Option<f64>| v.map_or("–".to_string(), |v| format!("{:.1}", v / 1e6));
     for scene in &report.scenes {
@@ -98,6 +99,18 @@ pub(super) fn summary_markdown(report: &Report) -> String {
             continue;
         };
         let rec = scene.recommended.map(|r| &scene.settings[r]);
+        let single = scene
+            .settings
+            .iter()
+            .find(|r| r.precision == Precision::F32)
+            .map_or("–".to_string(), |r| {
+                format!(
+                    "{}, {:+.4}, {:+.3}",
+                    millions(r.instructions_median),
+                    r.dice_final - own.dice_final,
+                    r.tre_mm_final - own.tre_mm_final
+                )
+            });
         let worst = scene
             .worst_case
             .iter()
@@ -126,7 +139,7 @@ pub(super) fn summary_markdown(report: &Report) -> String {
             .count();
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {:.3} | {:.2} | {} | {} | {} | {} | {} | {worst:.3} | {statuses} | {worse} of {} | {:.0} |",
+            "| {} | {} | {} | {:.3} | {:.2} | {} | {} | {} | {} | {single} | {} | {worst:.3} | {statuses} | {worse} of {} | {:.0} |",
             scene.name,
             own.label,
             millions(own.instructions_median),
@@ -236,18 +249,19 @@ fn stability_table(h: &mut String, scene: &SceneReport) {
 
 fn error_vs_cost_csv(report: &Report) -> String {
     let mut s = String::from(
-        "scene,setting,strategy,newton,pcg,own,on_front,recommended,dice_final,dice_mean_after_cut,tre_mm_final,surface_mm_final,ms_median,ms_max,instructions_median,instructions_frames\n",
+        "scene,setting,strategy,newton,pcg,precision,own,on_front,recommended,dice_final,dice_mean_after_cut,tre_mm_final,surface_mm_final,ms_median,ms_max,instructions_median,instructions_frames\n",
     );
     for scene in &report.scenes {
         for (i, r) in scene.settings.iter().enumerate() {
             let _ = writeln!(
                 s,
-                "{},\"{}\",{},{},{},{},{},{},{:.5},{:.5},{:.4},{:.4},{:.4},{:.4},{},{}",
+                "{},\"{}\",{},{},{},{},{},{},{},{:.5},{:.5},{:.4},{:.4},{:.4},{:.4},{},{}",
                 scene.name,
                 r.label,
                 r.strategy,
                 r.newton,
                 r.pcg,
+                r.precision.name(),
                 r.own,
                 scene.front.contains(&i),
                 scene.recommended == Some(i),

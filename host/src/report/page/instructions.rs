@@ -10,8 +10,10 @@
 use std::path::Path;
 use std::process::Command;
 
-use crate::run::{embed_scene_targets, known_observations, scene_storage};
-use crate::scene::Scene;
+use incise_core::{MeshInput, Real};
+
+use crate::run::{cast_observation, embed_scene_targets, known_observations, scene_storage_for};
+use crate::scene::{Precision, Scene};
 
 use super::super::SweepSetting;
 
@@ -38,6 +40,7 @@ pub(super) fn per_frame(
         .args(["--newton", &setting.newton.to_string()])
         .args(["--pcg", &setting.pcg.to_string()])
         .args(["--frames", &frames.to_string()])
+        .args(["--real", setting.precision.name()])
         .output();
     let result = match output {
         Err(e) => Err(format!("valgrind could not be started ({e})")),
@@ -125,17 +128,35 @@ fn read_dumps(dir: &Path) -> Result<Vec<u64>, String> {
 /// A message naming the scene or the frame the core refuses.
 pub fn count_frames(dir: &Path, setting: &SweepSetting, frames: usize) -> Result<(), String> {
     let mut scene = Scene::load(dir).map_err(|e| e.to_string())?;
-    setting.apply(&mut scene.file.solver);
-    let config = scene.model_config().map_err(|e| e.to_string())?;
-    let mut storage = scene_storage(&scene).map_err(|e| e.to_string())?;
+    setting.apply(&mut scene);
+    match setting.precision {
+        Precision::F64 => count_frames_in::<f64>(&scene, frames),
+        Precision::F32 => count_frames_in::<f32>(&scene, frames),
+    }
+}
+
+/// [`count_frames`] with the core in `T`.
+fn count_frames_in<T: Real>(scene: &Scene, frames: usize) -> Result<(), String> {
+    let config = scene
+        .model_config()
+        .map_err(|e| e.to_string())?
+        .cast::<T>()
+        .map_err(|e| e.to_string())?;
+    let rest: Vec<[T; 3]> = scene.rest.iter().map(|p| p.map(T::of)).collect();
+    let mesh = MeshInput {
+        rest: &rest,
+        tets: &scene.tets,
+        fixed: &scene.file.model.fixed,
+    };
+    let mut storage = scene_storage_for(scene, &mesh).map_err(|e| e.to_string())?;
     let mut model = storage
-        .model(&scene.mesh_input(), &config)
+        .model(&mesh, &config)
         .map_err(|e| format!("building the model: {e}"))?;
     let first = scene.frames.first().ok_or("the scene holds no frame")?;
     model
-        .embed_features(first)
+        .embed_features(&first.iter().map(cast_observation).collect::<Vec<_>>())
         .map_err(|e| format!("placing the frame-0 features: {e}"))?;
-    embed_scene_targets(&scene, &mut model).map_err(|e| e.to_string())?;
+    embed_scene_targets(scene, &mut model).map_err(|e| e.to_string())?;
     for frame in scene.frames.iter().skip(1).take(frames) {
         // A refused frame leaves the model as it was; the run goes on, as `incise run` does.
         let _ = model.step(&known_observations(&model, frame));

@@ -21,7 +21,7 @@ use std::path::Path;
 use serde::Serialize;
 
 use crate::run::{FrameWork, RunOptions, Summary, Trace, run_scene, scene_storage};
-use crate::scene::{Scene, SolverSection};
+use crate::scene::{Precision, Scene, SolverSection};
 
 use super::{SweepSetting, sweep_settings};
 
@@ -91,6 +91,8 @@ pub struct SettingResult {
     pub newton: u32,
     /// PCG steps.
     pub pcg: u32,
+    /// The scalar type the core computed in.
+    pub precision: Precision,
     /// The scene's own setting.
     pub own: bool,
     /// Dice of the last frame.
@@ -160,6 +162,7 @@ fn settings_for(solver: &SolverSection, quick: bool) -> Vec<(SweepSetting, bool)
             strategy: "refactor",
             newton: 1,
             pcg: 10,
+            precision: Precision::F64,
         }]
     } else {
         sweep_settings()
@@ -169,7 +172,13 @@ fn settings_for(solver: &SolverSection, quick: bool) -> Vec<(SweepSetting, bool)
             && s.newton == own.newton
             && (s.strategy == "refactor" || s.pcg == own.pcg)
     };
+    // The scene's own setting in single precision too: where `f32` matches `f64`.
+    let single = SweepSetting {
+        precision: Precision::F32,
+        ..own
+    };
     std::iter::once((own, true))
+        .chain(std::iter::once((single, false)))
         .chain(others.into_iter().filter(|s| !same(s)).map(|s| (s, false)))
         .collect()
 }
@@ -236,7 +245,7 @@ pub fn write_report(
         let mut own_counts = vec![];
         for (setting, own) in settings_for(&scene.file.solver, options.quick) {
             let mut s = scene.clone();
-            setting.apply(&mut s.file.solver);
+            setting.apply(&mut s);
             let (summary, trace) = run_scene(&s, &RunOptions::default())
                 .map_err(|e| format!("{name}, {}: {e}", setting.label()))?;
             let counts = if counting {
@@ -320,6 +329,7 @@ fn setting_result(
         strategy: setting.strategy,
         newton: setting.newton,
         pcg: setting.pcg,
+        precision: setting.precision,
         own,
         dice_final: summary.dice_final,
         dice_mean_after_cut: summary.dice_mean_after_cut,
