@@ -83,3 +83,37 @@ fn a_closed_output_pipe_ends_quietly() {
     assert!(!stderr.contains("panicked"), "{stderr}");
     assert!(!stderr.contains("Broken pipe"), "{stderr}");
 }
+
+/// `incise instructions`: one CSV line per frame with callgrind's count, or, without
+/// valgrind, a clear refusal.
+#[test]
+fn instructions_counts_every_frame_or_says_why_not() {
+    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/../fixtures/band-side-cut");
+    let output = incise()
+        .args(["instructions", scene, "--frames", "8", "--real", "f32"])
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    if Command::new("valgrind").arg("--version").output().is_err() {
+        assert_eq!(output.status.code(), Some(1), "{stderr}");
+        assert!(stderr.contains("valgrind"), "{stderr}");
+        return;
+    }
+    assert!(output.status.success(), "{stderr}");
+    let lines: Vec<&str> = stdout.lines().collect();
+    assert_eq!(lines[0], "frame,instructions,cut_event");
+    assert_eq!(lines.len(), 9, "{stdout}");
+    for (k, line) in lines[1..].iter().enumerate() {
+        let fields: Vec<&str> = line.split(',').collect();
+        assert_eq!(fields[0], (k + 1).to_string());
+        let count: u64 = fields[1].parse().unwrap();
+        assert!(count > 1_000_000, "{line}");
+        assert!(["true", "false"].contains(&fields[2]), "{line}");
+    }
+    // band-side-cut's line is detected and the mesh cut at frame 7.
+    assert_eq!(
+        lines[7],
+        format!("7,{},true", lines[7].split(',').nth(1).unwrap())
+    );
+}

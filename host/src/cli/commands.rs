@@ -458,3 +458,26 @@ pub(super) fn track_command(
 }
 
 // --- end OpenCV video driver ---
+
+pub(super) fn instructions_command(
+    dir: &Path,
+    frames: Option<usize>,
+    real: Precision,
+) -> Result<(), Failure> {
+    let mut scene = Scene::load(dir).map_err(|e| e.to_string())?;
+    scene.precision = real;
+    let setting = crate::report::SweepSetting {
+        precision: real,
+        ..crate::report::SweepSetting::of(&scene.file.solver)
+    };
+    let frames = frames.unwrap_or(usize::MAX);
+    let counts = crate::report::page::instructions_per_frame(dir, &setting, frames)?;
+    // Which frames cut the mesh: the same run, by the host.
+    let trace = crate::run::run_once(&scene, true, None, false).map_err(|e| e.to_string())?;
+    outln!("frame,instructions,cut_event")?;
+    for (k, count) in counts.iter().enumerate() {
+        let f = k + 1;
+        outln!("{f},{count},{}", trace.cuts.frames.contains(&f))?;
+    }
+    Ok(())
+}

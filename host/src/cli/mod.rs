@@ -126,6 +126,19 @@ pub enum Command {
         #[arg(long, value_enum, default_value_t = Precision::F64)]
         real: Precision,
     },
+    /// Count the instructions of every frame of a scene with callgrind (needs valgrind), with
+    /// the scene's own solver setting: one CSV line per frame (frame, instructions, whether it
+    /// cut the mesh). Deterministic: the numbers a worst-case timing test can assert.
+    Instructions {
+        /// The scene directory.
+        scene: PathBuf,
+        /// Frames to count after frame 0 (all by default).
+        #[arg(long)]
+        frames: Option<usize>,
+        /// The scalar type the core computes in.
+        #[arg(long, value_enum, default_value_t = Precision::F64)]
+        real: Precision,
+    },
     /// Error against run time: run a scene under several solver settings (strategy, Newton
     /// steps, PCG steps) and report Dice, target error and step time for each, as a table and
     /// as plots (`--out DIR`: error_vs_time.svg).
@@ -342,6 +355,11 @@ pub fn run(cli: Cli) -> i32 {
             real,
         } => table_command(&scenes, true_cut, real),
         Command::Sweep { scene, out } => sweep_command(&scene, out.as_deref()),
+        Command::Instructions {
+            scene,
+            frames,
+            real,
+        } => instructions_command(&scene, frames, real),
         Command::Report { scenes, out, quick } => report_command(&scenes, &out, quick),
         Command::CountFrames {
             scene,

@@ -21,7 +21,7 @@ use super::super::SweepSetting;
 ///
 /// # Errors
 /// A message if valgrind is missing or the counted run fails.
-pub(super) fn per_frame(
+pub fn per_frame(
     scene_dir: &Path,
     setting: &SweepSetting,
     frames: usize,

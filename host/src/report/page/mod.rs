@@ -25,7 +25,7 @@ use crate::scene::{Precision, Scene, SolverSection};
 
 use super::{SweepSetting, sweep_settings};
 
-pub use instructions::count_frames;
+pub use instructions::{count_frames, per_frame as instructions_per_frame};
 
 /// What `incise report` does.
 #[derive(Clone, Copy, Debug)]
