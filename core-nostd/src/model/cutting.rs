@@ -182,9 +182,9 @@ impl<'a, T: Real> Model<'a, T> {
         )?;
         // Everything succeeded: the new topology goes into service with its factor.
         core::mem::swap(&mut self.live, &mut self.spare);
-        self.holds = match self.config.solver.strategy {
-            Strategy::Frozen { .. } => FactorHolds::Frozen,
-            Strategy::Refactor | Strategy::FactorOnce { .. } => FactorHolds::Step,
+        self.factored = match self.config.solver.strategy {
+            Strategy::Frozen { .. } => FactoredMatrix::Frozen,
+            Strategy::Refactor | Strategy::FactorOnce { .. } => FactoredMatrix::Step,
         };
         report.applied = true;
         report.work = work;

@@ -64,7 +64,7 @@ impl<T: Real> Model<'_, T> {
     pub fn embed_features(&mut self, frame0: &[Observation<T>]) -> Result<EmbedReport, Error> {
         self.saved.features.copy_from(&self.features);
         self.saved.embedding.copy_from(&self.live.features);
-        let holds = self.holds;
+        let factored = self.factored;
         let spring_stiffness = self.spring_stiffness;
         self.factor.checkpoint();
         match self.embed_features_uncommitted(frame0) {
@@ -75,7 +75,7 @@ impl<T: Real> Model<'_, T> {
             Err(e) => {
                 self.features.copy_from(&self.saved.features);
                 self.live.features.copy_from(&self.saved.embedding);
-                self.holds = holds;
+                self.factored = factored;
                 self.spring_stiffness = spring_stiffness;
                 self.factor.rollback();
                 Err(e)
@@ -114,7 +114,7 @@ impl<T: Real> Model<'_, T> {
         }
         // The frozen factor is part of setting up, not of the first frame, so that every frame
         // costs the same.
-        self.holds = FactorHolds::Nothing;
+        self.factored = FactoredMatrix::Nothing;
         if cfg!(feature = "frozen")
             && let Strategy::Frozen { .. } = self.config.solver.strategy
         {

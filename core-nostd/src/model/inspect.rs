@@ -130,7 +130,7 @@ impl<'a, T: Real> Model<'a, T> {
             Strategy::FactorOnce { pcg_iterations } => [2, pcg_iterations],
         };
         h.words(strategy.iter());
-        h.words(core::iter::once(&(self.holds as u32)));
+        h.words(core::iter::once(&(self.factored as u32)));
         #[cfg(feature = "detect")]
         {
             self.cut.detector.fingerprint_into(&mut h);

@@ -91,9 +91,10 @@ impl<T: Real> ModelConfig<T> {
     }
 }
 
-/// Which matrix the factor in service holds.
+/// Which matrix the factor in service is a factorization of.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(crate) enum FactorHolds {
+pub(crate) enum FactoredMatrix {
+    /// None yet (before the features are embedded, or after they were embedded again).
     Nothing,
     /// The frozen matrix of [`Strategy::Frozen`].
     Frozen,
@@ -177,7 +178,8 @@ pub struct Model<'a, T: Real> {
     pub(crate) spare: Discretization<'a, T>,
     pub(crate) hessian: &'a mut [T],
     pub(crate) factor: LdlFactor<'a, T>,
-    pub(crate) holds: FactorHolds,
+    /// Which matrix `factor` is a factorization of.
+    pub(crate) factored: FactoredMatrix,
     /// The springs' `k`, J/px²: given, or derived from the scene when the features are
     /// embedded ([`crate::Coupling`]).
     pub(crate) spring_stiffness: T,
@@ -340,7 +342,7 @@ impl<'a, T: Real> Model<'a, T> {
             spare,
             hessian,
             factor,
-            holds: FactorHolds::Nothing,
+            factored: FactoredMatrix::Nothing,
             spring_stiffness: match config.solver.coupling {
                 Coupling::Stiffness(k) => k,
                 // Set when the features are embedded; no spring acts before.
@@ -501,7 +503,7 @@ impl<'a, T: Real> Model<'a, T> {
         let live = &mut self.live;
         self.saved.previous[..n_nodes].copy_from_slice(&live.previous[..n_nodes]);
         live.previous[..n_nodes].copy_from_slice(&live.x[..n_nodes]);
-        let holds = self.holds;
+        let factored = self.factored;
         self.factor.checkpoint();
         let mut report = match self.solve_frame() {
             Ok(report) => {
@@ -513,7 +515,7 @@ impl<'a, T: Real> Model<'a, T> {
                 live.x[..n_nodes].copy_from_slice(&live.previous[..n_nodes]);
                 live.previous[..n_nodes].copy_from_slice(&self.saved.previous[..n_nodes]);
                 self.features.copy_from(&self.saved.features);
-                self.holds = holds;
+                self.factored = factored;
                 self.factor.rollback();
                 return Err(e);
             }

@@ -34,8 +34,8 @@ pub(crate) struct Problem<'p, 'a, T: Real> {
     pub damping: &'p [T],
     /// Depth-prior weight per node.
     pub depth_weight: &'p [T],
-    /// Positions of the previous frame (damping anchor).
-    pub anchor: &'p [[T; 3]],
+    /// Positions of the previous frame, which the damping pulls toward.
+    pub previous: &'p [[T; 3]],
     /// Per tetrahedron, per node pair ([`PAIRS`]) and column, the position in the pattern's
     /// value array of the block's first row; [`NONE`] when a node of the pair is fixed.
     pub scatter: &'p [[u32; 30]],
@@ -172,8 +172,8 @@ impl<T: Real> Problem<'_, '_, T> {
 
     fn damping_energy(&self, x: &[[T; 3]]) -> T {
         let mut sum = T::zero();
-        // `x`, the weights and the anchor hold at least the `n_nodes()` nodes.
-        let nodes = self.damping.iter().zip(x).zip(self.anchor);
+        // `x`, the weights and the previous positions hold at least the `n_nodes()` nodes.
+        let nodes = self.damping.iter().zip(x).zip(self.previous);
         for ((&c, p), q) in nodes.take(self.mesh.n_nodes()) {
             let d = vec3(p) - vec3(q);
             sum += T::of(0.5) * c * d.norm_squared();
@@ -292,18 +292,18 @@ impl<T: Real> Problem<'_, '_, T> {
         }
 
         // Damping toward the previous frame. `free` has the `n_nodes()` entries of the mesh,
-        // and `x`, the weights, the anchor and the rest positions at least as many. The pattern
+        // and `x`, the weights, the previous and the rest positions at least as many. The pattern
         // was built for these free nodes and its invariants ([`UpperCsc::new`]) end every
         // column with its diagonal, so no entry below falls outside `col_ptr` or `h`.
         let nodes = free
             .iter()
             .zip(self.damping.iter().zip(self.depth_weight))
-            .zip(x.iter().zip(self.anchor).zip(self.mesh.rest()));
-        for ((&f, (&c, &r)), ((p, p_anchor), p_rest)) in nodes {
+            .zip(x.iter().zip(self.previous).zip(self.mesh.rest()));
+        for ((&f, (&c, &r)), ((p, p_previous), p_rest)) in nodes {
             if f == NONE {
                 continue;
             }
-            let d = vec3(p) - vec3(p_anchor);
+            let d = vec3(p) - vec3(p_previous);
             e.damping += T::of(0.5) * c * d.norm_squared();
             add_gradient(grad, f, &(d * c));
             force_sum += (d * c).abs().sum();

@@ -19,7 +19,7 @@ use crate::error::{Error, Parameter};
 use crate::features::Features;
 use crate::material::Lame;
 use crate::model::discretization::Discretization;
-use crate::model::{FactorHolds, Model, ModelConfig, SolveVectors, StepReport};
+use crate::model::{FactoredMatrix, Model, ModelConfig, SolveVectors, StepReport};
 use crate::real::Real;
 use crate::solve::{Energies, Problem, Strategy, WorkCount, dot};
 use crate::sparse::{LdlFactor, NONE, sym_matvec};
@@ -33,7 +33,7 @@ impl<'a, T: Real> Model<'a, T> {
 
         if cfg!(feature = "frozen")
             && let Strategy::Frozen { .. } = self.config.solver.strategy
-            && self.holds != FactorHolds::Frozen
+            && self.factored != FactoredMatrix::Frozen
         {
             // Only after a switch of strategy: a one-off cost, counted in this frame's work.
             self.prepare_frozen(&mut work)?;
@@ -136,7 +136,7 @@ impl<'a, T: Real> Model<'a, T> {
     fn refactor_and_solve(&mut self, work: &mut WorkCount) -> Result<(), Error> {
         let n = self.n_unknowns();
         self.factorize(work)?;
-        self.holds = FactorHolds::Step;
+        self.factored = FactoredMatrix::Step;
         let v = &mut self.vectors;
         for (s, &g) in v.step[..n].iter_mut().zip(&v.gradient[..n]) {
             *s = -g;
@@ -155,7 +155,7 @@ impl<'a, T: Real> Model<'a, T> {
     pub(crate) fn prepare_frozen(&mut self, work: &mut WorkCount) -> Result<(), Error> {
         self.assemble(true, work)?;
         self.factorize(work)?;
-        self.holds = FactorHolds::Frozen;
+        self.factored = FactoredMatrix::Frozen;
         Ok(())
     }
 
@@ -331,7 +331,7 @@ pub(crate) fn problem_of<'p, 'a, T: Real>(
         spring_stiffness,
         damping: &d.damping[..n],
         depth_weight: &d.depth_weight[..n],
-        anchor: &d.previous[..n],
+        previous: &d.previous[..n],
         scatter: &d.scatter[..d.mesh.n_tets()],
         col_ptr: &d.col_ptr[..d.n_unknowns() + 1],
     }

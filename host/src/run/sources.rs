@@ -6,12 +6,14 @@
 use std::path::Path;
 
 use image::RgbImage;
-use incise_core::Observation;
+use incise_core::mesh::{Mesh, MeshCapacity};
+use incise_core::storage::Slab;
+use incise_core::{Observation, Resource};
 
 #[cfg(feature = "opencv")]
 use crate::calibration::Calibration;
 use crate::render::{Mask, silhouette};
-use crate::run::{RunError, core, scene_storage};
+use crate::run::{RunError, core};
 use crate::scene::Scene;
 #[cfg(feature = "opencv")]
 use crate::track::{TrackError, Tracker, TrackerConfig};
@@ -209,16 +211,21 @@ impl FrameSource for VideoFrames {
 /// # Errors
 /// A [`RunError`] for a camera or mesh the core refuses.
 pub fn rest_silhouette(scene: &Scene) -> Result<Mask, RunError> {
-    let mut config = scene.model_config()?;
-    config.detection.enabled = false;
-    // The model exactly as a run builds it, for its checked mesh and boundary surface.
-    let mut storage = scene_storage(scene)?;
-    let model = storage
-        .model(&scene.mesh_input(), &config)
-        .map_err(core("building the model"))?;
-    Ok(silhouette(
-        &config.camera,
-        &scene.rest,
-        model.mesh().surface(),
-    ))
+    let config = scene.model_config()?;
+    // The core's own mesh, checked and with its boundary surface, as a run loads it: the
+    // mesh alone, not a whole model with its factor.
+    let input = scene.mesh_input();
+    let capacity = MeshCapacity::exact(&input);
+    let mut reals = vec![0.0; capacity.real_len()];
+    let mut indices = vec![0; capacity.index_len()];
+    let mut work = vec![0; capacity.work_len()];
+    let mesh = Mesh::new(
+        &input,
+        &capacity,
+        &mut Slab::new(&mut reals, Resource::Nodes),
+        &mut Slab::new(&mut indices, Resource::Nodes),
+        &mut work,
+    )
+    .map_err(core("loading the model's mesh"))?;
+    Ok(silhouette(&config.camera, &scene.rest, mesh.surface()))
 }

@@ -15,7 +15,6 @@ const OUTLIER: u32 = 1 << 10;
 
 const HAS_PREVIOUS: u32 = 1;
 const FILTERED: u32 = 2;
-const OBSERVED: u32 = 4;
 
 /// Cells of the spatial grid that finds neighbours at frame 0.
 pub const GRID_CELLS: usize = 4096;
@@ -59,11 +58,11 @@ pub struct Detector<'a, T> {
     features_filtered: usize,
 }
 
-/// Whether feature `f` is observed and not filtered out (`state` holds one word per slot).
-fn usable(state: &[u32], f: u32) -> bool {
-    state
-        .get(f as usize)
-        .is_some_and(|&s| s & (OBSERVED | FILTERED) == OBSERVED)
+/// Whether feature `f` is observed this frame (`observed`, the features' own flags: the
+/// detector keeps no copy of them) and not filtered out (`state`, one word per slot).
+fn usable(state: &[u32], observed: &[u32], f: u32) -> bool {
+    observed.get(f as usize).is_some_and(|&o| o != 0)
+        && state.get(f as usize).is_some_and(|&s| s & FILTERED == 0)
 }
 
 /// Turns the per-cell counts `start[0..=cells]` (with `start[0] == 0`) into the end of
@@ -430,7 +429,8 @@ impl<'a, T: Real> Detector<'a, T> {
             .min(self.incident_start.len().saturating_sub(1));
         let mut work = DetectionWork::default();
         let newly_filtered = self.temporal_filter(d, observed, n, config, &mut work);
-        let (active, median, deviation) = self.measure_pairs(newly_filtered, targets, n, &mut work);
+        let (active, median, deviation) =
+            self.measure_pairs(newly_filtered, observed, targets, n, &mut work);
         let outliers = self.classify_pairs(median, deviation, targets, n, config, &mut work);
         let split = self.separation_points(frame, targets, config, &mut work);
         DetectionReport {

@@ -19,18 +19,18 @@ impl<'a, T: Real> Detector<'a, T> {
         // The first `n` slots of every buffer (`n` is at most each one's length, and the
         // per-feature buffers all hold the same number of slots; `scratch` at least as
         // many): the zips below stop at `n`.
-        let eligible = OBSERVED | HAS_PREVIOUS;
+        // Observed this frame, seen in an earlier one and not filtered out.
+        let eligible = |s: u32, o: u32| o != 0 && s & (HAS_PREVIOUS | FILTERED) == HAS_PREVIOUS;
         let mut count = 0usize;
         let slots = self
             .feature_state
-            .iter_mut()
+            .iter()
             .zip(observed)
             .zip(d.iter().zip(self.current.iter_mut()))
             .zip(self.previous.iter());
-        for (((s, &o), (&di, current)), &previous) in slots.take(n) {
-            *s = (*s & !OBSERVED) | if o != 0 { OBSERVED } else { 0 };
+        for (((&s, &o), (&di, current)), &previous) in slots.take(n) {
             *current = di;
-            if *s & (eligible | FILTERED) == eligible
+            if eligible(s, o)
                 && let Some(slot) = self.scratch.get_mut(count)
             {
                 *slot = norm(di, previous);
@@ -49,10 +49,10 @@ impl<'a, T: Real> Detector<'a, T> {
             let slots = self
                 .feature_state
                 .iter_mut()
-                .zip(d)
-                .zip(self.previous.iter());
-            for ((s, &di), &previous) in slots.take(n) {
-                if *s & (eligible | FILTERED) == eligible && norm(di, previous) > limit {
+                .zip(observed)
+                .zip(d.iter().zip(self.previous.iter()));
+            for ((s, &o), (&di, &previous)) in slots.take(n) {
+                if eligible(*s, o) && norm(di, previous) > limit {
                     *s |= FILTERED;
                     self.features_filtered += 1;
                     newly_filtered = true;
@@ -62,10 +62,10 @@ impl<'a, T: Real> Detector<'a, T> {
         let slots = self
             .feature_state
             .iter_mut()
-            .zip(d)
-            .zip(self.previous.iter_mut());
-        for ((s, &di), previous) in slots.take(n) {
-            if *s & OBSERVED != 0 {
+            .zip(observed)
+            .zip(d.iter().zip(self.previous.iter_mut()));
+        for ((s, &o), (&di, previous)) in slots.take(n) {
+            if o != 0 {
                 *previous = di;
                 *s |= HAS_PREVIOUS;
             }
@@ -82,6 +82,7 @@ impl<'a, T: Real> Detector<'a, T> {
     pub(super) fn measure_pairs(
         &mut self,
         newly_filtered: bool,
+        observed: &[u32],
         targets: &[[T; 2]],
         n: usize,
         work: &mut DetectionWork,
@@ -109,8 +110,8 @@ impl<'a, T: Real> Detector<'a, T> {
                 self.pairs_lost += 1;
             }
             let measured = if *state & DROPPED == 0
-                && usable(feature_state, i)
-                && usable(feature_state, j)
+                && usable(feature_state, observed, i)
+                && usable(feature_state, observed, j)
                 && (i as usize) < n
                 && (j as usize) < n
             {
