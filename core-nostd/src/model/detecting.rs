@@ -17,9 +17,12 @@ impl<'a, T: Real> Model<'a, T> {
         )
     }
 
-    /// Stage 3: the residuals of the frame and the detector.
-    pub(super) fn detect(&mut self) -> DetectionReport<T> {
+    /// Stage 3: the residuals of the frame and the detector. Also returns how many observed
+    /// features it found unobservable (their virtual point cannot be projected) and marked
+    /// unobserved for the frame.
+    pub(super) fn detect(&mut self) -> (DetectionReport<T>, usize) {
         let n = self.features.len();
+        let mut unobservable = 0;
         for slot in 0..n {
             let t = self.features.targets()[slot];
             self.cut.residuals[slot] = match self.projected_feature(slot) {
@@ -27,18 +30,22 @@ impl<'a, T: Real> Model<'a, T> {
                 Err(_) => {
                     // A feature whose virtual point cannot be projected is unobserved in this
                     // frame: its residual has no meaning and the detector must not read it.
+                    if self.features.active().get(slot).is_some_and(|&a| a != 0) {
+                        unobservable += 1;
+                    }
                     self.features.set_unobserved(slot);
                     [T::zero(); 2]
                 }
             };
         }
-        self.cut.detector.update(
+        let report = self.cut.detector.update(
             self.frame,
             &self.cut.residuals[..n],
             self.features.active(),
             self.features.targets(),
             &self.config.detection,
-        )
+        );
+        (report, unobservable)
     }
 
     /// Stage 4: the cut line starts or advances. Where the mesh is already cut, the model

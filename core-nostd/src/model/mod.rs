@@ -107,7 +107,8 @@ pub(crate) enum FactoredMatrix {
 pub struct StepReport<T> {
     /// Frame number (0 for the first step).
     pub frame: u32,
-    /// Features observed in this frame.
+    /// Features observed in this frame (less those the detection found unobservable: a
+    /// virtual point that cannot be projected).
     pub observed: usize,
     /// Energies at the start of the step (new observations, previous positions).
     pub energy_before: Energies<T>,
@@ -525,7 +526,9 @@ impl<'a, T: Real> Model<'a, T> {
         report.observed = observed;
         #[cfg(feature = "detect")]
         if self.config.detection.enabled {
-            report.detection = self.detect();
+            let (detection, unobservable) = self.detect();
+            report.detection = detection;
+            report.observed = report.observed.saturating_sub(unobservable);
             report.cut_line = self.grow_cut_line();
             #[cfg(feature = "cut")]
             {
