@@ -283,6 +283,25 @@ impl<'a, T: Real> Features<'a, T> {
 }
 
 /// Copies the first `n` entries of `from` into `to` (as many as both hold).
+/// The bounding box `(lowest, highest)` of image points, pixels; `None` for no point.
+pub(crate) fn image_bounds<T: Real>(uv: &[[T; 2]]) -> Option<([T; 2], [T; 2])> {
+    let (&first, rest) = uv.split_first()?;
+    let (mut lo, mut hi) = (first, first);
+    for p in rest {
+        for ((l, h), &c) in lo.iter_mut().zip(hi.iter_mut()).zip(p) {
+            *l = l.min(c);
+            *h = h.max(c);
+        }
+    }
+    Some((lo, hi))
+}
+
+/// The feature spacing of `n` features spread over a bounding box `w × h` pixels:
+/// `√(w h / n)`, the box's area taken as at least one pixel.
+pub(crate) fn spacing_px<T: Real>(w: T, h: T, n: usize) -> T {
+    ((w * h).max(T::one()) / T::of(n as f64)).sqrt()
+}
+
 fn copy_prefix<X: Copy>(to: &mut [X], from: &[X], n: usize) {
     for (a, b) in to.iter_mut().zip(from).take(n) {
         *a = *b;

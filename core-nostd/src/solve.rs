@@ -36,7 +36,7 @@ mod newton;
 pub(crate) use assembly::{Problem, build_scatter};
 pub(crate) use newton::problem_of;
 #[cfg(feature = "cut")]
-pub(crate) use newton::{Coefficients, assemble_on, factorize_on};
+pub(crate) use newton::{assemble_on, factorize_on};
 
 use crate::error::{Error, Parameter};
 use crate::real::Real;

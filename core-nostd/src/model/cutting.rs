@@ -124,6 +124,7 @@ impl<'a, T: Real> Model<'a, T> {
         spacing: T,
     ) -> Result<CutReport, Error> {
         self.spare.copy_state_from(&self.live);
+        let coefficients = self.coefficients();
         let spare = &mut self.spare;
         let mut event = CutEvent::default();
         for part in parts.into_iter().flatten() {
@@ -164,10 +165,7 @@ impl<'a, T: Real> Model<'a, T> {
         assemble_on(
             spare,
             &self.features,
-            Coefficients {
-                lame: self.lame,
-                spring_stiffness: self.spring_stiffness,
-            },
+            coefficients,
             &self.config,
             &mut self.vectors.gradient[..],
             Some(&mut self.hessian[..]),

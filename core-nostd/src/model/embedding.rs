@@ -162,20 +162,9 @@ impl<T: Real> Model<'_, T> {
             return coupling.stiffness(k, T::one(), T::one());
         }
         let n = self.features.len();
-        let targets = self.features.targets();
-        let Some(&first) = targets.first() else {
-            return Err(Error::NoFeatures);
-        };
-        let (mut lo, mut hi) = (first, first);
-        for p in targets.iter().take(n) {
-            for ((l, h), &c) in lo.iter_mut().zip(hi.iter_mut()).zip(p) {
-                *l = l.min(c);
-                *h = h.max(c);
-            }
-        }
-        let [w, h] = [hi[0] - lo[0], hi[1] - lo[1]];
+        let (lo, hi) = image_bounds(self.features.targets()).ok_or(Error::NoFeatures)?;
         // The detector's spacing (`Detector::spacing`), so both speak of the same length.
-        let spacing = ((w * h).max(T::one()) / T::of(n as f64)).sqrt();
+        let spacing = spacing_px(hi[0] - lo[0], hi[1] - lo[1], n);
         let x = &self.live.x[..self.live.mesh.n_nodes()];
         let mut scale_sum = T::zero();
         for slot in 0..n {

@@ -38,13 +38,13 @@ use crate::detect::DetectionConfig;
 use crate::detect::{DetectionReport, DetectionWork, Detector};
 use crate::embed::{Embedding, interpolate, locate_at_rest};
 use crate::error::{Error, Resource};
-use crate::features::{EmbedReport, Features, Observation};
+use crate::features::{EmbedReport, Features, Observation, image_bounds, spacing_px};
 use crate::material::Lame;
 use crate::mesh::{Mesh, MeshInput};
 use crate::real::Real;
-#[cfg(feature = "cut")]
-use crate::solve::{Coefficients, assemble_on, factorize_on};
 use crate::solve::{Coupling, Energies, SolverConfig, Strategy, WorkCount, problem_of};
+#[cfg(feature = "cut")]
+use crate::solve::{assemble_on, factorize_on};
 use crate::sparse::{LdlFactor, NONE, PrecomputedAnalysis, Symbolic, UpperCsc};
 use crate::storage::{Fingerprint, Slab, ensure_exact_len, ensure_len};
 

@@ -3,6 +3,7 @@
 
 use super::{DetectionConfig, DetectionReport, DetectionWork};
 use crate::error::{Error, Resource};
+use crate::features::{image_bounds, spacing_px};
 use crate::real::Real;
 use crate::robust::{MAD_TO_SIGMA, median_mad, quantile_sorted, sort};
 use crate::storage::{Slab, sum, times};
@@ -251,23 +252,15 @@ impl<'a, T: Real> Detector<'a, T> {
                 available: slots,
             });
         }
-        let Some(&first) = uv.first() else {
+        let Some((lo, hi)) = image_bounds(uv) else {
             self.n_pairs = 0;
             self.n_points = 0;
             self.pairs_lost = 0;
             self.features_filtered = 0;
             return Ok(());
         };
-        let (mut lo, mut hi) = (first, first);
-        for p in uv {
-            for ((l, h), &c) in lo.iter_mut().zip(hi.iter_mut()).zip(p) {
-                *l = l.min(c);
-                *h = h.max(c);
-            }
-        }
         let (w, h) = (hi[0] - lo[0], hi[1] - lo[1]);
-        let area = (w * h).max(T::one());
-        let spacing = (area / T::of(n as f64)).sqrt();
+        let spacing = spacing_px(w, h, n);
         let r = if config.radius_px > T::zero() {
             config.radius_px
         } else {
