@@ -77,17 +77,10 @@ fn every_cut_event_keeps_the_mesh_valid_and_everything_on_its_side() {
         let (mut events, mut sides) = (0, 0);
         for (f, frame) in scene.frames.iter().enumerate().skip(1) {
             let report = model.step(&known(&model, frame)).unwrap();
-            // A refused event leaves the model as it was (tests/cut.rs's overflow test checks
-            // that bit for bit); only a cut that would leave a non-manifold surface may be
-            // refused here: an extension of the liver's line that ends inside a tetrahedron's
-            // face fan is (noted in the README).
-            if let Some(refused) = report.cut.refused {
-                assert!(
-                    matches!(refused, incise_core::Error::NonManifold { .. }),
-                    "{name} frame {f}: {refused:?}"
-                );
-                eprintln!("{name}: cut at frame {f} refused: {refused:?}");
-            }
+            // A refused event leaves the model as it was (the overflow test below checks that
+            // bit for bit), but on the committed scenes none may be refused: a cut whose
+            // separation would leave a non-manifold boundary keeps those faces joined instead.
+            assert_eq!(report.cut.refused, None, "{name} frame {f}");
             if !report.cut.applied {
                 continue;
             }

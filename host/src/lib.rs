@@ -38,6 +38,8 @@
 //! - `video`, `track` (the `opencv` feature): video input and output, and KLT tracking.
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
+// Every fallible public function says what it returns on error.
+#![warn(clippy::missing_errors_doc)]
 // Geometry and image loops index several arrays with one variable; `!(x > 0.0)` is meant to
 // be true for NaN.
 #![allow(clippy::needless_range_loop, clippy::neg_cmp_op_on_partial_ord)]

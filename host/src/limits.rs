@@ -109,6 +109,9 @@ impl fmt::Display for Refusal {
 impl std::error::Error for Refusal {}
 
 /// Refuses `value` of `section.key` outside `lo..=hi`.
+///
+/// # Errors
+/// A [`Refusal`] naming `section.key` when `value` lies outside the range.
 pub fn within(
     section: &'static str,
     key: &'static str,
@@ -143,6 +146,9 @@ pub fn image_size(width: u32, height: u32) -> Result<(), Refusal> {
 }
 
 /// Refuses `value` of `section.key` unless finite and within `lo..=hi`.
+///
+/// # Errors
+/// A [`Refusal`] naming `section.key` when `value` is not finite or lies outside the range.
 pub fn within_f64(
     section: &'static str,
     key: &'static str,
@@ -162,6 +168,9 @@ pub fn within_f64(
 }
 
 /// Refuses `value` of `section.key` unless finite and positive.
+///
+/// # Errors
+/// A [`Refusal`] naming `section.key` when `value` is zero, negative or not finite.
 pub fn positive(section: &'static str, key: &'static str, value: f64) -> Result<(), Refusal> {
     if value.is_finite() && value > 0.0 {
         Ok(())
@@ -175,6 +184,9 @@ pub fn positive(section: &'static str, key: &'static str, value: f64) -> Result<
 }
 
 /// Refuses a Poisson ratio outside `(-1, 0.5)`.
+///
+/// # Errors
+/// A [`Refusal`] naming `section.key` when `value` lies outside `(-1, 0.5)` or is NaN.
 pub fn poisson(section: &'static str, key: &'static str, value: f64) -> Result<(), Refusal> {
     if value > -1.0 && value < 0.5 {
         Ok(())
@@ -189,6 +201,9 @@ pub fn poisson(section: &'static str, key: &'static str, value: f64) -> Result<(
 
 /// Refuses `bytes` beyond [`MEMORY_BUDGET`]; `what` says what they hold and which keys set
 /// them.
+///
+/// # Errors
+/// A [`Refusal`] naming `section.key` when `bytes` exceeds the budget.
 pub fn budget(
     section: &'static str,
     key: &'static str,

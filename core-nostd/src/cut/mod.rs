@@ -55,7 +55,9 @@ use crate::solve::WorkCount;
 use crate::storage::{Slab, sum, times};
 
 pub use report::{CutEvent, CutReport, CutWork};
-use separate::{Incidence, StarScratch, cut_faces, duplicate_nodes};
+use separate::{
+    EdgeScratch, Incidence, StarScratch, cut_faces, duplicate_nodes, keep_edges_manifold,
+};
 use split::Sign;
 use surface::{REALS_PER_VERTEX, SeparationSurface};
 
@@ -437,6 +439,38 @@ pub(crate) fn apply<T: Real>(
         cut_store,
     )?;
     event.work.faces_sorted += 4 * mesh.n_tets() as u64;
+    // 7b. Faces whose separation would leave two sides touching along an edge only stay
+    // joined (see `keep_edges_manifold`).
+    let n_found = n_cut;
+    let n_cut = if n_cut == 0 {
+        0
+    } else {
+        let found = cut_store.get(..n_cut).unwrap_or_default();
+        let on_cut = nodes_on(found, mesh.n_nodes(), mark);
+        let incidence = Incidence::build(mesh.tets(), mesh.n_nodes(), inc_ptr, inc_list)?;
+        let (star_faces, star_parent) = faces.as_flattened_mut().split_at_mut(12 * cap_tets);
+        let (ring, ring_parent) = edges.as_flattened_mut().split_at_mut(8 * cap_tets);
+        let mut stars = StarScratch {
+            faces: star_faces.as_chunks_mut::<3>().0,
+            parent: star_parent,
+        };
+        let mut scratch = EdgeScratch {
+            groups: parents.as_flattened_mut(),
+            stars: &mut stars,
+            ring: ring.as_chunks_mut::<2>().0,
+            ring_parent,
+        };
+        keep_edges_manifold(
+            mesh,
+            &incidence,
+            cut_store,
+            n_cut,
+            on_cut,
+            &mut scratch,
+            &mut event.work.star_entries,
+        )?
+    };
+    event.faces_kept_joined = n_found - n_cut;
     event.faces_cut = n_cut;
     if n_cut == 0 {
         if event.tets_split > 0 || event.nodes_moved > 0 {

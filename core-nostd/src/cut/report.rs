@@ -24,8 +24,10 @@ impl CutWork {
     /// `targets`: every node tested against every segment; three splits (the surface, then the
     /// planes of up to two ends), each visiting every tetrahedron to select, to split, and once
     /// per quality pass (at most one pass per node, each declaring one node on the level set);
-    /// all faces sorted; every node's star sorted; every point re-embedded after each split,
-    /// and every feature checked against every boundary triangle.
+    /// all faces sorted; every node's star sorted, once to duplicate the nodes and in each
+    /// pass of the edge check (the stars again, the edges at each node, the ring around each
+    /// edge: 48 entries per tetrahedron a pass); every point re-embedded after each split, and
+    /// every feature checked against every boundary triangle.
     pub fn bound(
         nodes: u64,
         tets: u64,
@@ -38,7 +40,7 @@ impl CutWork {
             node_tests: nodes * segments,
             element_tests: 3 * tets * (4 + nodes),
             faces_sorted: 4 * tets,
-            star_entries: 12 * tets,
+            star_entries: 12 * tets + 48 * tets * separate::MANIFOLD_PASSES as u64,
             embed_tests: 3 * (features + targets) * split::MAX_CHILDREN as u64
                 + features * triangles,
         }
@@ -74,6 +76,9 @@ pub struct CutEvent {
     pub edge_nodes: usize,
     /// Faces separated.
     pub faces_cut: usize,
+    /// Faces on the surface left joined because separating them would have left the two
+    /// sides touching along an edge only (a non-manifold boundary).
+    pub faces_kept_joined: usize,
     /// Node copies made to separate them.
     pub nodes_duplicated: usize,
     /// Features and targets moved to a piece of a split tetrahedron.
@@ -102,6 +107,7 @@ impl CutEvent {
         self.tets_added += other.tets_added;
         self.edge_nodes += other.edge_nodes;
         self.faces_cut += other.faces_cut;
+        self.faces_kept_joined += other.faces_kept_joined;
         self.nodes_duplicated += other.nodes_duplicated;
         self.points_reembedded += other.points_reembedded;
         self.features_moved_across += other.features_moved_across;

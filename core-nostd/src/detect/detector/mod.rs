@@ -230,6 +230,9 @@ impl<'a, T: Real> Detector<'a, T> {
     /// As [`Detector::init`], leaving out the pairs for which `apart(i, j, ℓ)` says that
     /// features `i` and `j`, `ℓ` pixels apart in the image, are far apart on the object
     /// (see [`DetectionConfig::max_surface_ratio`]).
+    ///
+    /// # Errors
+    /// As [`Detector::init`]; the pairs left out are not counted against the capacity.
     pub fn init_on_surface(
         &mut self,
         uv: &[[T; 2]],

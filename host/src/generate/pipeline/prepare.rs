@@ -18,6 +18,9 @@ use crate::vtu::read_vtu;
 use super::{GenError, at_file, err};
 
 /// The camera of a scenario.
+///
+/// # Errors
+/// A [`GenError`] naming `[camera]` when its values make no valid camera.
 pub fn scenario_camera(s: &Scenario) -> Result<Camera<f64>, GenError> {
     spec_camera(&s.camera).map_err(|e| GenError(format!("[camera]: {}", e.0)))
 }
