@@ -107,35 +107,14 @@ impl<'a, T: Real> Discretization<'a, T> {
         pre: &PrecomputedAnalysis<'_>,
     ) -> Result<(), Error> {
         self.load_state(input, lame, solver, work)?;
-        let Discretization {
-            mesh,
-            col_ptr,
-            row_idx,
-            nnz_a,
-            symbolic,
-            scatter,
-            ..
-        } = self;
-        let n_free = mesh.n_free();
-        let n = 3 * n_free;
-        let mut slab = Slab::new(work, Resource::Workspace);
-        let (_, entries, scratch) = free_node_pattern(
-            mesh.tets(),
-            mesh.free_index(),
-            n_free,
-            col_ptr,
-            row_idx,
-            &mut slab,
-        )?;
-        let a = UpperCsc::new(
-            n,
-            prefix(col_ptr, n + 1, Resource::ColumnPointers)?,
-            prefix(row_idx, entries, Resource::MatrixEntries)?,
-        )?;
-        symbolic.load(&a, pre, scratch)?;
-        build_scatter(mesh, &a, scatter)?;
-        *nnz_a = entries;
-        Ok(())
+        self.build_system(
+            work,
+            |tets, free, n_free, col_ptr, row_idx, slab| {
+                free_node_pattern(tets, free, n_free, col_ptr, row_idx, slab)
+                    .map(|(_, entries, scratch)| (entries, scratch))
+            },
+            |symbolic, a, scratch| symbolic.load(a, pre, scratch),
+        )
     }
 
     /// The part of loading that does not depend on how the system is analysed: the mesh, the
@@ -222,6 +201,38 @@ impl<'a, T: Real> Discretization<'a, T> {
     /// Rebuilds the stiffness pattern, its ordering, the symbolic factorization and the
     /// scatter map for the current mesh, using `work` ([`ModelSize::work_len`]).
     pub fn rebuild_system(&mut self, work: &mut [u32]) -> Result<(), Error> {
+        self.build_system(
+            work,
+            |tets, free, n_free, col_ptr, row_idx, slab| {
+                order_free_nodes(tets, free, n_free, col_ptr, row_idx, slab)
+                    .map(|ordered| (ordered.nnz_a, (ordered.perm, ordered.scratch)))
+            },
+            |symbolic, a, (perm, scratch)| symbolic.analyse(a, perm, scratch),
+        )
+    }
+
+    /// What [`Discretization::rebuild_system`] and [`Discretization::load_precomputed`] share:
+    /// builds the stiffness pattern of the current mesh with `pattern` (which also orders it,
+    /// or not) in `work`, then the symbolic factorization with `analyse` (computed from the
+    /// ordering, or a precomputed one loaded and checked), then the scatter map. `pattern`
+    /// returns the pattern's stored entries and what `analyse` takes from the workspace.
+    ///
+    /// The two steps are closures, not a choice made inside, so that a firmware build that only
+    /// loads precomputed analyses links neither the ordering nor the analysis
+    /// (tests/firmware.rs).
+    fn build_system<'w, P>(
+        &mut self,
+        work: &'w mut [u32],
+        pattern: impl FnOnce(
+            &[[u32; 4]],
+            &[u32],
+            usize,
+            &mut [u32],
+            &mut [u32],
+            &mut Slab<'w, u32>,
+        ) -> Result<(usize, P), Error>,
+        analyse: impl FnOnce(&mut Symbolic<'a>, &UpperCsc<'_>, P) -> Result<(), Error>,
+    ) -> Result<(), Error> {
         let Discretization {
             mesh,
             col_ptr,
@@ -235,7 +246,7 @@ impl<'a, T: Real> Discretization<'a, T> {
         let n = 3 * n_free;
         // `row_idx` holds the bound `6 n + 54 t` of the capacities, so the pattern always fits.
         let mut slab = Slab::new(work, Resource::Workspace);
-        let ordered = order_free_nodes(
+        let (entries, rest) = pattern(
             mesh.tets(),
             mesh.free_index(),
             n_free,
@@ -246,11 +257,11 @@ impl<'a, T: Real> Discretization<'a, T> {
         let a = UpperCsc::new(
             n,
             prefix(col_ptr, n + 1, Resource::ColumnPointers)?,
-            prefix(row_idx, ordered.nnz_a, Resource::MatrixEntries)?,
+            prefix(row_idx, entries, Resource::MatrixEntries)?,
         )?;
-        symbolic.analyse(&a, ordered.perm, ordered.scratch)?;
+        analyse(symbolic, &a, rest)?;
         build_scatter(mesh, &a, scatter)?;
-        *nnz_a = ordered.nnz_a;
+        *nnz_a = entries;
         Ok(())
     }
 

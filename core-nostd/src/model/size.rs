@@ -258,6 +258,7 @@ impl ModelSize {
     /// the sums of the parts.
     pub const fn parts(&self) -> [StoragePart; 9] {
         let c = &self.capacities;
+        let (detection_reals, detection_indices) = Self::detection_lens(c);
         [
             StoragePart {
                 name: "mesh and system in service (positions, boundary, pattern, analysis, scatter map, embeddings)",
@@ -315,14 +316,14 @@ impl ModelSize {
             StoragePart {
                 name: "cut detection and cut line (detect feature)",
                 grows_with: "features, pairs, cut_vertices",
-                reals: Self::detection_real_len(c),
-                indices: Self::detection_index_len(c),
+                reals: detection_reals,
+                indices: detection_indices,
                 feature: Some("detect"),
             },
             StoragePart {
                 name: "scratch of a cut (cut feature)",
                 grows_with: "the nodes, cut_vertices",
-                reals: Self::cut_scratch_len(c),
+                reals: Self::cut_lens(c).1,
                 indices: 0,
                 feature: Some("cut"),
             },
@@ -339,27 +340,26 @@ impl ModelSize {
     /// Scalars of storage a model needs (the same count for `f32` and `f64`): the sum of
     /// [`ModelSize::parts`].
     pub const fn real_len(&self) -> usize {
-        let parts = self.parts();
-        let mut total = 0usize;
-        let mut rest: &[StoragePart] = &parts;
-        while let [part, tail @ ..] = rest {
-            total = total.saturating_add(part.reals);
-            rest = tail;
-        }
-        total
+        self.totals().0
     }
 
     /// Indices of storage a model needs, its workspace included: the sum of
     /// [`ModelSize::parts`].
     pub const fn index_len(&self) -> usize {
+        self.totals().1
+    }
+
+    /// The scalars and the indices of [`ModelSize::parts`], each summed (saturating).
+    const fn totals(&self) -> (usize, usize) {
         let parts = self.parts();
-        let mut total = 0usize;
+        let (mut reals, mut indices) = (0usize, 0usize);
         let mut rest: &[StoragePart] = &parts;
         while let [part, tail @ ..] = rest {
-            total = total.saturating_add(part.indices);
+            reals = reals.saturating_add(part.reals);
+            indices = indices.saturating_add(part.indices);
             rest = tail;
         }
-        total
+        (reals, indices)
     }
 
     /// Indices of the workspace the model keeps for rebuilding its mesh and factor (part of
@@ -374,55 +374,42 @@ impl ModelSize {
             analyse_work_len(self.unknowns, self.nnz_a),
         );
         let rebuild = sum(&[n, 1, graph, n, self.unknowns, phases]);
-        max(max(c.mesh.work_len(), rebuild), Self::cut_work_len(c))
+        max(max(c.mesh.work_len(), rebuild), Self::cut_lens(c).0)
     }
 
+    /// What the `cut` feature adds: the indices of its workspace and the scalars of its
+    /// scratch; both 0 without it.
     #[cfg(feature = "cut")]
-    const fn cut_work_len(c: &Capacities) -> usize {
-        cut::work_len(c.mesh.nodes, c.mesh.tets)
+    const fn cut_lens(c: &Capacities) -> (usize, usize) {
+        let (n, t) = (c.mesh.nodes, c.mesh.tets);
+        (cut::work_len(n, t), cut::real_len(n, c.cut_vertices))
     }
 
     #[cfg(not(feature = "cut"))]
-    const fn cut_work_len(_: &Capacities) -> usize {
-        0
+    const fn cut_lens(_: &Capacities) -> (usize, usize) {
+        (0, 0)
     }
 
+    /// What the `detect` feature adds: the scalars and the indices of the detector, the cut
+    /// line and their scratch; both 0 without it.
     #[cfg(feature = "detect")]
-    const fn detection_real_len(c: &Capacities) -> usize {
-        sum(&[
+    const fn detection_lens(c: &Capacities) -> (usize, usize) {
+        let reals = sum(&[
             Detector::<AnyReal>::real_len(c.features, c.pairs),
             CutLine::<AnyReal>::real_len(c.cut_vertices),
             times(2, c.features),                      // residuals
             times(2, max(c.features, c.cut_vertices)), // projections
-        ])
-    }
-
-    #[cfg(not(feature = "detect"))]
-    const fn detection_real_len(_: &Capacities) -> usize {
-        0
-    }
-
-    #[cfg(feature = "cut")]
-    const fn cut_scratch_len(c: &Capacities) -> usize {
-        cut::real_len(c.mesh.nodes, c.cut_vertices)
-    }
-
-    #[cfg(not(feature = "cut"))]
-    const fn cut_scratch_len(_: &Capacities) -> usize {
-        0
-    }
-
-    #[cfg(feature = "detect")]
-    const fn detection_index_len(c: &Capacities) -> usize {
-        sum(&[
+        ]);
+        let indices = sum(&[
             Detector::<AnyReal>::index_len(c.features, c.pairs),
             CutLine::<AnyReal>::index_len(c.cut_vertices),
-        ])
+        ]);
+        (reals, indices)
     }
 
     #[cfg(not(feature = "detect"))]
-    const fn detection_index_len(_: &Capacities) -> usize {
-        0
+    const fn detection_lens(_: &Capacities) -> (usize, usize) {
+        (0, 0)
     }
 
     /// Bytes of storage for scalar type `T` (scalars and indices), saturated at `usize::MAX`

@@ -1,7 +1,7 @@
 //! `incise run`: drive the core frame by frame over a scene's tracks and measure it against
 //! the scene's ground truth.
 //!
-//! The frame loop ([`run_with`]) is here; each of its ends has a module:
+//! The frame loop ([`run_pass`]) is here; each of its ends has a module:
 //! - `sources`: where frames come from ([`FrameSource`]: tracks in memory, or with the `opencv`
 //!   feature a video tracked on the fly), and the rest silhouette a tracker starts in;
 //! - `truth`: the scene's ground truth and the measures of one frame (Dice, target error);
@@ -213,7 +213,12 @@ pub fn run_once(
     out: Option<&Path>,
     progress: bool,
 ) -> Result<Trace, RunError> {
-    run_with(
+    let cutting = if cutting {
+        Cutting::Detected
+    } else {
+        Cutting::Off
+    };
+    run_pass(
         scene,
         &mut TrackSource::new(&scene.frames),
         cutting,
@@ -223,9 +228,10 @@ pub fn run_once(
     )
 }
 
-/// Runs the scene once over frames from `source`, with cutting on or off; writes pictures,
-/// meshes and `frames.csv` into `out` and overlay pictures to `sink`. The trace records the
-/// observations used, so that a second pass (cutting off) can replay them.
+/// Runs the scene once over frames from `source`, cutting the mesh as `cutting` says, in the
+/// scene's [`Precision`]; writes pictures, meshes and `frames.csv` into `out` and overlay
+/// pictures to `sink`. The trace records the observations used, so that a second pass
+/// (cutting off) can replay them.
 ///
 /// The stages: build the model, place the frame-0 features and the internal targets on it,
 /// then per frame step the model (`Pass::step`), read its cut line, measure it against the
@@ -233,27 +239,6 @@ pub fn run_once(
 ///
 /// # Errors
 /// As [`run_once`], and the source's or the sink's errors.
-pub fn run_with(
-    scene: &Scene,
-    source: &mut dyn FrameSource,
-    cutting: bool,
-    out: Option<&Path>,
-    sink: Option<&mut dyn FrameSink>,
-    progress: bool,
-) -> Result<Trace, RunError> {
-    let mode = if cutting {
-        Cutting::Detected
-    } else {
-        Cutting::Off
-    };
-    run_pass(scene, source, mode, out, sink, progress)
-}
-
-/// [`run_with`] with the way the mesh is cut spelled out, in the scene's
-/// [`Precision`].
-///
-/// # Errors
-/// As [`run_with`].
 pub fn run_pass(
     scene: &Scene,
     source: &mut dyn FrameSource,
@@ -414,26 +399,26 @@ pub fn run_scene(scene: &Scene, options: &RunOptions) -> Result<(Summary, Trace)
 /// summarises it; the `_uncut` figures replay the same observations with cutting off.
 ///
 /// # Errors
-/// As [`run_with`].
+/// As [`run_pass`].
 pub fn run_scene_with(
     scene: &Scene,
     source: &mut dyn FrameSource,
     sink: Option<&mut dyn FrameSink>,
     options: &RunOptions,
 ) -> Result<(Summary, Trace), RunError> {
-    let trace = run_with(
+    let trace = run_pass(
         scene,
         source,
-        true,
+        Cutting::Detected,
         options.out.as_deref(),
         sink,
         options.progress,
     )?;
     // The same observations with cutting switched off, for the `_uncut` figures.
-    let uncut = run_with(
+    let uncut = run_pass(
         scene,
         &mut TrackSource::new(&trace.observations),
-        false,
+        Cutting::Off,
         None,
         None,
         false,

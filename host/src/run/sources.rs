@@ -71,7 +71,7 @@ impl FrameSource for TrackSource<'_> {
 }
 
 #[cfg(feature = "opencv")]
-/// Frames of a video tracked on the fly: a [`FrameSource`] for [`super::run_with`].
+/// Frames of a video tracked on the fly: a [`FrameSource`] for [`super::run_pass`].
 ///
 /// The first call to [`VideoFrames::next`] starts the tracker on frame 0 inside the model
 /// silhouette it is given; later calls track. Observations are undistorted when a calibration
@@ -206,7 +206,7 @@ impl FrameSource for VideoFrames {
 }
 
 /// The model's silhouette at rest in the scene's camera: where features are looked for at
-/// frame 0 (the mask [`super::run_with`] hands its frame source).
+/// frame 0 (the mask [`super::run_pass`] hands its frame source).
 ///
 /// # Errors
 /// A [`RunError`] for a camera or mesh the core refuses.

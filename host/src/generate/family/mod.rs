@@ -565,7 +565,7 @@ mod tests {
             // Every variant builds, and its slit cuts the object.
             for s in &v {
                 let p = prepare_scenario(s.clone(), &family.base_dir(&path)).unwrap();
-                assert_eq!(p.lips.is_empty(), s.slit.is_none(), "{}", s.name);
+                assert_eq!(p.meshes.lips.is_empty(), s.slit.is_none(), "{}", s.name);
             }
         }
         // The liver family's real object is the model refined, not SOFA's fine liver.

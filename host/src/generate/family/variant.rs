@@ -316,6 +316,7 @@ pub(super) fn sensible(
     geometry: &BaseGeometry,
 ) -> Result<(), String> {
     let p = prepare_scenario(s.clone(), base_dir).map_err(|e| e.0)?;
+    let meshes = &p.meshes;
     let seen = silhouette(&p.camera, &geometry.model_nodes, &geometry.model_triangles).count();
     if 2 * seen < geometry.seen {
         return Err(format!(
@@ -324,40 +325,40 @@ pub(super) fn sensible(
             geometry.seen
         ));
     }
-    if p.lips.is_empty() {
+    if meshes.lips.is_empty() {
         return Ok(());
     }
     let prescribed: std::collections::HashSet<u32> = p.prescribed.iter().map(|q| q.0).collect();
     // A pair in a held or grasped box is pinned shut (both lips sit in the box); a slit
     // moved into a box would not open. A few are tolerated: a slit next to a grasp (the
     // liver's, cut into a coarse mesh) may touch it.
-    let pinned = p
+    let pinned = meshes
         .lips
         .iter()
         .filter(|&&(v, c)| prescribed.contains(&v) || prescribed.contains(&c))
         .count();
-    if 10 * pinned > p.lips.len() {
+    if 10 * pinned > meshes.lips.len() {
         return Err(format!(
             "{pinned} of the slit's {} node pairs are held or grasped: it cannot open",
-            p.lips.len()
+            meshes.lips.len()
         ));
     }
-    let triangles: Vec<[u32; 3]> = p.real.boundary().iter().map(|b| b.0).collect();
-    let depth = DepthBuffer::render(&p.camera, &p.real.nodes, &triangles);
-    let e = extent(&p.real.nodes);
+    let triangles: Vec<[u32; 3]> = meshes.real.boundary().iter().map(|b| b.0).collect();
+    let depth = DepthBuffer::render(&p.camera, &meshes.real.nodes, &triangles);
+    let e = extent(&meshes.real.nodes);
     let tolerance = 0.05
         * (0..3)
             .map(|k| e[1][k] - e[0][k])
             .fold(f64::INFINITY, f64::min);
     let outer: std::collections::HashSet<u32> =
-        p.fine.boundary().iter().flat_map(|b| b.0).collect();
-    let seen_lips = p
+        meshes.fine.boundary().iter().flat_map(|b| b.0).collect();
+    let seen_lips = meshes
         .lips
         .iter()
         .filter(|&&(v, _)| outer.contains(&v))
         .filter(|&&(v, _)| {
             depth
-                .visible(&p.camera, p.real.nodes[v as usize], tolerance)
+                .visible(&p.camera, meshes.real.nodes[v as usize], tolerance)
                 .is_some()
         })
         .count();

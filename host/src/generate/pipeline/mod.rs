@@ -8,21 +8,21 @@ mod prepare;
 mod write;
 
 pub use prepare::{
-    Prepared, object_meshes, prepare, prepare_scenario, rest_silhouette_dice, scenario_camera,
-    spec_camera,
+    Meshes, Prepared, object_meshes, prepare, prepare_scenario, rest_silhouette_dice,
+    scenario_camera, spec_camera,
 };
 pub use write::{Generated, rebase_mesh_paths, write_scene};
 
 use std::fmt;
 use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use incise_core::Camera;
 use incise_core::nalgebra::{Rotation3, Unit, Vector3};
 use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::generate::live::{self};
-use crate::generate::object::{TetMesh, interpolate};
+use crate::generate::object::interpolate;
 use crate::generate::scenario::{GraspSpec, Scenario};
 use crate::generate::sim::Simulator;
 
@@ -82,23 +82,8 @@ pub struct Simulation {
     pub scenario: Scenario,
     /// The camera.
     pub camera: Camera<f64>,
-    /// The model mesh (coarse, uncut).
-    pub model: TetMesh,
-    /// Nodes of the model held at rest.
-    pub model_fixed: Vec<u32>,
-    /// The model's Gmsh file, for a scenario made from a mesh file.
-    pub model_mesh_file: Option<PathBuf>,
-    /// The real mesh (fine, with the slit's nodes duplicated).
-    pub real: TetMesh,
-    /// The fine mesh before the slit (its boundary is the object's outer surface).
-    pub fine: TetMesh,
-    /// `(original, duplicate)` nodes along the slit's lips.
-    pub lips: Vec<(u32, u32)>,
-    /// The frame from which each pair of `lips` is open ([`live::OPEN`] for a pre-cut slit;
-    /// a live cut's pairs are tied before it, see [`live`]).
-    pub release: Vec<u32>,
-    /// Nodes of the slit's front, where its lips meet.
-    pub slit_front: Vec<u32>,
+    /// The model and the real object, at rest.
+    pub meshes: Meshes,
     /// Boundary triangles of the real mesh (outward) with their tetrahedra.
     pub boundary: Vec<([u32; 3], usize)>,
     /// Node positions of the real mesh, every frame (frame 0 is rest).
@@ -143,7 +128,7 @@ impl Simulation {
         }
         let (dist, t) = best?;
         let hit = origin + dir * dist;
-        let tet = self.real.tets[t];
+        let tet = self.meshes.real.tets[t];
         let q = tet.map(|v| Vector3::from(x[v as usize]));
         let m =
             incise_core::nalgebra::Matrix3::from_columns(&[q[1] - q[0], q[2] - q[0], q[3] - q[0]]);
@@ -154,7 +139,7 @@ impl Simulation {
     /// Pixel of a material point in `frame`.
     pub fn project(&self, frame: usize, point: (usize, [f64; 4])) -> Option<[f64; 2]> {
         let x = self.positions.get(frame)?;
-        let p = interpolate(x, self.real.tets[point.0], point.1);
+        let p = interpolate(x, self.meshes.real.tets[point.0], point.1);
         let uv = self.camera.project(&Vector3::from(p), 0).ok()?;
         Some([uv.x, uv.y])
     }
@@ -191,21 +176,15 @@ pub fn simulate_prepared(prepared: Prepared, progress: bool) -> Result<Simulatio
     let Prepared {
         scenario: s,
         camera,
-        model,
-        model_fixed,
-        model_mesh_file,
-        real,
-        fine,
-        lips,
-        release,
-        slit_front,
+        meshes,
         prescribed,
     } = prepared;
+    let (real, lips, release) = (&meshes.real, &meshes.lips, &meshes.release);
     let prescribed_nodes: Vec<u32> = prescribed.iter().map(|p| p.0).collect();
     let build = |frame: u32| {
         Simulator::new(
             &real.nodes,
-            &live::tied_tets(&real.tets, &lips, &release, frame),
+            &live::tied_tets(&real.tets, lips, release, frame),
             &prescribed_nodes,
             s.object.young,
             s.object.poisson,
@@ -213,7 +192,7 @@ pub fn simulate_prepared(prepared: Prepared, progress: bool) -> Result<Simulatio
         .map_err(|e| GenError(format!("simulator: {e}")))
     };
     let mut simulator = build(0)?;
-    let mut open = live::released(&release, 0);
+    let mut open = live::released(release, 0);
     let boundary = real.boundary();
     // Depth tolerance: a fraction of the object's smallest extent.
     let extent = (0..3)
@@ -237,7 +216,7 @@ pub fn simulate_prepared(prepared: Prepared, progress: bool) -> Result<Simulatio
     )?;
     let mut positions = vec![real.nodes.clone()];
     for frame in 1..s.frames {
-        let now_open = live::released(&release, frame);
+        let now_open = live::released(release, frame);
         if now_open != open {
             // Pairs released: the new connectivity, from the last frame's state (where each
             // released duplicate still sits on its original).
@@ -268,7 +247,7 @@ pub fn simulate_prepared(prepared: Prepared, progress: bool) -> Result<Simulatio
             .map_err(|e| GenError(format!("frame {frame}: simulation failed: {e}")))?;
         let mut x = simulator.positions().to_vec();
         // A tied duplicate is in no tetrahedron: it goes where its original goes.
-        for (&(v, d), &r) in lips.iter().zip(&release) {
+        for (&(v, d), &r) in lips.iter().zip(release) {
             if r > frame {
                 x[d as usize] = x[v as usize];
             }
@@ -280,14 +259,7 @@ pub fn simulate_prepared(prepared: Prepared, progress: bool) -> Result<Simulatio
     Ok(Simulation {
         scenario: s,
         camera,
-        model,
-        model_fixed,
-        model_mesh_file,
-        real,
-        fine,
-        lips,
-        release,
-        slit_front,
+        meshes,
         boundary,
         positions,
         tolerance,
@@ -399,6 +371,8 @@ pub fn generate_scenario(
 
 #[cfg(test)]
 mod tests {
+    use std::path::PathBuf;
+
     use super::*;
 
     /// A small band scenario with a camera 20 cm above it, and the given `[slit]` lines.
@@ -461,7 +435,7 @@ damping = 0.01
         // The camera sees x = 0.02 at u = 320 and 10 px per mm; y = 0.01 at v = 240 (v grows
         // toward -y). The segment: from below the band's lower edge (y = 0) to y = 0.015.
         let path = band_scenario(dir.path(), "image = [[320.0, 360.0], [320.0, 190.0]]");
-        let p = prepare(&path).unwrap();
+        let p = prepare(&path).unwrap().meshes;
         assert!(!p.lips.is_empty());
         let x = &p.real.nodes;
         // The lips lie in the plane x = 0.02 (the cells are 2.5 mm long), from y = 0 to the
@@ -487,7 +461,7 @@ damping = 0.01
             "point = [0.02, 0.0, 0.0]\nnormal = [1.0, 0.0, 0.0]\n\
              region = [[0.019, -0.001, -0.001], [0.021, 0.015, 0.007]]",
         );
-        let q = prepare(&plane).unwrap();
+        let q = prepare(&plane).unwrap().meshes;
         assert_eq!(q.lips, p.lips);
     }
 
@@ -550,7 +524,7 @@ damping = 0.01
         // Release frames: the slit runs from the band's edge (y = 0) to its front at
         // y = 15 mm (rows every 2.5 mm); the front crosses it over frames 2 to 6, and a pair
         // opens at the first frame the front has reached it (never before frame 3).
-        let p = prepare(&live_path).unwrap();
+        let p = prepare(&live_path).unwrap().meshes;
         assert_eq!(p.release.len(), p.lips.len());
         for (&(v, _), &r) in p.lips.iter().zip(&p.release) {
             let y = p.real.nodes[v as usize][1];
@@ -562,9 +536,10 @@ damping = 0.01
 
         let live = simulate(&live_path, false).unwrap();
         let cut = simulate(&cut_path, false).unwrap();
-        assert_eq!(live.lips, cut.lips);
+        assert_eq!(live.meshes.lips, cut.meshes.lips);
         let opening = |sim: &Simulation, f: usize| {
-            sim.lips
+            sim.meshes
+                .lips
                 .iter()
                 .map(|&(v, d)| {
                     let (a, b) = (sim.positions[f][v as usize], sim.positions[f][d as usize]);
@@ -633,8 +608,9 @@ damping = 0.01
         let scenario =
             Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/liver-lobe/scenario.toml");
         let p = prepare(&scenario).unwrap();
-        assert_eq!((p.model.nodes.len(), p.model.tets.len()), (181, 596));
-        assert_eq!((p.fine.nodes.len(), p.fine.tets.len()), (4293, 22019));
+        let m = &p.meshes;
+        assert_eq!((m.model.nodes.len(), m.model.tets.len()), (181, 596));
+        assert_eq!((m.fine.nodes.len(), m.fine.tets.len()), (4293, 22019));
         let d = p.rest_silhouette_dice();
         eprintln!("liver rest silhouette Dice, model vs real: {d:.4}");
         assert!(d >= 0.985, "{d}");

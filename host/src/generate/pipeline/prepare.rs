@@ -57,13 +57,10 @@ fn in_box(p: [f64; 3], b: &[[f64; 3]; 2]) -> bool {
     (0..3).all(|k| p[k] >= b[0][k] && p[k] <= b[1][k])
 }
 
-/// The real object and the model of a scenario at rest, before any frame is simulated.
+/// The meshes of a scenario at rest: the model, and the real object with its slit. What
+/// [`Prepared`] builds and [`super::Simulation`] keeps, frame after frame.
 #[derive(Clone, Debug)]
-pub struct Prepared {
-    /// The scenario.
-    pub scenario: Scenario,
-    /// The camera.
-    pub camera: Camera<f64>,
+pub struct Meshes {
     /// The model mesh (coarse, uncut).
     pub model: TetMesh,
     /// Nodes of the model held at rest.
@@ -72,14 +69,26 @@ pub struct Prepared {
     pub model_mesh_file: Option<PathBuf>,
     /// The real mesh (fine, with the slit's nodes duplicated).
     pub real: TetMesh,
-    /// The fine mesh before the slit.
+    /// The fine mesh before the slit (its boundary is the object's outer surface).
     pub fine: TetMesh,
     /// `(original, duplicate)` nodes along the slit's lips.
     pub lips: Vec<(u32, u32)>,
-    /// The frame from which each pair of `lips` is open ([`live::OPEN`] for a pre-cut slit).
+    /// The frame from which each pair of `lips` is open ([`live::OPEN`] for a pre-cut slit;
+    /// a live cut's pairs are tied before it, see [`live`]).
     pub release: Vec<u32>,
     /// Nodes of the slit's front, where its lips meet.
     pub slit_front: Vec<u32>,
+}
+
+/// The real object and the model of a scenario at rest, before any frame is simulated.
+#[derive(Clone, Debug)]
+pub struct Prepared {
+    /// The scenario.
+    pub scenario: Scenario,
+    /// The camera.
+    pub camera: Camera<f64>,
+    /// The model and the real object.
+    pub meshes: Meshes,
     /// Prescribed nodes of the real mesh, each with the grasp that moves it (`None`: held).
     pub prescribed: Vec<(u32, Option<usize>)>,
 }
@@ -89,7 +98,7 @@ impl Prepared {
     /// roughly the best a model can score against the ground truth: about 1 when the real
     /// object is the model refined, less for an independent real mesh (SOFA's fine liver).
     pub fn rest_silhouette_dice(&self) -> f64 {
-        rest_silhouette_dice(&self.camera, &self.model, &self.real)
+        rest_silhouette_dice(&self.camera, &self.meshes.model, &self.meshes.real)
     }
 }
 
@@ -311,14 +320,16 @@ pub fn prepare_scenario(s: Scenario, base: &Path) -> Result<Prepared, GenError> 
     Ok(Prepared {
         scenario: s,
         camera,
-        model,
-        model_fixed,
-        model_mesh_file: model_mesh_ref,
-        real,
-        fine,
-        lips: pairs,
-        release,
-        slit_front,
+        meshes: Meshes {
+            model,
+            model_fixed,
+            model_mesh_file: model_mesh_ref,
+            real,
+            fine,
+            lips: pairs,
+            release,
+            slit_front,
+        },
         prescribed,
     })
 }

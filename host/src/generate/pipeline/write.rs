@@ -88,12 +88,13 @@ pub fn write_scene(
     progress: bool,
 ) -> Result<Generated, GenError> {
     let s = &sim.scenario;
-    let (real, fine, camera, tolerance) = (&sim.real, &sim.fine, &sim.camera, sim.tolerance);
-    let (boundary, pairs) = (&sim.boundary, &sim.lips);
+    let meshes = &sim.meshes;
+    let (real, fine, camera, tolerance) = (&meshes.real, &meshes.fine, &sim.camera, sim.tolerance);
+    let (boundary, pairs) = (&sim.boundary, &meshes.lips);
     let triangles = sim.triangles();
-    let model = &sim.model;
-    let model_fixed = sim.model_fixed.clone();
-    let model_mesh_ref = &sim.model_mesh_file;
+    let model = &meshes.model;
+    let model_fixed = meshes.model_fixed.clone();
+    let model_mesh_ref = &meshes.model_mesh_file;
     let silhouettes = out.join("gt").join("silhouettes");
     std::fs::create_dir_all(&silhouettes).map_err(|e| at_file(&silhouettes)(&e))?;
     let mut rng = Rng::new(s.seed);
@@ -121,7 +122,7 @@ pub fn write_scene(
     let mut lips: Vec<(u32, u32)> = pairs
         .iter()
         .copied()
-        .chain(sim.slit_front.iter().map(|&v| (v, v)))
+        .chain(meshes.slit_front.iter().map(|&v| (v, v)))
         .filter(|&(v, _)| fine_boundary.contains(&v))
         .filter(|&(v, _)| {
             depth0
@@ -134,7 +135,7 @@ pub fn write_scene(
     let opens: std::collections::HashMap<(u32, u32), u32> = pairs
         .iter()
         .copied()
-        .zip(sim.release.iter().copied())
+        .zip(meshes.release.iter().copied())
         .collect();
     let lip_release: Vec<u32> = lips
         .iter()
@@ -179,7 +180,7 @@ pub fn write_scene(
             cut_open_frame = Some(frame);
         }
         // The open part and its front: the lips that have not opened yet and open next.
-        let started = sim.release.iter().any(|&r| r <= frame);
+        let started = meshes.release.iter().any(|&r| r <= frame);
         let front = lip_release
             .iter()
             .copied()

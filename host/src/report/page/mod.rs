@@ -20,6 +20,8 @@ use std::path::Path;
 
 use serde::Serialize;
 
+use incise_core::{CutWork, DetectionWork, LineWork, WorkCount};
+
 use crate::run::{FrameWork, RunOptions, Summary, Trace, run_scene, scene_storage};
 use crate::scene::{Precision, Scene, SolverSection};
 
@@ -401,104 +403,81 @@ fn scene_report(
     })
 }
 
-/// A work counter of a frame: stage, name, and (counted, formula).
-type Counter = (&'static str, &'static str, fn(&FrameWork) -> (u64, u64));
+/// One side of a frame's work: what was counted, or its formula. Both sides have the same
+/// fields, so a counter names its field once and reads it from each ([`work_sides`]).
+#[derive(Clone, Copy, Debug)]
+struct WorkSide {
+    solve: WorkCount,
+    detection: DetectionWork,
+    line: LineWork,
+    /// The cut event (zero in a frame that does not cut)…
+    cut: CutWork,
+    /// … and the rebuild of the linear system after it.
+    rebuild: WorkCount,
+}
+
+/// The counted side and the formula's side of a frame's work.
+fn work_sides(w: &FrameWork) -> (WorkSide, WorkSide) {
+    let (cut, rebuild) = w.cut.unwrap_or_default();
+    let counted = WorkSide {
+        solve: w.solve,
+        detection: w.detection,
+        line: w.line,
+        cut,
+        rebuild,
+    };
+    let formula = WorkSide {
+        solve: w.solve_bound,
+        detection: w.detection_bound.0,
+        line: w.detection_bound.1,
+        cut: w.cut_bound.0,
+        rebuild: w.cut_bound.1,
+    };
+    (counted, formula)
+}
+
+/// A work counter of a frame: stage, name, and the field it reads from each [`WorkSide`].
+type Counter = (&'static str, &'static str, fn(&WorkSide) -> u64);
 
 /// The counters of every frame.
 const STEADY_COUNTERS: &[Counter] = &[
-    ("solve", "element tangents", |w| {
-        (w.solve.element_tangents, w.solve_bound.element_tangents)
-    }),
+    ("solve", "element tangents", |w| w.solve.element_tangents),
     ("solve", "element evaluations", |w| {
-        (
-            w.solve.element_evaluations,
-            w.solve_bound.element_evaluations,
-        )
+        w.solve.element_evaluations
     }),
     ("solve", "feature evaluations", |w| {
-        (
-            w.solve.feature_evaluations,
-            w.solve_bound.feature_evaluations,
-        )
+        w.solve.feature_evaluations
     }),
     ("solve", "factorization multiply-adds", |w| {
-        (w.solve.factor_flops, w.solve_bound.factor_flops)
+        w.solve.factor_flops
     }),
-    ("solve", "solve multiply-adds", |w| {
-        (w.solve.solve_flops, w.solve_bound.solve_flops)
-    }),
+    ("solve", "solve multiply-adds", |w| w.solve.solve_flops),
     ("solve", "PCG product multiply-adds", |w| {
-        (w.solve.matvec_flops, w.solve_bound.matvec_flops)
+        w.solve.matvec_flops
     }),
-    ("solve", "state copies", |w| {
-        (w.solve.state_copies, w.solve_bound.state_copies)
-    }),
+    ("solve", "state copies", |w| w.solve.state_copies),
     ("detection", "feature visits", |w| {
-        (
-            w.detection.feature_visits,
-            w.detection_bound.0.feature_visits,
-        )
+        w.detection.feature_visits
     }),
-    ("detection", "pair visits", |w| {
-        (w.detection.pair_visits, w.detection_bound.0.pair_visits)
-    }),
-    ("detection", "sort comparisons", |w| {
-        (w.detection.comparisons, w.detection_bound.0.comparisons)
-    }),
-    ("cut line", "fit tests", |w| {
-        (w.line.fit_tests, w.detection_bound.1.fit_tests)
-    }),
-    ("cut line", "point visits", |w| {
-        (w.line.point_visits, w.detection_bound.1.point_visits)
-    }),
-    ("cut line", "anchor visits", |w| {
-        (w.line.anchor_visits, w.detection_bound.1.anchor_visits)
-    }),
+    ("detection", "pair visits", |w| w.detection.pair_visits),
+    ("detection", "sort comparisons", |w| w.detection.comparisons),
+    ("cut line", "fit tests", |w| w.line.fit_tests),
+    ("cut line", "point visits", |w| w.line.point_visits),
+    ("cut line", "anchor visits", |w| w.line.anchor_visits),
 ];
 
 /// The counters of a cut event (frames that cut only).
 const CUT_COUNTERS: &[Counter] = &[
-    ("cut", "node tests", |w| {
-        (
-            w.cut.map_or(0, |c| c.0.node_tests),
-            w.cut_bound.0.node_tests,
-        )
-    }),
-    ("cut", "element visits", |w| {
-        (
-            w.cut.map_or(0, |c| c.0.element_tests),
-            w.cut_bound.0.element_tests,
-        )
-    }),
-    ("cut", "faces sorted", |w| {
-        (
-            w.cut.map_or(0, |c| c.0.faces_sorted),
-            w.cut_bound.0.faces_sorted,
-        )
-    }),
-    ("cut", "star entries", |w| {
-        (
-            w.cut.map_or(0, |c| c.0.star_entries),
-            w.cut_bound.0.star_entries,
-        )
-    }),
-    ("cut", "re-embedding tests", |w| {
-        (
-            w.cut.map_or(0, |c| c.0.embed_tests),
-            w.cut_bound.0.embed_tests,
-        )
-    }),
+    ("cut", "node tests", |w| w.cut.node_tests),
+    ("cut", "element visits", |w| w.cut.element_tests),
+    ("cut", "faces sorted", |w| w.cut.faces_sorted),
+    ("cut", "star entries", |w| w.cut.star_entries),
+    ("cut", "re-embedding tests", |w| w.cut.embed_tests),
     ("rebuild", "element tangents", |w| {
-        (
-            w.cut.map_or(0, |c| c.1.element_tangents),
-            w.cut_bound.1.element_tangents,
-        )
+        w.rebuild.element_tangents
     }),
     ("rebuild", "factorization multiply-adds", |w| {
-        (
-            w.cut.map_or(0, |c| c.1.factor_flops),
-            w.cut_bound.1.factor_flops,
-        )
+        w.rebuild.factor_flops
     }),
 ];
 
@@ -506,10 +485,11 @@ fn worst_case_rows(works: &[FrameWork], counters: &[Counter]) -> Vec<WorstCaseRo
     if works.is_empty() {
         return vec![];
     }
+    let sides: Vec<(WorkSide, WorkSide)> = works.iter().map(work_sides).collect();
     counters
         .iter()
         .map(|&(stage, counter, read)| {
-            let pairs: Vec<(u64, u64)> = works.iter().map(read).collect();
+            let pairs: Vec<(u64, u64)> = sides.iter().map(|(c, f)| (read(c), read(f))).collect();
             let counted: Vec<f64> = pairs.iter().map(|p| p.0 as f64).collect();
             WorstCaseRow {
                 stage,
