@@ -107,6 +107,7 @@ fn config(cam: incise_core::Camera<f64>, strategy: Strategy) -> ModelConfig<f64>
             newton_iterations: 2,
             line_search_steps: 3,
             coupling: Coupling::Stiffness(1e-7),
+            spring_threshold: incise_core::solve::DEFAULT_SPRING_THRESHOLD,
             damping: 1e-3,
             depth_prior: 0.0,
             image_margin: 50.0,

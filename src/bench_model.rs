@@ -103,6 +103,7 @@ impl Bench {
                 newton_iterations: 2,
                 line_search_steps: 3,
                 coupling: Coupling::Stiffness(1e-6),
+                spring_threshold: f64::INFINITY,
                 damping: 0.01,
                 depth_prior: 0.0,
                 image_margin: 50.0,

@@ -279,6 +279,7 @@ fn run(c: &Case) -> Result<Outcome, TestCaseError> {
             newton_iterations: 1,
             line_search_steps: 2,
             coupling: Coupling::Stiffness(1e-6),
+            spring_threshold: f64::INFINITY,
             damping: 0.01,
             depth_prior: 0.0,
             image_margin: 50.0,

@@ -31,6 +31,7 @@ fn config(
             newton_iterations: 4,
             line_search_steps: 4,
             coupling: Coupling::Stiffness(k),
+            spring_threshold: f64::INFINITY,
             damping,
             depth_prior: 0.0,
             image_margin: 50.0,
@@ -123,6 +124,59 @@ fn converge(
         }
     }
     last
+}
+
+/// Huber's springs (issue 14): within the threshold they are the quadratic springs bit for
+/// bit; a track lost to a spot far off pulls with a bounded force, so the model moves a small
+/// part of what quadratic springs make it move.
+#[test]
+fn a_lost_track_pulls_with_a_bounded_force() {
+    let beam = Cantilever::new([40, 4, 4]);
+    let input = beam.input();
+    let run = |threshold: f64, frame: &[Observation<f64>]| {
+        let mut cfg = config(beam.cam, 3.0e-11, Strategy::Refactor, 0.0);
+        cfg.solver.spring_threshold = threshold;
+        let mut storage = ModelStorage::with_features(&input, 64).unwrap();
+        let mut model = storage.model(&input, &cfg).unwrap();
+        model.embed_features(&beam.frame0).unwrap();
+        let report = converge(&mut model, frame);
+        assert!(
+            report.gradient_norm_after < 1e-6 * report.gradient_norm_before.max(1e-300) + 1e-9,
+            "threshold {threshold}: gradient {:e} -> {:e}",
+            report.gradient_norm_before,
+            report.gradient_norm_after
+        );
+        (model.positions().to_vec(), model.spring_threshold_px())
+    };
+    let largest_displacement = |x: &[[f64; 3]]| {
+        x.iter()
+            .zip(&beam.mesh.nodes)
+            .map(|(p, q)| (Vector3::from(*p) - Vector3::from(*q)).norm())
+            .fold(0.0, f64::max)
+    };
+    // Every feature pulled 8 px, well inside one spacing: the quadratic springs' result.
+    let (quadratic, _) = run(f64::INFINITY, &beam.pulled);
+    let (huber, delta) = run(1.0, &beam.pulled);
+    assert!(delta > 8.0, "threshold {delta} px");
+    assert_eq!(quadratic, huber);
+    // One track lost 250 px away, the others still: the quadratic spring drags the tip along.
+    let mut lost = beam.frame0.clone();
+    lost[12].uv[1] += 250.0;
+    let (quadratic, _) = run(f64::INFINITY, &lost);
+    let (huber, _) = run(1.0, &lost);
+    let (q, h) = (
+        largest_displacement(&quadratic),
+        largest_displacement(&huber),
+    );
+    eprintln!(
+        "a track lost 250 px away moves the model {:.4} mm with quadratic springs, {:.4} mm with Huber's (threshold {delta:.1} px)",
+        q * 1e3,
+        h * 1e3
+    );
+    // Small deflections are linear in the load, and the lost spring's pull is `k · 250` px
+    // against `k δ`: the displacements are in that ratio, to within the other springs' share.
+    let ratio = (h / q) / (delta / 250.0);
+    assert!((0.8..1.25).contains(&ratio), "{h} against {q}: {ratio}");
 }
 
 #[test]
@@ -525,6 +579,7 @@ fn the_model_runs_in_f32() {
             newton_iterations: 4,
             line_search_steps: 4,
             coupling: Coupling::Stiffness(2.0e-6),
+            spring_threshold: f32::INFINITY,
             damping: 1e-3,
             depth_prior: 0.0,
             image_margin: 50.0,

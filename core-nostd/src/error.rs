@@ -97,6 +97,8 @@ pub enum Parameter {
     Damping,
     /// Depth prior (non-negative, finite).
     DepthPrior,
+    /// Threshold of the springs' robust loss (positive; infinite for quadratic springs).
+    SpringThreshold,
     /// Camera intrinsics (positive focal lengths, finite centre, positive image size).
     Intrinsics,
     /// Camera pose (finite, rotation orthonormal with determinant 1).
@@ -159,6 +161,9 @@ impl fmt::Display for Parameter {
             }
             Parameter::Damping => "damping must be non-negative and finite",
             Parameter::DepthPrior => "the depth prior must be non-negative and finite",
+            Parameter::SpringThreshold => {
+                "the springs' robust threshold must be positive (infinite for quadratic springs)"
+            }
             Parameter::Intrinsics => {
                 "camera intrinsics need positive focal lengths, a finite centre and a positive image size"
             }

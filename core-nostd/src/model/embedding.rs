@@ -47,8 +47,9 @@ impl<T: Real> Model<'_, T> {
     /// Embeds the features of frame 0 (see [`Features::embed`]) at the current positions,
     /// replacing any held before, sets up the cut detection on them (`cut` feature: neighbour
     /// pairs, a fresh cut line, frame count back to 0) and prepares the frozen factor when
-    /// that strategy is configured. With [`crate::Coupling::Relative`] it also sets the
-    /// springs' stiffness from these features ([`Model::spring_stiffness`]).
+    /// that strategy is configured. It also sets the springs' robust threshold from these
+    /// features' spacing ([`Model::spring_threshold_px`]) and, with
+    /// [`crate::Coupling::Relative`], their stiffness ([`Model::spring_stiffness`]).
     ///
     /// All or nothing: the features and their embedding are copied aside first (once, `9 ·`
     /// [`Capacities::features`] entries at most), the detector counts its pairs before it
@@ -65,7 +66,7 @@ impl<T: Real> Model<'_, T> {
         self.saved.features.copy_from(&self.features);
         self.saved.embedding.copy_from(&self.live.features);
         let factored = self.factored;
-        let spring_stiffness = self.spring_stiffness;
+        let springs = (self.spring_stiffness, self.spring_threshold_px);
         self.factor.checkpoint();
         match self.embed_features_uncommitted(frame0) {
             Ok(report) => {
@@ -76,7 +77,7 @@ impl<T: Real> Model<'_, T> {
                 self.features.copy_from(&self.saved.features);
                 self.live.features.copy_from(&self.saved.embedding);
                 self.factored = factored;
-                self.spring_stiffness = spring_stiffness;
+                (self.spring_stiffness, self.spring_threshold_px) = springs;
                 self.factor.rollback();
                 Err(e)
             }
@@ -101,7 +102,7 @@ impl<T: Real> Model<'_, T> {
         if report.embedded == 0 {
             return Err(Error::NoFeatures);
         }
-        self.spring_stiffness = self.coupled_spring_stiffness()?;
+        (self.spring_stiffness, self.spring_threshold_px) = self.coupled_springs()?;
         #[cfg(feature = "detect")]
         {
             // Scratch: the projections and residuals at frame 0.
@@ -151,20 +152,21 @@ impl<T: Real> Model<'_, T> {
         Ok(report)
     }
 
-    /// The springs' stiffness `k` for the embedded features ([`crate::Coupling`]): the feature
-    /// spacing from the bounding box of their frame-0 pixels, the image scale from the
-    /// projection's Jacobian at their virtual points.
+    /// The springs' stiffness `k` ([`crate::Coupling`]) and robust threshold (pixels) for the
+    /// embedded features: the feature spacing from the bounding box of their frame-0 pixels,
+    /// the image scale from the projection's Jacobian at their virtual points.
     ///
     /// Cost: one projection with its Jacobian per embedded feature, once.
-    fn coupled_spring_stiffness(&self) -> Result<T, Error> {
-        let coupling = self.config.solver.coupling;
-        if let Coupling::Stiffness(k) = coupling {
-            return coupling.stiffness(k, T::one(), T::one());
-        }
+    fn coupled_springs(&self) -> Result<(T, T), Error> {
         let n = self.features.len();
         let (lo, hi) = image_bounds(self.features.targets()).ok_or(Error::NoFeatures)?;
         // The detector's spacing (`Detector::spacing`), so both speak of the same length.
         let spacing = spacing_px(hi[0] - lo[0], hi[1] - lo[1], n);
+        let threshold = self.config.solver.spring_threshold * spacing;
+        let coupling = self.config.solver.coupling;
+        if let Coupling::Stiffness(k) = coupling {
+            return Ok((coupling.stiffness(k, T::one(), T::one())?, threshold));
+        }
         let x = &self.live.x[..self.live.mesh.n_nodes()];
         let mut scale_sum = T::zero();
         for slot in 0..n {
@@ -187,6 +189,7 @@ impl<T: Real> Model<'_, T> {
             scale_sum += (T::of(0.5) * (tr - disc)).max(T::zero()).sqrt();
         }
         let scale = scale_sum / T::of(n as f64);
-        coupling.stiffness(self.config.material.young, spacing, scale)
+        let k = coupling.stiffness(self.config.material.young, spacing, scale)?;
+        Ok((k, threshold))
     }
 }

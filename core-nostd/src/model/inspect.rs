@@ -123,7 +123,7 @@ impl<'a, T: Real> Model<'a, T> {
         h.reals(self.features.targets().iter().flatten());
         h.words(self.features.active());
         h.words(core::iter::once(&self.frame));
-        h.reals(core::iter::once(&self.spring_stiffness));
+        h.reals([self.spring_stiffness, self.spring_threshold_px].iter());
         let strategy = match self.config.solver.strategy {
             Strategy::Refactor => [0, 0],
             Strategy::Frozen { pcg_iterations } => [1, pcg_iterations],

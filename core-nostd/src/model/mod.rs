@@ -184,6 +184,9 @@ pub struct Model<'a, T: Real> {
     /// The springs' `k`, J/px²: given, or derived from the scene when the features are
     /// embedded ([`crate::Coupling`]).
     pub(crate) spring_stiffness: T,
+    /// Where the springs turn linear, pixels ([`SolverConfig::spring_threshold`] feature
+    /// spacings, set when the features are embedded; `∞` before).
+    pub(crate) spring_threshold_px: T,
     pub(crate) vectors: SolveVectors<'a, T>,
     /// Workspace of rebuilds and cuts (no meaning between calls).
     #[cfg(feature = "cut")]
@@ -349,6 +352,7 @@ impl<'a, T: Real> Model<'a, T> {
                 // Set when the features are embedded; no spring acts before.
                 Coupling::Relative(_) => T::zero(),
             },
+            spring_threshold_px: T::of(f64::INFINITY),
             vectors,
             #[cfg(feature = "cut")]
             work,
@@ -364,6 +368,13 @@ impl<'a, T: Real> Model<'a, T> {
     /// scene when the features were embedded ([`crate::Coupling::Relative`]; zero before).
     pub fn spring_stiffness(&self) -> T {
         self.spring_stiffness
+    }
+
+    /// The residual, pixels, beyond which the springs pull with a constant force (Huber's
+    /// loss): [`SolverConfig::spring_threshold`] times the feature spacing measured when the
+    /// features were embedded (`∞` before, or for quadratic springs).
+    pub fn spring_threshold_px(&self) -> T {
+        self.spring_threshold_px
     }
 
     /// The mesh in service.

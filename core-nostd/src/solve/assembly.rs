@@ -30,6 +30,8 @@ pub(crate) struct Problem<'p, 'a, T: Real> {
     /// Where each feature sits in the mesh (slot by slot).
     pub embedding: &'p Embedding<'a, T>,
     pub spring_stiffness: T,
+    /// Where the springs turn linear (Huber's loss), pixels.
+    pub spring_threshold_px: T,
     /// Damping weight per node.
     pub damping: &'p [T],
     /// Depth-prior weight per node.
@@ -56,6 +58,18 @@ pub(crate) const PAIRS: [(usize, usize); 10] = [
     (1, 3),
     (2, 3),
 ];
+
+/// Huber's loss of a spring whose residual has squared length `r2` (px²) against threshold
+/// `delta` (px): `(ρ, w)` with `ρ = ½ r²` and `w = 1` up to the threshold, `ρ = δ r − ½ δ²`
+/// and `w = δ / r` beyond; the spring's force is `k w r`, its Gauss–Newton weight `k w`.
+fn huber<T: Real>(r2: T, delta: T) -> (T, T) {
+    if r2 <= delta * delta {
+        (T::of(0.5) * r2, T::one())
+    } else {
+        let r = r2.sqrt();
+        (delta * r - T::of(0.5) * delta * delta, delta / r)
+    }
+}
 
 fn vec3<T: Real>(p: &[T; 3]) -> Vector3<T> {
     Vector3::new(p[0], p[1], p[2])
@@ -128,7 +142,7 @@ impl<T: Real> Problem<'_, '_, T> {
     }
 
     fn spring_energy(&self, x: &[[T; 3]], work: &mut WorkCount) -> Result<T, Error> {
-        let half_k = T::of(0.5) * self.spring_stiffness;
+        let k = self.spring_stiffness;
         let mut sum = T::zero();
         let observations = self.features.active().iter().zip(self.features.targets());
         for (slot, (&active, target)) in observations.enumerate() {
@@ -144,7 +158,7 @@ impl<T: Real> Problem<'_, '_, T> {
                 .project(&Vector3::from(p), slot)
                 .map_err(|_| self.features.behind_camera(slot))?;
             let (du, dv) = (target[0] - uv.x, target[1] - uv.y);
-            sum += half_k * (du * du + dv * dv);
+            sum += k * huber(du * du + dv * dv, self.spring_threshold_px).0;
             work.feature_evaluations += 1;
         }
         Ok(sum)
@@ -244,8 +258,8 @@ impl<T: Real> Problem<'_, '_, T> {
             work.element_evaluations += self.mesh.n_tets() as u64;
         }
 
-        // Springs, Gauss–Newton through the projection.
-        let k = self.spring_stiffness;
+        // Springs, Gauss–Newton through the projection, reweighted by Huber's loss.
+        let k_spring = self.spring_stiffness;
         let observations = self.features.active().iter().zip(self.features.targets());
         for (slot, (&active, target)) in observations.enumerate() {
             if active == 0 {
@@ -270,7 +284,9 @@ impl<T: Real> Problem<'_, '_, T> {
                 .project_with_jacobian(&Vector3::from(p), slot)
                 .map_err(|_| self.features.behind_camera(slot))?;
             let r = nalgebra::Vector2::new(target[0] - uv.x, target[1] - uv.y);
-            e.spring += T::of(0.5) * k * r.norm_squared();
+            let (rho, weight) = huber(r.norm_squared(), self.spring_threshold_px);
+            e.spring += k_spring * rho;
+            let k = k_spring * weight;
             let jr = j.transpose() * r * k;
             force_sum += jr.abs().sum();
             for (&f, &wa) in ft.iter().zip(w) {
@@ -431,4 +447,33 @@ pub(crate) fn build_scatter<T: Real>(
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::huber;
+
+    /// The weight is the loss's derivative over the residual (checked against central
+    /// differences of the loss), the loss is continuous at the threshold, and an infinite
+    /// threshold gives the quadratic spring exactly.
+    #[test]
+    fn huber_weight_is_the_derivative_of_its_loss() {
+        let delta = 3.0;
+        let rho = |r: f64| huber(r * r, delta).0;
+        for r in [0.1, 1.0, 2.9, 3.1, 5.0, 40.0, 1e4] {
+            let h = 1e-6 * r;
+            let derivative = (rho(r + h) - rho(r - h)) / (2.0 * h);
+            let (_, w) = huber(r * r, delta);
+            assert!(
+                (w * r - derivative).abs() <= 1e-6 * derivative.abs(),
+                "r = {r}: w r = {}, ρ' = {derivative}",
+                w * r
+            );
+        }
+        let (below, above) = (rho(delta * (1.0 - 1e-12)), rho(delta * (1.0 + 1e-12)));
+        assert!((below - above).abs() < 1e-9);
+        for r2 in [0.0, 0.5, 7.0, 1e12] {
+            assert_eq!(huber(r2, f64::INFINITY), (0.5 * r2, 1.0));
+        }
+    }
 }

@@ -298,6 +298,8 @@ pub(crate) struct Coefficients<T> {
     pub(crate) lame: Lame<T>,
     /// `k`, J/px² ([`crate::Model::spring_stiffness`]).
     pub(crate) spring_stiffness: T,
+    /// `δ`, pixels ([`crate::Model::spring_threshold_px`]).
+    pub(crate) spring_threshold_px: T,
 }
 
 impl<T: Real> Model<'_, T> {
@@ -306,6 +308,7 @@ impl<T: Real> Model<'_, T> {
         Coefficients {
             lame: self.lame,
             spring_stiffness: self.spring_stiffness,
+            spring_threshold_px: self.spring_threshold_px,
         }
     }
 }
@@ -321,6 +324,7 @@ pub(crate) fn problem_of<'p, 'a, T: Real>(
     let Coefficients {
         lame,
         spring_stiffness,
+        spring_threshold_px,
     } = coefficients;
     Problem {
         mesh: &d.mesh,
@@ -329,6 +333,7 @@ pub(crate) fn problem_of<'p, 'a, T: Real>(
         features,
         embedding: &d.features,
         spring_stiffness,
+        spring_threshold_px,
         damping: &d.damping[..n],
         depth_weight: &d.depth_weight[..n],
         previous: &d.previous[..n],

@@ -366,7 +366,7 @@ fn emit(s: &mut String, e: &Emit<'_>) {
          Ok(ModelConfig {{\n        material: Material {{\n            young: {},\n            poisson: {},\n        }},\n        \
          camera,\n        solver: SolverConfig {{\n            strategy: {strategy},\n            \
          newton_iterations: {},\n            line_search_steps: {},\n            coupling: {},\n            \
-         damping: {},\n            depth_prior: {},\n            image_margin: {},\n        }},\n        \
+         spring_threshold: {},\n            damping: {},\n            depth_prior: {},\n            image_margin: {},\n        }},\n        \
          detection: {:?},\n    }})\n}}\n",
         real(i.fx),
         real(i.fy),
@@ -394,6 +394,12 @@ fn emit(s: &mut String, e: &Emit<'_>) {
         match sv.coupling {
             Coupling::Relative(beta) => format!("Coupling::Relative({})", real(beta)),
             Coupling::Stiffness(k) => format!("Coupling::Stiffness({})", real(k)),
+        },
+        // `inf` is not a Rust literal.
+        if sv.spring_threshold.is_finite() {
+            real(sv.spring_threshold)
+        } else {
+            "Scalar::INFINITY".to_string()
         },
         real(sv.damping),
         real(sv.depth_prior),

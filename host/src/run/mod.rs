@@ -383,6 +383,7 @@ fn run_pass_in<T: Real>(
         embedded: placed.embedded,
         missed: placed.missed,
         spring_stiffness: model.spring_stiffness().to_f64(),
+        spring_threshold_px: model.spring_threshold_px().to_f64(),
         model_bytes,
     })
 }

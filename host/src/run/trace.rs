@@ -29,6 +29,9 @@ pub struct Summary {
     pub feature_spacing_px: f64,
     /// The springs' stiffness `k`, J/px²: the scene's, or derived from it (`[solver] coupling`).
     pub spring_stiffness: f64,
+    /// Where the springs turn from quadratic to linear (Huber's loss), pixels: `[solver]
+    /// spring_threshold` feature spacings (null for quadratic springs).
+    pub spring_threshold_px: Option<f64>,
     /// Frame at which a cut was detected, if any.
     pub cut_detected_frame: Option<u32>,
     /// Frame at which the true cut opens (ground truth), if the scene has one.
@@ -239,6 +242,8 @@ pub struct Trace {
     pub missed: usize,
     /// The springs' stiffness in service, J/px² (given, or derived from the scene).
     pub spring_stiffness: f64,
+    /// The springs' robust threshold in service, pixels.
+    pub spring_threshold_px: f64,
     /// Storage bytes.
     pub model_bytes: usize,
 }
@@ -267,6 +272,7 @@ impl Summary {
             precision: scene.precision,
             feature_spacing_px: trace.detection.spacing_px,
             spring_stiffness: trace.spring_stiffness,
+            spring_threshold_px: Some(trace.spring_threshold_px).filter(|d| d.is_finite()),
             cut_detected_frame: trace.detection.detected_frame,
             cut_open_frame: open,
             cut_hausdorff_px: trace.detection.hausdorff_px,

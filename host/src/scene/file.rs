@@ -122,6 +122,10 @@ pub struct SolverSection {
     /// measured or taken from elsewhere.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub spring_stiffness: Option<f64>,
+    /// Where the springs turn from quadratic to linear (Huber's loss), in feature spacings;
+    /// `inf` for quadratic springs. The core's default when not given.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub spring_threshold: Option<f64>,
     /// Damping toward the previous frame, fraction of the rest stiffness.
     pub damping: f64,
     /// Prior on depth (against motion along the camera rays), fraction of the rest stiffness.
@@ -411,6 +415,9 @@ impl SolverSection {
             newton_iterations: s.newton_iterations,
             line_search_steps: s.line_search_steps,
             coupling,
+            spring_threshold: s
+                .spring_threshold
+                .unwrap_or(incise_core::solve::DEFAULT_SPRING_THRESHOLD),
             damping: s.damping,
             depth_prior: s.depth_prior,
             image_margin: s.image_margin,
