@@ -491,11 +491,6 @@ impl<'a, T: Real> Mesh<'a, T> {
     pub fn is_fixed(&self, v: usize) -> bool {
         self.free_index().get(v).is_some_and(|&f| f == NONE)
     }
-    /// Shape quality of tetrahedron `t` at rest ([`shape_quality`]; `None` out of range).
-    pub fn quality(&self, t: usize) -> Option<T> {
-        let tet = self.tets().get(t)?;
-        Some(shape_quality(&corners(self.rest(), tet).ok()?))
-    }
     /// Rest geometry of tetrahedron `t` (`None` if out of range).
     pub fn element_rest(&self, t: usize) -> Option<ElementRest<T>> {
         if t >= self.n_tets {

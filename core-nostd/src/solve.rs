@@ -38,7 +38,6 @@ mod assembly;
 mod newton;
 
 pub(crate) use assembly::{Problem, build_scatter};
-pub(crate) use newton::problem_of;
 #[cfg(feature = "cut")]
 pub(crate) use newton::{assemble_on, factorize_on};
 

@@ -1,3 +1,5 @@
+//! The `incise` program: parses the command line and runs the command ([`incise::cli`]).
+
 use clap::Parser;
 
 fn main() {

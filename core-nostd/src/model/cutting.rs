@@ -190,7 +190,7 @@ impl<'a, T: Real> Model<'a, T> {
     }
 
     /// The node pairs the cuts have separated (a node on the cut and its copy on the other
-    /// lip).
+    /// lip): for a caller that inspects or draws the two sides of a cut.
     pub fn lips(&self) -> &[[u32; 2]] {
         self.live.lips.pairs()
     }

@@ -1,31 +1,16 @@
-//! What validation reads and sets from outside the per-frame path: the energies, the linear
-//! system of a Newton step (for an outside solver), positions set by the caller, the
-//! fingerprint of the state, targets at given positions.
+//! What validation reads and sets from outside the per-frame path: the linear system of a
+//! Newton step with its energies (for an outside solver), positions set by the caller, the
+//! fingerprint of the state.
 
 use super::*;
 
 impl<'a, T: Real> Model<'a, T> {
-    /// The energies at the current positions (observations of the last frame, damping toward
-    /// the previous frame's positions).
-    ///
-    /// # Errors
-    /// [`Error::FeatureBehindCamera`] if a virtual feature cannot be projected.
-    pub fn energy(&self) -> Result<Energies<T>, Error> {
-        problem_of(
-            &self.live,
-            &self.features,
-            self.coefficients(),
-            &self.config,
-        )
-        .energy(self.positions(), &mut WorkCount::default())
-    }
-
     /// Assembles the system a Newton step solves at the current positions, for validation
     /// against other solvers: the gradient over the free unknowns (`3 · n_free`, node by free
     /// index) and the positive definite Hessian on the stiffness pattern.
     ///
     /// # Errors
-    /// As [`Model::energy`].
+    /// [`Error::FeatureBehindCamera`] if a virtual feature cannot be projected.
     pub fn linearize(&mut self) -> Result<Linearization<'_, T>, Error> {
         let energies = self.assemble(true, &mut WorkCount::default())?;
         let n = self.n_unknowns();
@@ -137,13 +122,5 @@ impl<'a, T: Real> Model<'a, T> {
             self.cut.line.fingerprint_into(&mut h);
         }
         h.finish()
-    }
-
-    /// Position of internal target `k` interpolated at positions `x` (for callers that move the
-    /// nodes themselves); `None` out of range.
-    pub fn target_at(&self, k: usize, x: &[[T; 3]]) -> Option<[T; 3]> {
-        let t = *self.live.targets.tets().get(k)?;
-        let tet = self.live.mesh.tets().get(t as usize)?;
-        interpolate(x, tet, &self.live.targets.weights()[k])
     }
 }

@@ -36,13 +36,13 @@ use crate::cutline::{CutLine, CutLineReport, LineWork};
 use crate::detect::DetectionConfig;
 #[cfg(feature = "detect")]
 use crate::detect::{DetectionReport, DetectionWork, Detector};
-use crate::embed::{Embedding, interpolate, locate_at_rest};
+use crate::embed::{Embedding, locate_at_rest};
 use crate::error::{Error, Resource};
 use crate::features::{EmbedReport, Features, Observation, image_bounds, spacing_px};
 use crate::material::Lame;
 use crate::mesh::{Mesh, MeshInput};
 use crate::real::Real;
-use crate::solve::{Coupling, Energies, SolverConfig, Strategy, WorkCount, problem_of};
+use crate::solve::{Coupling, Energies, SolverConfig, Strategy, WorkCount};
 #[cfg(feature = "cut")]
 use crate::solve::{assemble_on, factorize_on};
 use crate::sparse::{LdlFactor, NONE, PrecomputedAnalysis, Symbolic, UpperCsc};
@@ -481,10 +481,12 @@ impl<'a, T: Real> Model<'a, T> {
 
     /// One registration step, its stages in order:
     /// 1. **observe**: take the frame's observations;
-    /// 2. **solve**: a fixed number of Newton steps lowering `W_I + W_S + W_D`;
-    /// 3. **detect** (`cut` feature): residuals, the discontinuity detector;
-    /// 4. **grow**: the cut line follows its evidence and its fronts advance;
-    /// 5. **cut**: the mesh is cut along the line's separation surface ([`Model::apply_cut`]).
+    /// 2. **solve**: a fixed number of Newton steps lowering `W_I + W_S + W_D + W_R`
+    ///    ([`crate::solve`]);
+    /// 3. **detect** (`detect` feature): residuals, the discontinuity detector;
+    /// 4. **grow** (`detect` feature): the cut line follows its evidence and its fronts advance;
+    /// 5. **cut** (`cut` feature): the mesh is cut along the line's separation surface
+    ///    ([`Model::apply_cut`]).
     ///
     /// The steady work (stages 1–4) is fixed by the configuration and the scene's sizes:
     /// `newton_iterations + 1` assemblies, one factorization per Newton step (`Refactor`) or

@@ -314,7 +314,7 @@ impl<T: Real> Model<'_, T> {
 }
 
 /// The energy of a discretization with the features' observations.
-pub(crate) fn problem_of<'p, 'a, T: Real>(
+fn problem_of<'p, 'a, T: Real>(
     d: &'p Discretization<'a, T>,
     features: &'p Features<'a, T>,
     coefficients: Coefficients<T>,

@@ -40,16 +40,6 @@ impl DepthBuffer {
         }
     }
 
-    /// Width and height, pixels.
-    pub fn size(&self) -> (u32, u32) {
-        (self.width, self.height)
-    }
-
-    /// Depth per pixel, row-major, metres (infinite where no surface).
-    pub fn depths(&self) -> &[f64] {
-        &self.depth
-    }
-
     /// Whether world point `p` is seen: in the image and not behind the surface by more than
     /// `tolerance` metres.
     pub fn visible(&self, camera: &Camera<f64>, p: [f64; 3], tolerance: f64) -> Option<[f64; 2]> {

@@ -190,8 +190,6 @@ pub mod colour {
     pub const TRUTH_OUTLINE: [u8; 3] = [200, 200, 210];
     /// Model wireframe.
     pub const MODEL: [u8; 3] = [80, 200, 255];
-    /// Model wireframe with cutting switched off.
-    pub const MODEL_UNCUT: [u8; 3] = [255, 170, 60];
     /// Tracked features.
     pub const FEATURE: [u8; 3] = [120, 255, 120];
     /// Projected virtual features.

@@ -183,7 +183,8 @@ impl<'a, T: Real> Detector<'a, T> {
         self.pairs.len()
     }
 
-    /// Whether pair `k` has been counted as split.
+    /// Whether pair `k` has been counted as split: with [`Detector::pairs`], for a caller that
+    /// draws the split pairs.
     pub fn is_split(&self, k: usize) -> bool {
         self.pair_state.get(k).is_some_and(|s| s & SPLIT != 0)
     }

@@ -67,11 +67,11 @@ mod error;
 use assembly::Linear;
 pub use error::{Failure, SimError};
 
-/// Default convergence tolerance of [`Simulator::solve`], relative to the force scale `E h²`
+/// Convergence tolerance of [`Simulator::solve`], relative to the force scale `E h²`
 /// (see [`Simulator::force_scale`]): strain errors of about `10⁻¹⁰`. Rounding leaves residual
 /// forces of `10⁻¹⁹`–`10⁻¹⁷ E h²` on the test bars (30 % stretch), so there is ample margin
 /// for finer or more distorted meshes.
-pub const DEFAULT_TOLERANCE: f64 = 1e-10;
+pub const TOLERANCE: f64 = 1e-10;
 
 /// Most halvings of the sub-step size in one [`Simulator::solve`]: the smallest sub-step is
 /// `2⁻¹²` of the frame's prescribed increment.
@@ -170,7 +170,6 @@ pub struct Simulator {
     scatter: Vec<[u32; 144]>,
     /// Slot of each diagonal entry, for the regularisation.
     diag: Vec<u32>,
-    tolerance: f64,
     force_scale: f64,
 }
 
@@ -295,7 +294,6 @@ impl Simulator {
             size,
             scatter,
             diag,
-            tolerance: DEFAULT_TOLERANCE,
             force_scale,
         })
     }
@@ -343,15 +341,6 @@ impl Simulator {
     /// element.
     pub fn force_scale(&self) -> f64 {
         self.force_scale
-    }
-
-    /// Sets the convergence tolerance of [`Simulator::solve`], relative to
-    /// [`Simulator::force_scale`] ([`DEFAULT_TOLERANCE`] unless set). Values that are not
-    /// positive and finite are ignored, so the solver always has a reachable stopping test.
-    pub fn set_tolerance(&mut self, tolerance: f64) {
-        if tolerance.is_finite() && tolerance > 0.0 {
-            self.tolerance = tolerance;
-        }
     }
 
     /// Elastic energy of the current state (J).
@@ -554,7 +543,7 @@ impl Simulator {
         let n = self.size.n;
         let (mut grad, mut values, mut dir) =
             (vec![0.0; n], vec![0.0; self.row_idx.len()], vec![0.0; n]);
-        let limit = self.tolerance * self.force_scale;
+        let limit = TOLERANCE * self.force_scale;
         let mut at = self.energy_gradient(&self.u, &mut grad);
         for it in 0..=max_iter {
             if !grad.iter().all(|g| g.is_finite()) {
@@ -789,7 +778,7 @@ mod tests {
         for f in 1..=3 {
             let s = 1.0 + 0.1 * f as f64; // 5 mm per frame
             let stats = sim.solve(&end_targets(&sim, s, 1.0, w), 30).unwrap();
-            assert!(stats.gradient_norm <= DEFAULT_TOLERANCE * sim.force_scale());
+            assert!(stats.gradient_norm <= TOLERANCE * sim.force_scale());
             assert!(stats.iterations <= 30, "{stats:?}");
             let jmin = min_jacobian(&sim);
             assert!(jmin > 0.3, "frame {f}: min det F {jmin}");
@@ -910,7 +899,7 @@ mod tests {
             .flatten()
             .fold(0.0f64, |m, v| m.max(v.abs()));
         assert!(floating_move <= 1e-12, "{floating_move:e}");
-        assert!(stats.gradient_norm <= DEFAULT_TOLERANCE * sim.force_scale());
+        assert!(stats.gradient_norm <= TOLERANCE * sim.force_scale());
     }
 
     #[test]
