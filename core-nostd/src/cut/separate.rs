@@ -347,8 +347,16 @@ pub(crate) fn keep_edges_manifold<T: Real>(
             for run in entries.chunk_by(|x, y| x[0] == y[0]) {
                 let b = run.first().map_or(NONE, |e| e[0]);
                 let live = cut.get(..n).unwrap_or_default();
+                let groups = &*scratch.groups;
+                let group_of = |w: u32, t: u32| {
+                    let at = incidence.of(w as usize).binary_search(&t);
+                    at.ok()
+                        .and_then(|j| groups.get(start(w) + j).copied())
+                        .unwrap_or(NONE)
+                };
                 let ring = (&mut *scratch.ring, &mut *scratch.ring_parent);
-                let split_at = edge_split_to_mend(mesh, [a, b], run, live, ring, work_entries)?;
+                let split_at =
+                    edge_split_to_mend(mesh, [a, b], run, live, group_of, ring, work_entries)?;
                 if let Some(face) = split_at
                     && let Ok(k) = live.binary_search(&face)
                 {
@@ -366,13 +374,17 @@ pub(crate) fn keep_edges_manifold<T: Real>(
 }
 
 /// Around edge `[a, b]` (its tetrahedra `run`, each `[b, group at a, group at b, tet]`, sorted),
-/// the groups joined through faces on the edge that are not `cut`: if two of them share their
-/// groups at both ends, returns a cut face on the edge to leave uncut.
+/// the groups that stay joined through faces on the edge once the nodes are duplicated: a face
+/// `(a, b, w)` separates its two tetrahedra only if it is `cut` and they fall in different
+/// groups at `w` (`group_of(w, tet)`; otherwise no node of the face is duplicated across it
+/// and it stays inside the mesh). If two of these groups share their groups at both ends,
+/// returns a separating face on the edge to leave uncut.
 fn edge_split_to_mend<T: Real>(
     mesh: &Mesh<'_, T>,
     [a, b]: [u32; 2],
     run: &[[u32; 4]],
     cut: &[[u32; 3]],
+    group_of: impl Fn(u32, u32) -> u32,
     (ring, parent): (&mut [[u32; 2]], &mut [u32]),
     work_entries: &mut u64,
 ) -> Result<Option<[u32; 3]>, Error> {
@@ -390,7 +402,7 @@ fn edge_split_to_mend<T: Real>(
         key.sort_unstable();
         key
     };
-    let mut any_cut = None;
+    let mut any_cut = false;
     for (j, (entry, (p, two))) in run
         .iter()
         .zip(parent.iter_mut().zip(ring.chunks_exact_mut(2)))
@@ -406,22 +418,29 @@ fn edge_split_to_mend<T: Real>(
         for slot in two.iter_mut() {
             let w = others.next().unwrap_or(NONE);
             *slot = [w, j as u32];
-            if any_cut.is_none() && cut.binary_search(&face(w)).is_ok() {
-                any_cut = Some(face(w));
-            }
+            any_cut = any_cut || cut.binary_search(&face(w)).is_ok();
         }
     }
     *work_entries += needed as u64;
     // No cut face on the edge: its tetrahedra stay one group.
-    let Some(to_mend) = any_cut else {
+    if !any_cut {
         return Ok(None);
-    };
+    }
     ring.sort_unstable();
+    let tet_of = |j: u32| run.get(j as usize).map_or(NONE, |e| e[3]);
+    let mut to_mend = None;
     for two in ring.windows(2) {
         let &[x, y] = two else {
             continue;
         };
-        if x[0] != y[0] || cut.binary_search(&face(x[0])).is_ok() {
+        if x[0] != y[0] {
+            continue;
+        }
+        let w = x[0];
+        if cut.binary_search(&face(w)).is_ok()
+            && group_of(w, tet_of(x[1])) != group_of(w, tet_of(y[1]))
+        {
+            to_mend = to_mend.or(Some(face(w)));
             continue;
         }
         let (rx, ry) = (find(parent, x[1] as usize), find(parent, y[1] as usize));
@@ -438,7 +457,7 @@ fn edge_split_to_mend<T: Real>(
             continue;
         };
         if (x[1], x[2]) == (y[1], y[2]) && find(parent, j) != find(parent, j + 1) {
-            return Ok(Some(to_mend));
+            return Ok(to_mend);
         }
     }
     Ok(None)
@@ -524,19 +543,24 @@ mod tests {
         (rest, tets)
     }
 
-    /// Runs the edge check on the capped ring with `cut` and returns the faces left cut.
-    fn mend(faces_cut: &[[u32; 3]]) -> usize {
+    /// Cuts the capped ring along `faces_cut`: runs the edge check (when `check`), duplicates
+    /// the nodes and rebuilds the boundary. Returns the faces left cut and the mesh's verdict.
+    fn separate_ring(faces_cut: &[[u32; 3]], check: bool) -> (usize, Result<(), Error>) {
         let (rest, tets) = capped_ring();
         let input = MeshInput {
             rest: &rest,
             tets: &tets,
             fixed: &[6],
         };
-        let cap = MeshCapacity::exact(&input);
-        let (mut r, mut i, mut w) = ([0.0; 256], [0u32; 512], [0u32; 512]);
+        // Room for a copy of every node.
+        let cap = MeshCapacity {
+            nodes: 16,
+            ..MeshCapacity::exact(&input)
+        };
+        let (mut r, mut i, mut w) = ([0.0; 256], [0u32; 512], [0u32; 2048]);
         let mut rs = Slab::new(&mut r, Resource::RealStorage);
         let mut is = Slab::new(&mut i, Resource::IndexStorage);
-        let mesh = Mesh::new(&input, &cap, &mut rs, &mut is, &mut w).unwrap();
+        let mut mesh = Mesh::new(&input, &cap, &mut rs, &mut is, &mut w).unwrap();
         let (mut ptr, mut list) = ([0u32; 9], [0u32; 48]);
         let incidence = Incidence::build(mesh.tets(), 8, &mut ptr, &mut list).unwrap();
         let mut store = [[0u32; 3]; 8];
@@ -558,27 +582,64 @@ mod tests {
             parent: &mut parent,
         };
         let (mut groups, mut ring, mut ring_parent) = ([0u32; 48], [[0u32; 2]; 48], [0u32; 48]);
-        let mut scratch = EdgeScratch {
-            groups: &mut groups,
-            stars: &mut stars,
-            ring: &mut ring,
-            ring_parent: &mut ring_parent,
-        };
         let mut work = 0;
-        let n = cut.len();
-        let n = keep_edges_manifold(&mesh, &incidence, cut, n, on_cut, &mut scratch, &mut work)
-            .unwrap();
-        assert!(work > 0);
+        let mut n = cut.len();
+        if check {
+            let mut scratch = EdgeScratch {
+                groups: &mut groups,
+                stars: &mut stars,
+                ring: &mut ring,
+                ring_parent: &mut ring_parent,
+            };
+            n = keep_edges_manifold(&mesh, &incidence, cut, n, on_cut, &mut scratch, &mut work)
+                .unwrap();
+            assert!(work > 0);
+        }
+        let copy = |mesh: &mut Mesh<'_, f64>, v: u32| {
+            let rest = mesh.rest()[v as usize];
+            mesh.push_node(rest, false)
+        };
+        duplicate_nodes(
+            &mut mesh,
+            &incidence,
+            &cut[..n],
+            on_cut,
+            &mut stars,
+            copy,
+            &mut work,
+        )
+        .unwrap();
+        (n, mesh.finish_edit(&mut w))
+    }
+
+    /// The faces the edge check leaves cut; the cut mesh is then valid.
+    fn mend(faces_cut: &[[u32; 3]]) -> usize {
+        let (n, verdict) = separate_ring(faces_cut, true);
+        assert_eq!(verdict, Ok(()));
         n
     }
 
     #[test]
-    fn a_crack_whose_edge_ends_stay_joined_is_mended_to_one_face() {
-        // Two faces on the edge split its ring in two, but both ends stay joined through the
-        // caps: four boundary triangles would meet along the edge.
-        assert_eq!(mend(&[[0, 1, 2], [0, 1, 4]]), 1);
-        // Four faces: one pass mends one face, until the ring is one group again.
-        assert_eq!(mend(&[[0, 1, 2], [0, 1, 3], [0, 1, 4], [0, 1, 5]]), 1);
+    fn an_edge_whose_ends_stay_joined_between_two_separated_faces_is_mended() {
+        // Nodes 2 and 4 are each cut loose along a path through their star (3 → 0 → 1 → 5
+        // and 5 → 0 → 1 → 3), so both faces (0, 1, 2) and (0, 1, 4) come apart, while around
+        // nodes 0 and 1 the cut is an open path and they stay whole: four boundary triangles
+        // would meet along edge (0, 1). One of its two faces stays joined.
+        let two_flaps = [
+            [0, 2, 3],
+            [0, 1, 2],
+            [1, 2, 5],
+            [0, 4, 5],
+            [0, 1, 4],
+            [1, 4, 3],
+        ];
+        assert!(matches!(
+            separate_ring(&two_flaps, false),
+            (6, Err(Error::NonManifold { a: 0, b: 1 }))
+        ));
+        assert_eq!(mend(&two_flaps), 5);
+        // Two faces on the edge whose nodes all stay whole separate nothing: nothing to mend.
+        assert_eq!(mend(&[[0, 1, 2], [0, 1, 4]]), 2);
     }
 
     #[test]

@@ -252,7 +252,6 @@ pub fn write_scene(
         )
     );
     let body = toml::to_string(&scene).map_err(|e| at_file(&out.join("scene.toml"))(&e))?;
-    write_file(&out.join("scene.toml"), header + &body)?;
     write_file(&out.join("tracks.csv"), write_tracks(&tracks))?;
     write_file(&out.join("gt").join("targets.csv"), target_rows)?;
     write_file(&out.join("gt").join("cut.csv"), cut_rows)?;
@@ -260,6 +259,9 @@ pub fn write_scene(
         &out.join("gt").join("surface.obj"),
         write_obj(&sim.positions[sim.positions.len() - 1], &triangles),
     )?;
+    // Last: a directory with a `scene.toml` is a whole scene (`incise eval` reuses one when
+    // its scenario matches), so an interrupted run never leaves one that looks complete.
+    write_file(&out.join("scene.toml"), header + &body)?;
     Ok(Generated {
         dir: out.to_path_buf(),
         frames: s.frames,
