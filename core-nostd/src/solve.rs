@@ -1,6 +1,6 @@
 //! The per-frame minimisation: assembly of the energy, its gradient and a positive definite
-//! Hessian into the fixed stiffness pattern (here), and the Newton loop over it with the linear
-//! strategies and a line search with a fixed number of trial steps ([`newton`], the stage
+//! Hessian into the fixed stiffness pattern (`solve/assembly.rs`), and the Newton loop over it with the linear
+//! strategies and a line search with a fixed number of trial steps (`solve/newton.rs`, the stage
 //! [`crate::Model::step`] calls).
 //!
 //! The energy minimised over the free nodes is

@@ -2,7 +2,7 @@
 //! model is separated where the cut was detected, so that it can follow the organ again.
 //!
 //! The surface is the cut polyline of the image extruded along the camera rays
-//! ([`surface`]). One cut event, on a copy of the mesh (the model swaps it in only when the
+//! (`surface.rs`). One cut event, on a copy of the mesh (the model swaps it in only when the
 //! whole rebuild succeeds):
 //!
 //! 1. **Level set.** Every node gets `φ`, its signed distance to the plane of the segment
@@ -19,9 +19,9 @@
 //! 4. **Quality.** A split whose pieces would fall below the floor has its most lopsided
 //!    crossing snapped instead (declared), and is tried again: declaring never changes
 //!    geometry, so this always ends, with every piece above the floor.
-//! 5. **Split** ([`split`]): a new node on each crossed edge (shared by every tetrahedron
+//! 5. **Split** (`split.rs`): a new node on each crossed edge (shared by every tetrahedron
 //!    around it), each crossed tetrahedron replaced by its pieces.
-//! 6. **Separate** ([`separate`]): the faces on the surface between pieces of opposite sides,
+//! 6. **Separate** (`separate.rs`): the faces on the surface between pieces of opposite sides,
 //!    inside the extent, are cut; their nodes are duplicated where the tetrahedra around them
 //!    fall into groups no longer joined, so a partial cut leaves the material joined beyond
 //!    its end (which the composite-FEM method the paper cites cannot do).

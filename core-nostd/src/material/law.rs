@@ -12,7 +12,7 @@ use crate::real::Real;
 /// modulus `K = λ + 2μ/3` is positive), which makes the material part of the SVK tangent
 /// positive semidefinite even when `λ < 0` (Poisson ratio below zero). The fields are public
 /// for callers that know their Lamé pair directly; values outside that range are accepted by
-/// the element functions, and [`TangentProjection::PositiveDefinite`] clamps them (see there).
+/// the element functions, and [`TangentProjection::PositiveDefinite`](super::TangentProjection::PositiveDefinite) clamps them (see there).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Lame<T> {
     /// Shear modulus `μ` (Pa).

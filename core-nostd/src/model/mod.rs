@@ -9,7 +9,7 @@
 //! loop { model.step(frame) }                             observe → solve → detect → grow → cut
 //! ```
 //!
-//! The storage that a cut changes lives twice ([`discretization`]): the half in service and a
+//! The storage that a cut changes lives twice (`discretization.rs`): the half in service and a
 //! spare the cut is built into, swapped in only when the whole rebuild succeeded.
 
 #[cfg(feature = "cut")]

@@ -204,7 +204,7 @@ pub enum Command {
         #[arg(required_unless_present = "family", conflicts_with = "family")]
         scenarios: Vec<PathBuf>,
         /// A scene family file (see fixtures/README.md): write each of its variants as
-        /// OUT/<variant name>/ (its scenario.toml and the scene); needs --out.
+        /// `OUT/<variant name>/` (its scenario.toml and the scene); needs --out.
         #[arg(long, requires = "out", conflicts_with = "video")]
         family: Option<PathBuf>,
         /// Write the scene here instead of the scenario's directory (one scenario only); with
