@@ -361,30 +361,22 @@ pub(crate) fn apply<T: Real>(
         place::select_at_tip(mesh, x, phi, psi_k, &sep, k, status, edges, &mut event.work);
         place::stop_at_extent_ends(mesh, psi_k, &incidence, status, &mut event);
         place::keep_above_floor(mesh, psi_k, status, &mut event);
-        match psi[0].as_deref_mut() {
-            Some(psi_other) => split::split_selected(
-                mesh,
-                x,
-                previous,
-                psi_k,
-                status,
-                parents,
-                edges,
-                &mut [&mut *phi, psi_other],
-                &mut event,
-            )?,
-            None => split::split_selected(
-                mesh,
-                x,
-                previous,
-                psi_k,
-                status,
-                parents,
-                edges,
-                &mut [&mut *phi],
-                &mut event,
-            )?,
-        }
+        // The level sets the new edge nodes interpolate: `φ`, and the first end's `ψ` when
+        // this is the second end.
+        let (mut both, mut only_phi);
+        let carried: &mut [&mut [T]] = match psi[0].as_deref_mut() {
+            Some(psi_other) => {
+                both = [&mut *phi, psi_other];
+                &mut both
+            }
+            None => {
+                only_phi = [&mut *phi];
+                &mut only_phi
+            }
+        };
+        split::split_selected(
+            mesh, x, previous, psi_k, status, parents, edges, carried, &mut event,
+        )?;
         event.tets_split_at_ends += event.tets_split - split_before;
         let points = [&mut *features, &mut *targets];
         reembed::into_pieces(mesh, points, status, parents, t_before, &mut event);
