@@ -156,14 +156,15 @@ fn a_lost_track_pulls_with_a_bounded_force() {
     };
     // Every feature pulled 8 px, well inside one spacing: the quadratic springs' result.
     let (quadratic, _) = run(f64::INFINITY, &beam.pulled);
-    let (huber, delta) = run(1.0, &beam.pulled);
+    let default = incise_core::solve::DEFAULT_SPRING_THRESHOLD;
+    let (huber, delta) = run(default, &beam.pulled);
     assert!(delta > 8.0, "threshold {delta} px");
     assert_eq!(quadratic, huber);
     // One track lost 250 px away, the others still: the quadratic spring drags the tip along.
     let mut lost = beam.frame0.clone();
     lost[12].uv[1] += 250.0;
     let (quadratic, _) = run(f64::INFINITY, &lost);
-    let (huber, _) = run(1.0, &lost);
+    let (huber, _) = run(default, &lost);
     let (q, h) = (
         largest_displacement(&quadratic),
         largest_displacement(&huber),
