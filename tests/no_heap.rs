@@ -12,6 +12,7 @@
 
 use std::path::{Path, PathBuf};
 
+use incise::codegen::footprint::isolated_release_build;
 use incise_validation::symbols::allocator_symbols;
 use std::process::Command;
 
@@ -29,29 +30,7 @@ fn build(features: &[&str]) -> PathBuf {
         features.join("-")
     };
     let target_dir = root().join("target").join("nostd-check").join(flavour);
-    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
-    let mut cmd = Command::new(cargo);
-    cmd.current_dir(root().join("nostd-check"))
-        .args([
-            "build",
-            "--release",
-            "--locked",
-            "--no-default-features",
-            "--target-dir",
-        ])
-        .arg(&target_dir);
-    if !features.is_empty() {
-        cmd.arg("--features").arg(features.join(","));
-    }
-    // Nothing of the outer build may leak into this one.
-    for (key, _) in std::env::vars() {
-        if key.starts_with("CARGO_FEATURE_")
-            || key == "RUSTFLAGS"
-            || key == "CARGO_ENCODED_RUSTFLAGS"
-        {
-            cmd.env_remove(key);
-        }
-    }
+    let mut cmd = isolated_release_build(&root().join("nostd-check"), features, &target_dir);
     let status = cmd.status().expect("cargo runs");
     assert!(status.success(), "building nostd-check failed");
     target_dir.join("release").join("libincise_nostd_check.a")

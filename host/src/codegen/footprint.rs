@@ -230,17 +230,19 @@ fn run(cmd: &mut Command, what: &str) -> Result<std::process::Output, CodegenErr
     Ok(out)
 }
 
-/// Builds the firmware program for the generated module `module` with `set`'s features in
-/// `target_dir`, links it with the C `main` and measures it.
-///
-/// # Errors
-/// The build, link or measurement that failed, with its output.
-pub fn build(module: &Path, set: &FeatureSet, target_dir: &Path) -> Result<Firmware, CodegenError> {
-    let module = std::fs::canonicalize(module)
-        .map_err(|e| CodegenError(format!("{}: {e}", module.display())))?;
+/// `cargo build --release --locked --no-default-features` of the crate in `crate_dir` with
+/// `features`, into `target_dir`, with nothing of an outer build leaking in (the
+/// `CARGO_FEATURE_*` and rust flags cargo sets for a build script or a test): how the
+/// firmware program and the no-heap check (`tests/no_heap.rs`) are built on their own, so that
+/// the outer build's feature unification cannot switch on `std` in their dependencies.
+pub fn isolated_release_build(
+    crate_dir: &Path,
+    features: &[impl AsRef<str>],
+    target_dir: &Path,
+) -> Command {
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
     let mut cmd = Command::new(cargo);
-    cmd.current_dir(firmware_dir())
+    cmd.current_dir(crate_dir)
         .args([
             "build",
             "--release",
@@ -248,12 +250,11 @@ pub fn build(module: &Path, set: &FeatureSet, target_dir: &Path) -> Result<Firmw
             "--no-default-features",
             "--target-dir",
         ])
-        .arg(target_dir)
-        .env("INCISE_FIRMWARE_SCENE", &module);
-    if !set.features.is_empty() {
-        cmd.arg("--features").arg(set.features.join(","));
+        .arg(target_dir);
+    if !features.is_empty() {
+        let list: Vec<&str> = features.iter().map(AsRef::as_ref).collect();
+        cmd.arg("--features").arg(list.join(","));
     }
-    // Nothing of an outer build may leak into this one.
     for (key, _) in std::env::vars() {
         if key.starts_with("CARGO_FEATURE_")
             || key == "RUSTFLAGS"
@@ -262,6 +263,19 @@ pub fn build(module: &Path, set: &FeatureSet, target_dir: &Path) -> Result<Firmw
             cmd.env_remove(key);
         }
     }
+    cmd
+}
+
+/// Builds the firmware program for the generated module `module` with `set`'s features in
+/// `target_dir`, links it with the C `main` and measures it.
+///
+/// # Errors
+/// The build, link or measurement that failed, with its output.
+pub fn build(module: &Path, set: &FeatureSet, target_dir: &Path) -> Result<Firmware, CodegenError> {
+    let module = std::fs::canonicalize(module)
+        .map_err(|e| CodegenError(format!("{}: {e}", module.display())))?;
+    let mut cmd = isolated_release_build(&firmware_dir(), set.features, target_dir);
+    cmd.env("INCISE_FIRMWARE_SCENE", &module);
     run(&mut cmd, "building the firmware program")?;
     let lib = target_dir.join("release").join("libincise_firmware.a");
     let main_c = target_dir.join("main.c");
