@@ -285,13 +285,13 @@ impl<T: Real> SolverConfig<T> {
 /// The parts of the energy, joules (the spring part in the units of `k`·px²).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Energies<T> {
-    /// Elastic energy `W_I`.
+    /// Elastic energy `W_I`, joules.
     pub elastic: T,
-    /// Spring energy `W_S`.
+    /// Spring energy `W_S`, joules (`k` in J/px² times px²).
     pub spring: T,
-    /// Damping energy `W_D`.
+    /// Damping energy `W_D`, joules.
     pub damping: T,
-    /// Depth prior energy `W_R`.
+    /// Depth prior energy `W_R`, joules.
     pub depth: T,
     /// An estimate of the rounding error of the total: node positions are only known to
     /// `ε·|x|`, so each energy term is uncertain by its local force times that (filled by the

@@ -114,9 +114,9 @@ pub struct StepReport<T> {
     pub energy_before: Energies<T>,
     /// Energies at the end of the step.
     pub energy_after: Energies<T>,
-    /// Norm of the gradient over the free unknowns at the start of the step.
+    /// Norm of the gradient over the free unknowns at the start of the step, J/m (newtons).
     pub gradient_norm_before: T,
-    /// Norm of the gradient at the end of the step.
+    /// Norm of the gradient at the end of the step, J/m (newtons).
     pub gradient_norm_after: T,
     /// The smallest step length the line search accepted over the Newton steps (0 if one
     /// Newton step could not decrease the energy).
