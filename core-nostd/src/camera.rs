@@ -351,7 +351,8 @@ impl<T: Real> Camera<T> {
     }
 }
 
-#[cfg(test)]
+// The unit tests compute in `f64`: an `f32`-only build has none.
+#[cfg(all(test, feature = "f64"))]
 mod tests {
     use super::*;
 

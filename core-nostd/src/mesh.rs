@@ -595,7 +595,8 @@ pub(crate) fn orientation<T: Real>(a: [T; 3], b: [T; 3], c: [T; 3], d: [T; 3]) -
         + (u[0] * v[1] - u[1] * v[0]) * w[2]
 }
 
-#[cfg(test)]
+// The unit tests compute in `f64`: an `f32`-only build has none.
+#[cfg(all(test, feature = "f64"))]
 mod tests {
     use super::*;
 

@@ -93,7 +93,8 @@ pub fn median_mad<T: Real>(v: &mut [T]) -> (T, T, u64) {
 /// Standard deviations per MAD for normally distributed values (`1 / Φ⁻¹(3/4)`).
 pub const MAD_TO_SIGMA: f64 = 1.482_602_218_505_602;
 
-#[cfg(test)]
+// The unit tests compute in `f64`: an `f32`-only build has none.
+#[cfg(all(test, feature = "f64"))]
 mod tests {
     use super::*;
 

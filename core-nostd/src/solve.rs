@@ -342,7 +342,8 @@ pub(crate) fn dot<T: Real>(a: &[T], b: &[T]) -> T {
     a.iter().zip(b).fold(T::zero(), |s, (&x, &y)| s + x * y)
 }
 
-#[cfg(test)]
+// The unit tests compute in `f64`: an `f32`-only build has none.
+#[cfg(all(test, feature = "f64"))]
 mod tests {
     use super::*;
 

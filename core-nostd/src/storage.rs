@@ -179,7 +179,8 @@ impl Fingerprint {
     }
 }
 
-#[cfg(test)]
+// The unit tests compute in `f64`: an `f32`-only build has none.
+#[cfg(all(test, feature = "f64"))]
 mod tests {
     use super::*;
 

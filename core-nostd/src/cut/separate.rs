@@ -507,7 +507,8 @@ pub(crate) fn duplicate_nodes<T: Real>(
     Ok(copies)
 }
 
-#[cfg(test)]
+// The unit tests compute in `f64`: an `f32`-only build has none.
+#[cfg(all(test, feature = "f64"))]
 mod tests {
     use super::*;
     use crate::mesh::{MeshCapacity, MeshInput, orientation};

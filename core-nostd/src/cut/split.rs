@@ -379,7 +379,8 @@ pub(super) fn split_selected<T: Real>(
     Ok(())
 }
 
-#[cfg(test)]
+// The unit tests compute in `f64`: an `f32`-only build has none.
+#[cfg(all(test, feature = "f64"))]
 mod tests {
     use super::*;
 

@@ -483,5 +483,6 @@ mod grow;
 
 use grow::anchor_across;
 
-#[cfg(test)]
+// The unit tests compute in `f64`: an `f32`-only build has none.
+#[cfg(all(test, feature = "f64"))]
 mod tests;

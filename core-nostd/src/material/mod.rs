@@ -186,7 +186,8 @@ fn positive_part<T: Real>(s: &Matrix3<T>) -> Matrix3<T> {
     out
 }
 
-#[cfg(test)]
+// The unit tests compute in `f64`: an `f32`-only build has none.
+#[cfg(all(test, feature = "f64"))]
 mod tests {
 
     use super::eigen3::{JACOBI_SWEEPS, jacobi};

@@ -406,7 +406,8 @@ pub fn expand_block_permutation(
     Ok(())
 }
 
-#[cfg(test)]
+// The unit tests compute in `f64`: an `f32`-only build has none.
+#[cfg(all(test, feature = "f64"))]
 mod tests {
     use super::*;
 

@@ -578,7 +578,8 @@ pub fn block_upper_pattern<'a>(
     UpperCsc::new(n, col_ptr, row_idx)
 }
 
-#[cfg(test)]
+// The unit tests compute in `f64`: an `f32`-only build has none.
+#[cfg(all(test, feature = "f64"))]
 mod tests {
     use super::*;
 

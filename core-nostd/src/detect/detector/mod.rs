@@ -447,5 +447,6 @@ impl<'a, T: Real> Detector<'a, T> {
 
 mod steps;
 
-#[cfg(test)]
+// The unit tests compute in `f64`: an `f32`-only build has none.
+#[cfg(all(test, feature = "f64"))]
 mod tests;
