@@ -330,10 +330,7 @@ pub(crate) fn keep_edges_manifold<T: Real>(
                     if b <= a || on_cut.binary_search(&b).is_err() {
                         continue;
                     }
-                    let Ok(j) = incidence.of(b as usize).binary_search(&t) else {
-                        continue;
-                    };
-                    let there = scratch.groups.get(start(b) + j).copied().unwrap_or(NONE);
+                    let there = group_of(incidence, scratch.groups, b, t);
                     let available = entries.len();
                     *entries
                         .get_mut(count)
@@ -348,15 +345,10 @@ pub(crate) fn keep_edges_manifold<T: Real>(
                 let b = run.first().map_or(NONE, |e| e[0]);
                 let live = cut.get(..n).unwrap_or_default();
                 let groups = &*scratch.groups;
-                let group_of = |w: u32, t: u32| {
-                    let at = incidence.of(w as usize).binary_search(&t);
-                    at.ok()
-                        .and_then(|j| groups.get(start(w) + j).copied())
-                        .unwrap_or(NONE)
-                };
+                let group_at = |w: u32, t: u32| group_of(incidence, groups, w, t);
                 let ring = (&mut *scratch.ring, &mut *scratch.ring_parent);
                 let split_at =
-                    edge_split_to_mend(mesh, [a, b], run, live, group_of, ring, work_entries)?;
+                    edge_split_to_mend(mesh, [a, b], run, live, group_at, ring, work_entries)?;
                 if let Some(face) = split_at
                     && let Ok(k) = live.binary_search(&face)
                 {
@@ -371,6 +363,18 @@ pub(crate) fn keep_edges_manifold<T: Real>(
         }
     }
     Ok(n)
+}
+
+/// The group of tetrahedron `t` around node `v` (`groups`, one entry per entry of the
+/// incidence list), [`NONE`] if `t` is not around `v`.
+fn group_of(incidence: &Incidence<'_>, groups: &[u32], v: u32, t: u32) -> u32 {
+    let start = incidence.ptr.get(v as usize).map_or(0, |&p| p as usize);
+    incidence
+        .of(v as usize)
+        .binary_search(&t)
+        .ok()
+        .and_then(|j| groups.get(start + j).copied())
+        .unwrap_or(NONE)
 }
 
 /// Around edge `[a, b]` (its tetrahedra `run`, each `[b, group at a, group at b, tet]`, sorted),
