@@ -100,6 +100,14 @@ pub fn ensure_len<X>(slice: &[X], needed: usize, resource: Resource) -> Result<(
     }
 }
 
+/// Copies the first `n` entries of `from` over those of `to`, as far as both reach: the callers
+/// have checked both lengths, and a shorter slice would copy less rather than panic.
+pub(crate) fn copy_front<X: Copy>(to: &mut [X], from: &[X], n: usize) {
+    for (t, f) in to.iter_mut().zip(from).take(n) {
+        *t = *f;
+    }
+}
+
 /// The first `len` entries of `slice`.
 ///
 /// # Errors

@@ -106,7 +106,7 @@ impl<'a, T: Real> Model<'a, T> {
         if m < 2 {
             return Ok(CutReport::default());
         }
-        self.cut.pixels[..m].copy_from_slice(polyline);
+        crate::storage::copy_front(self.cut.pixels, polyline, m);
         let whole = crate::cutline::PendingPart {
             first: 0,
             last: m - 1,
@@ -130,7 +130,11 @@ impl<'a, T: Real> Model<'a, T> {
         for part in parts.into_iter().flatten() {
             let e = cut::apply(
                 &cut::Surface {
-                    polyline: &self.cut.pixels[part.first..=part.last.min(m - 1)],
+                    polyline: self
+                        .cut
+                        .pixels
+                        .get(part.first..=part.last.min(m - 1))
+                        .unwrap_or_default(),
                     camera: &self.config.camera,
                     depth: self.config.detection.depth,
                     extension_px: spacing,

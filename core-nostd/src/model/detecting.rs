@@ -24,8 +24,9 @@ impl<'a, T: Real> Model<'a, T> {
         let n = self.features.len();
         let mut unobservable = 0;
         for slot in 0..n {
-            let t = self.features.targets()[slot];
-            self.cut.residuals[slot] = match self.projected_feature(slot) {
+            let t = self.features.targets().get(slot).copied();
+            let t = t.unwrap_or([T::zero(); 2]);
+            let residual = match self.projected_feature(slot) {
                 Ok(uv) => [t[0] - uv[0], t[1] - uv[1]],
                 Err(_) => {
                     // A feature whose virtual point cannot be projected is unobserved in this
@@ -37,10 +38,13 @@ impl<'a, T: Real> Model<'a, T> {
                     [T::zero(); 2]
                 }
             };
+            if let Some(r) = self.cut.residuals.get_mut(slot) {
+                *r = residual;
+            }
         }
         let report = self.cut.detector.update(
             self.frame,
-            &self.cut.residuals[..n],
+            self.cut.residuals.get(..n).unwrap_or_default(),
             self.features.active(),
             self.features.targets(),
             &self.config.detection,
@@ -94,9 +98,9 @@ impl<'a, T: Real> Model<'a, T> {
         // Long enough to pass through the whole model: its bounding-box diagonal.
         let (mut lo, mut hi) = ([T::zero(); 3], [T::zero(); 3]);
         for (k, p) in x.iter().enumerate() {
-            for c in 0..3 {
-                lo[c] = if k == 0 { p[c] } else { lo[c].min(p[c]) };
-                hi[c] = if k == 0 { p[c] } else { hi[c].max(p[c]) };
+            for ((l, h), &c) in lo.iter_mut().zip(hi.iter_mut()).zip(p) {
+                *l = if k == 0 { c } else { l.min(c) };
+                *h = if k == 0 { c } else { h.max(c) };
             }
         }
         let diagonal = ((hi[0] - lo[0]) * (hi[0] - lo[0])

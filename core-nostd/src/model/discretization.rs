@@ -265,6 +265,11 @@ impl<'a, T: Real> Discretization<'a, T> {
         Ok(())
     }
 
+    /// The positions of the mesh's nodes, metres.
+    pub fn positions(&self) -> &[[T; 3]] {
+        self.x.get(..self.mesh.n_nodes()).unwrap_or_default()
+    }
+
     /// The stiffness pattern in use.
     pub fn pattern(&self) -> Result<UpperCsc<'_>, Error> {
         let n = 3 * self.mesh.n_free();

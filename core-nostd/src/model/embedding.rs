@@ -94,7 +94,7 @@ impl<T: Real> Model<'_, T> {
         let report = self.features.embed(
             &mut self.live.features,
             &self.live.mesh,
-            &self.live.x[..n],
+            self.live.x.get(..n).unwrap_or_default(),
             &self.config.camera,
             frame0,
             margin,
@@ -108,9 +108,15 @@ impl<T: Real> Model<'_, T> {
             // Scratch: the projections and residuals at frame 0.
             for slot in 0..self.features.len() {
                 let uv = self.projected_feature(slot)?;
-                let t = self.features.targets()[slot];
-                self.cut.pixels[slot] = uv;
-                self.cut.residuals[slot] = [t[0] - uv[0], t[1] - uv[1]];
+                let t = self.features.targets().get(slot).copied();
+                let t = t.unwrap_or([T::zero(); 2]);
+                if let (Some(p), Some(r)) = (
+                    self.cut.pixels.get_mut(slot),
+                    self.cut.residuals.get_mut(slot),
+                ) {
+                    *p = uv;
+                    *r = [t[0] - uv[0], t[1] - uv[1]];
+                }
             }
         }
         // The frozen factor is part of setting up, not of the first frame, so that every frame
@@ -128,15 +134,15 @@ impl<T: Real> Model<'_, T> {
             let focal = camera.intrinsics().fx;
             let at = |slot: usize| {
                 live.features
-                    .position(slot, &live.mesh, &live.x[..live.mesh.n_nodes()])
+                    .position(slot, &live.mesh, live.positions())
                     .map(|p| camera.to_camera(&Vector3::from(p)))
             };
             // Pairs across a fold or a grazing slope are left out (the ratio's doc says why).
             let ratio = self.config.detection.max_surface_ratio;
             // The last step that can fail: it leaves the detector as it was on error.
             self.cut.detector.init_on_surface(
-                &self.cut.pixels[..n],
-                &self.cut.residuals[..n],
+                self.cut.pixels.get(..n).unwrap_or_default(),
+                self.cut.residuals.get(..n).unwrap_or_default(),
                 &self.config.detection,
                 |i, j, l| match (at(i), at(j)) {
                     (Some(a), Some(b)) if ratio > T::zero() => {
@@ -167,7 +173,7 @@ impl<T: Real> Model<'_, T> {
         if let Coupling::Stiffness(k) = coupling {
             return Ok((coupling.stiffness(k, T::one(), T::one())?, threshold));
         }
-        let x = &self.live.x[..self.live.mesh.n_nodes()];
+        let x = self.live.positions();
         let mut scale_sum = T::zero();
         for slot in 0..n {
             let p = self

@@ -17,8 +17,8 @@ impl<'a, T: Real> Model<'a, T> {
         let nnz = self.live.nnz_a;
         Ok(Linearization {
             energies,
-            gradient: &self.vectors.gradient[..n],
-            hessian: &self.hessian[..nnz],
+            gradient: self.vectors.gradient.get(..n).unwrap_or_default(),
+            hessian: self.hessian.get(..nnz).unwrap_or_default(),
             pattern: self.live.pattern()?,
         })
     }
@@ -40,12 +40,12 @@ impl<'a, T: Real> Model<'a, T> {
         }
         let live = &mut self.live;
         let free = live.mesh.free_index();
-        for v in 0..n {
-            if free[v] != NONE {
-                live.x[v] = x[v];
+        for ((xv, &f), &new) in live.x.iter_mut().zip(free).zip(x) {
+            if f != NONE {
+                *xv = new;
             }
         }
-        live.previous[..n].copy_from_slice(&live.x[..n]);
+        copy_front(live.previous, live.x, n);
         Ok(())
     }
 
@@ -73,11 +73,11 @@ impl<'a, T: Real> Model<'a, T> {
         h.words(m.surface().iter().flatten());
         h.words(m.surface_tet());
         let n = m.n_nodes();
-        h.reals(d.x[..n].iter().flatten());
-        h.reals(d.previous[..n].iter().flatten());
-        h.reals(d.damping[..n].iter());
-        h.words(&d.col_ptr[..d.n_unknowns() + 1]);
-        h.words(&d.row_idx[..d.nnz_a]);
+        h.reals(d.x.iter().take(n).flatten());
+        h.reals(d.previous.iter().take(n).flatten());
+        h.reals(d.damping.iter().take(n));
+        h.words(d.col_ptr.iter().take(d.n_unknowns() + 1));
+        h.words(d.row_idx.iter().take(d.nnz_a));
         let sym = &d.symbolic;
         for part in [
             sym.perm(),
@@ -93,7 +93,7 @@ impl<'a, T: Real> Model<'a, T> {
         ] {
             h.words(part);
         }
-        h.words(d.scatter[..m.n_tets()].iter().flatten());
+        h.words(d.scatter.iter().take(m.n_tets()).flatten());
         for e in [&d.features, &d.targets] {
             h.words(e.tets());
             h.reals(e.weights().iter().flatten());

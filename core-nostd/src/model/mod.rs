@@ -12,6 +12,8 @@
 //! The storage that a cut changes lives twice (`discretization.rs`): the half in service and a
 //! spare the cut is built into, swapped in only when the whole rebuild succeeded.
 
+#![cfg_attr(not(test), deny(clippy::indexing_slicing))]
+
 #[cfg(feature = "cut")]
 mod cutting;
 #[cfg(feature = "detect")]
@@ -46,7 +48,7 @@ use crate::solve::{Coupling, Energies, SolverConfig, Strategy, WorkCount};
 #[cfg(feature = "cut")]
 use crate::solve::{assemble_on, factorize_on};
 use crate::sparse::{LdlFactor, NONE, PrecomputedAnalysis, Symbolic, UpperCsc};
-use crate::storage::{Fingerprint, Slab, ensure_exact_len, ensure_len};
+use crate::storage::{Fingerprint, Slab, copy_front, ensure_exact_len, ensure_len};
 
 use discretization::Discretization;
 
@@ -384,7 +386,7 @@ impl<'a, T: Real> Model<'a, T> {
 
     /// Current node positions, metres.
     pub fn positions(&self) -> &[[T; 3]] {
-        &self.live.x[..self.live.mesh.n_nodes()]
+        self.live.positions()
     }
 
     /// The features' observations (ids, latest pixels, observed this frame).
@@ -515,8 +517,8 @@ impl<'a, T: Real> Model<'a, T> {
         // Checked completely before anything is written: on error nothing has changed.
         let observed = self.observe(frame)?;
         let live = &mut self.live;
-        self.saved.previous[..n_nodes].copy_from_slice(&live.previous[..n_nodes]);
-        live.previous[..n_nodes].copy_from_slice(&live.x[..n_nodes]);
+        copy_front(self.saved.previous, live.previous, n_nodes);
+        copy_front(live.previous, live.x, n_nodes);
         let factored = self.factored;
         self.factor.checkpoint();
         let mut report = match self.solve_frame() {
@@ -526,8 +528,8 @@ impl<'a, T: Real> Model<'a, T> {
             }
             Err(e) => {
                 let live = &mut self.live;
-                live.x[..n_nodes].copy_from_slice(&live.previous[..n_nodes]);
-                live.previous[..n_nodes].copy_from_slice(&self.saved.previous[..n_nodes]);
+                copy_front(live.x, live.previous, n_nodes);
+                copy_front(live.previous, self.saved.previous, n_nodes);
                 self.features.copy_from(&self.saved.features);
                 self.factored = factored;
                 self.factor.rollback();
