@@ -532,3 +532,81 @@ fn supernodal_workspace_too_short_is_an_error() {
         .unwrap();
     assert_eq!(sym.supernodes(), 1);
 }
+
+/// Mixed precision at the level of the sparse phases: an `f32` factor computed from `f64`
+/// values ([`LdlFactor::factorize_supernodal`] rounds them), `f64` right-hand sides solved
+/// through it ([`LdlFactor::solve_converting`]); its factor equals the one of the values rounded
+/// to `f32` first, bit for bit, and three steps of iterative refinement on the `f64` residual
+/// take the solution to `f64`'s accuracy against faer. `solve_converting` in the factor's own
+/// type is `solve_in_place`, bit for bit.
+#[test]
+fn an_f32_factor_of_an_f64_matrix_refines_to_f64_accuracy() {
+    let mut rng = Rng::new(31);
+    for (mesh, fixed) in meshes() {
+        let pat = StiffnessPattern::new(&mesh, &fixed).unwrap();
+        let a = pat.upper();
+        let n = a.n();
+        let values: Vec<f64> = pat.random_spd(&mesh, &mut rng, 0.05);
+        let b: Vec<f64> = (0..n).map(|_| rng.range(-1.0, 1.0)).collect();
+        let reference = faer_solve(&a, &values, &b);
+
+        let mut awork = vec![0u32; analyse_work_len(n, a.nnz())];
+        let size = Symbolic::size(&a, &pat.perm, &mut awork).unwrap();
+        let mut sstore = vec![0u32; size.index_len()];
+        let sym = Symbolic::new(&a, &pat.perm, &mut sstore, &mut awork).unwrap();
+        let mut fstore = vec![0f32; LdlFactor::<f32>::storage_len(&size)];
+        let mut factor = LdlFactor::new(&size, &mut fstore).unwrap();
+        let mut work = vec![0f32; LdlFactor::<f32>::SUPERNODAL_WORK_LEN];
+        let mut iwork = vec![0u32; LdlFactor::<f32>::supernodal_index_work_len(n)];
+        factor
+            .factorize_supernodal(&sym, &values, &mut work, &mut iwork)
+            .unwrap();
+
+        // The same factor as from the values rounded first.
+        let values32: Vec<f32> = values.iter().map(|&v| v as f32).collect();
+        let b32: Vec<f32> = b.iter().map(|&v| v as f32).collect();
+        let rounded =
+            factor_and_solve_with(Method::Supernodal, &a, &pat.perm, &values32, &b32).unwrap();
+        let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(factor.l_values().unwrap()), bits(&rounded.l));
+        assert_eq!(bits(factor.d_values().unwrap()), bits(&rounded.d));
+
+        // In the factor's own type, `solve_in_place` bit for bit.
+        let mut own = b32.clone();
+        let mut scratch = vec![0f32; 2 * n];
+        factor
+            .solve_converting(&sym, &mut own, &mut scratch)
+            .unwrap();
+        assert_eq!(bits(&own), bits(&rounded.x));
+
+        // Refinement in f64: x += A⁻¹ (b − A x), A⁻¹ through the f32 factor.
+        let mut x = vec![0.0f64; n];
+        let mut r = b.clone();
+        let mut ax = vec![0.0f64; n];
+        let mut errors = vec![];
+        for _ in 0..4 {
+            factor.solve_converting(&sym, &mut r, &mut scratch).unwrap();
+            for (xi, ri) in x.iter_mut().zip(&r) {
+                *xi += ri;
+            }
+            errors.push(rel_diff(&x, &reference));
+            incise_core::sparse::sym_matvec(&a, &values, &x, &mut ax).unwrap();
+            for ((ri, bi), axi) in r.iter_mut().zip(&b).zip(&ax) {
+                *ri = bi - axi;
+            }
+        }
+        eprintln!(
+            "unknowns {n:5}: relative error through the f32 factor, refined 0 to 3 times: {}",
+            errors
+                .iter()
+                .map(|e| format!("{e:.1e}"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+        assert!(
+            errors[0] > 1e-9,
+            "one f32 solve is f32-accurate only: {errors:?}"
+        );
+        assert!(errors[3] <= 1e-10, "refined: {errors:?}");
+    }
+}

@@ -74,6 +74,18 @@ pub const DEFAULT_DEPTH_PRIOR: f64 = 0.1;
 /// 10⁶ times this on every scene (its stability section).
 pub const DEFAULT_COUPLING: f64 = 100.0;
 
+/// PCG iterations that refine each Newton step's solve under `Refactor` when the factor is
+/// of lower precision than the model ([`crate::Model`] with `F = f32`, `T = f64`): each one
+/// a matrix–vector product on the `f64` Hessian and a solve with the `f32` factor. One `f32`
+/// solve alone leaves a relative error of about `κ · 6·10⁻⁸` (10⁻⁷ on the stiffness matrices
+/// of `tests/sparse_ldl.rs`), and each refinement multiplies it by about as much: two reach
+/// `f64`'s accuracy there, and settle a stiff cantilever as close to equilibrium as `f64` does
+/// (`tests/model_solve.rs`). `Frozen` and `FactorOnce` refine already: their PCG iterations
+/// run on the `f64` residual. Where the Hessian rounded to `f32` is no longer positive
+/// definite (condition near `1/ε_f32`), the factorization fails with a typed error and only
+/// `f64` solves the system.
+pub const MIXED_REFINEMENT_STEPS: u32 = 2;
+
 /// How stiff the springs between the features and the model are.
 ///
 /// The springs act in the image (`k` in J/px²), so the same `k` means a stiff coupling for an

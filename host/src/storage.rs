@@ -136,14 +136,16 @@ impl std::error::Error for StorageError {}
 /// capacities: what a host does with the core's caller-sized API. Checks nothing beyond what
 /// the core checks (the tests that set every capacity, down to one too small, build on it);
 /// [`ModelStorage`] checks a scene's capacities and memory first.
-pub struct OwnedStorage<T> {
+pub struct OwnedStorage<T, F = T> {
     /// The sizes.
     pub size: ModelSize,
     reals: Vec<T>,
+    /// The factor's values and workspace, in its scalar type ([`ModelSize::factor_real_len`]).
+    factor_reals: Vec<F>,
     indices: Vec<u32>,
 }
 
-impl<T: Real> OwnedStorage<T> {
+impl<T: Real, F: Real> OwnedStorage<T, F> {
     /// Storage for `capacities`.
     ///
     /// # Errors
@@ -153,7 +155,8 @@ impl<T: Real> OwnedStorage<T> {
         let size = ModelSize::new(capacities)?;
         Ok(OwnedStorage {
             size,
-            reals: vec![T::zero(); size.real_len()],
+            reals: vec![T::zero(); size.model_real_len()],
+            factor_reals: vec![F::zero(); size.factor_real_len()],
             indices: vec![0; size.index_len()],
         })
     }
@@ -166,9 +169,9 @@ impl<T: Real> OwnedStorage<T> {
         &'a mut self,
         mesh: &MeshInput<'_, T>,
         config: &ModelConfig<T>,
-    ) -> Result<Model<'a, T>, CoreError> {
-        let buffers = ModelBuffers::new(&self.size, &mut self.reals, &mut self.indices)?;
-        Model::new(mesh, config, &self.size, buffers)
+    ) -> Result<Model<'a, T, F>, CoreError> {
+        let size = self.size;
+        Model::new(mesh, config, &size, self.buffers()?)
     }
 
     /// Builds a model in this storage with the uncut mesh's ordering and symbolic analysis
@@ -181,34 +184,76 @@ impl<T: Real> OwnedStorage<T> {
         mesh: &MeshInput<'_, T>,
         config: &ModelConfig<T>,
         analysis: &PrecomputedAnalysis<'_>,
-    ) -> Result<Model<'a, T>, CoreError> {
-        let buffers = ModelBuffers::new(&self.size, &mut self.reals, &mut self.indices)?;
-        Model::from_precomputed(mesh, config, &self.size, buffers, analysis)
+    ) -> Result<Model<'a, T, F>, CoreError> {
+        let size = self.size;
+        Model::from_precomputed(mesh, config, &size, self.buffers()?, analysis)
+    }
+
+    /// The three vectors as the core's bundle (the factor's scalars apart even when `F` is
+    /// `T`, which [`ModelBuffers::new`] would carve out of one slice).
+    fn buffers(&mut self) -> Result<ModelBuffers<'_, T, F>, CoreError> {
+        ModelBuffers::new_mixed(
+            &self.size,
+            &mut self.reals,
+            &mut self.factor_reals,
+            &mut self.indices,
+        )
     }
 
     /// Bytes of the storage (scalars and indices), what a firmware build would hold.
     pub fn bytes(&self) -> usize {
-        self.reals.len() * std::mem::size_of::<T>() + self.indices.len() * 4
+        self.reals.len() * std::mem::size_of::<T>()
+            + self.factor_reals.len() * std::mem::size_of::<F>()
+            + self.indices.len() * 4
     }
 }
 
 /// The storage of one scene's model: its capacities checked against the host's bounds and
 /// memory budget, then [`OwnedStorage`].
-pub struct ModelStorage<T> {
+pub struct ModelStorage<T, F = T> {
     /// What the uncut mesh needs of the linear algebra.
     pub analysis: MeshAnalysis,
-    storage: OwnedStorage<T>,
+    storage: OwnedStorage<T, F>,
 }
 
 impl<T: Real> ModelStorage<T> {
     /// Sizes storage for `mesh` with the scene's capacities: the mesh's nodes and tetrahedra
     /// plus the room a cut may take, and the factor entries the section states (absent: three
     /// times the uncut model's). Checks the capacities and the memory first
-    /// ([`ModelStorage::plan`]).
+    /// ([`ModelStorage::plan`]). [`ModelStorage::with_factor_in`] for mixed precision.
     ///
     /// # Errors
     /// As [`ModelStorage::plan`].
     pub fn new(mesh: &MeshInput<'_, T>, c: &SceneCapacities) -> Result<Self, StorageError> {
+        Self::with_factor_in(mesh, c)
+    }
+
+    /// Storage for `mesh` with room for `features` features and the default capacities
+    /// otherwise.
+    ///
+    /// # Errors
+    /// As [`ModelStorage::new`].
+    pub fn with_features(mesh: &MeshInput<'_, T>, features: usize) -> Result<Self, StorageError> {
+        Self::new(
+            mesh,
+            &SceneCapacities {
+                features,
+                ..SceneCapacities::default()
+            },
+        )
+    }
+}
+
+impl<T: Real, F: Real> ModelStorage<T, F> {
+    /// As [`ModelStorage::new`], for a model in `T` that factorizes in `F` (mixed precision,
+    /// `ModelStorage::<f64, f32>`): the factor's part of the storage in `F`.
+    ///
+    /// # Errors
+    /// As [`ModelStorage::plan`].
+    pub fn with_factor_in(
+        mesh: &MeshInput<'_, T>,
+        c: &SceneCapacities,
+    ) -> Result<Self, StorageError> {
         let (size, analysis) = Self::plan(mesh, c)?;
         Ok(ModelStorage {
             analysis,
@@ -247,7 +292,8 @@ impl<T: Real> ModelStorage<T> {
             cut_vertices: c.cut_vertices,
         };
         let size = ModelSize::new(&caps).map_err(StorageError::Core)?;
-        let bytes = size.real_len() as u128 * std::mem::size_of::<T>() as u128
+        let bytes = size.model_real_len() as u128 * std::mem::size_of::<T>() as u128
+            + size.factor_real_len() as u128 * std::mem::size_of::<F>() as u128
             + size.index_len() as u128 * 4;
         limits::budget(
             "capacities",
@@ -263,21 +309,6 @@ impl<T: Real> ModelStorage<T> {
         Ok((size, analysis))
     }
 
-    /// Storage for `mesh` with room for `features` features and the default capacities
-    /// otherwise.
-    ///
-    /// # Errors
-    /// As [`ModelStorage::new`].
-    pub fn with_features(mesh: &MeshInput<'_, T>, features: usize) -> Result<Self, StorageError> {
-        Self::new(
-            mesh,
-            &SceneCapacities {
-                features,
-                ..SceneCapacities::default()
-            },
-        )
-    }
-
     /// Builds the model in this storage.
     ///
     /// # Errors
@@ -286,7 +317,7 @@ impl<T: Real> ModelStorage<T> {
         &'a mut self,
         mesh: &MeshInput<'_, T>,
         config: &ModelConfig<T>,
-    ) -> Result<Model<'a, T>, CoreError> {
+    ) -> Result<Model<'a, T, F>, CoreError> {
         self.storage.model(mesh, config)
     }
 

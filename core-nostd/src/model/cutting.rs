@@ -4,7 +4,7 @@
 
 use super::*;
 
-impl<'a, T: Real> Model<'a, T> {
+impl<'a, T: Real, F: Real> Model<'a, T, F> {
     /// The worst-case work of one cut event ([`Model::apply_cut`]): a formula of the
     /// capacities. The geometry of each of the (at most two) parts of the line applied
     /// ([`CutWork::bound`]), and the rebuild: one assembly with every tetrahedron's tangent and

@@ -4,7 +4,7 @@
 
 use super::*;
 
-impl<'a, T: Real> Model<'a, T> {
+impl<'a, T: Real, F: Real> Model<'a, T, F> {
     /// The worst-case work of the cut detection and the cut line in one [`Model::step`]: a
     /// formula of the capacities ([`DetectionWork::bound`], [`LineWork::bound`]), whether the
     /// frame starts the line (its robust fit) or grows it.

@@ -3,7 +3,7 @@
 
 use super::*;
 
-impl<T: Real> Model<'_, T> {
+impl<T: Real, F: Real> Model<'_, T, F> {
     /// Embeds internal targets given by their rest positions (metres): each in the rest
     /// tetrahedron that contains it, or, for a point just outside the mesh, the one it lies
     /// least outside of (weights clamped to it). Replaces the targets held before. The model

@@ -4,7 +4,7 @@
 
 use super::*;
 
-impl<'a, T: Real> Model<'a, T> {
+impl<'a, T: Real, F: Real> Model<'a, T, F> {
     /// Assembles the system a Newton step solves at the current positions, for validation
     /// against other solvers: the gradient over the free unknowns (`3 · n_free`, node by free
     /// index) and the positive definite Hessian on the stiffness pattern.

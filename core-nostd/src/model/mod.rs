@@ -44,7 +44,7 @@ use crate::features::{EmbedReport, Features, Observation, image_bounds, spacing_
 use crate::material::Lame;
 use crate::mesh::{Mesh, MeshInput};
 use crate::real::Real;
-use crate::solve::{Coupling, Energies, SolverConfig, Strategy, WorkCount};
+use crate::solve::{Coupling, Energies, MIXED_REFINEMENT_STEPS, SolverConfig, Strategy, WorkCount};
 #[cfg(feature = "cut")]
 use crate::solve::{assemble_on, factorize_on};
 use crate::sparse::{LdlFactor, NONE, PrecomputedAnalysis, Symbolic, UpperCsc};
@@ -151,7 +151,7 @@ pub struct Linearization<'m, T> {
 
 /// Vectors of the Newton step and its linear solve, over the unknowns (no meaning between
 /// calls; a cut uses them as scratch too).
-pub(crate) struct SolveVectors<'a, T> {
+pub(crate) struct SolveVectors<'a, T, F = T> {
     pub(crate) gradient: &'a mut [T],
     pub(crate) step: &'a mut [T],
     /// PCG residual, preconditioned residual, direction and `H·direction`.
@@ -159,19 +159,27 @@ pub(crate) struct SolveVectors<'a, T> {
     pub(crate) preconditioned: &'a mut [T],
     pub(crate) direction: &'a mut [T],
     pub(crate) product: &'a mut [T],
-    /// Work of the triangular solves and the factorization.
-    pub(crate) solve_work: &'a mut [T],
+    /// Work of the triangular solves, in the factor's scalar type (`2 ·` unknowns: the
+    /// right-hand side rounded to it and the solves' scratch).
+    pub(crate) solve_work: &'a mut [F],
     /// Positions tried by the line search.
     pub(crate) trial: &'a mut [[T; 3]],
     /// Packed blocks of the supernodal factorization ([`LdlFactor::SUPERNODAL_WORK_LEN`]).
-    pub(crate) factor_work: &'a mut [T],
+    pub(crate) factor_work: &'a mut [F],
     /// Index workspace of the supernodal factorization
     /// ([`LdlFactor::supernodal_index_work_len`] of the unknowns).
     pub(crate) factor_indices: &'a mut [u32],
 }
 
-/// The organ model.
-pub struct Model<'a, T: Real> {
+/// The organ model, computing in `T` and factorizing its linear systems in `F`.
+///
+/// `F` is `T` but for **mixed precision** (`Model<'a, f64, f32>`): the factor, its
+/// factorization and its triangular solves in `f32` (half the factor's memory, on a
+/// co-processor's single-precision unit), the energy, the residuals and the positions in
+/// `f64`. Each Newton step's solve is then refined on the `f64` residual: the PCG iterations of
+/// `Frozen` and `FactorOnce` do that already, and `Refactor` runs [`MIXED_REFINEMENT_STEPS`]
+/// of them after its factorization.
+pub struct Model<'a, T: Real, F: Real = T> {
     pub(crate) config: ModelConfig<T>,
     pub(crate) lame: Lame<T>,
     /// The mesh and everything built on it, in service.
@@ -180,7 +188,7 @@ pub struct Model<'a, T: Real> {
     #[cfg(feature = "cut")]
     pub(crate) spare: Discretization<'a, T>,
     pub(crate) hessian: &'a mut [T],
-    pub(crate) factor: LdlFactor<'a, T>,
+    pub(crate) factor: LdlFactor<'a, F>,
     /// Which matrix `factor` is a factorization of.
     pub(crate) factored: FactoredMatrix,
     /// The springs' `k`, J/px²: given, or derived from the scene when the features are
@@ -189,7 +197,7 @@ pub struct Model<'a, T: Real> {
     /// Where the springs turn linear, pixels ([`SolverConfig::spring_threshold`] feature
     /// spacings, set when the features are embedded; `∞` before).
     pub(crate) spring_threshold_px: T,
-    pub(crate) vectors: SolveVectors<'a, T>,
+    pub(crate) vectors: SolveVectors<'a, T, F>,
     /// Workspace of rebuilds and cuts (no meaning between calls).
     #[cfg(feature = "cut")]
     pub(crate) work: &'a mut [u32],
@@ -227,7 +235,7 @@ struct CutState<'a, T> {
     scratch: &'a mut [T],
 }
 
-impl<'a, T: Real> Model<'a, T> {
+impl<'a, T: Real, F: Real> Model<'a, T, F> {
     /// Builds the model in caller storage (sizes from `size`); the model starts at rest with
     /// no features and no targets.
     ///
@@ -240,7 +248,7 @@ impl<'a, T: Real> Model<'a, T> {
         input: &MeshInput<'_, T>,
         config: &ModelConfig<T>,
         size: &ModelSize,
-        buffers: ModelBuffers<'a, T>,
+        buffers: ModelBuffers<'a, T, F>,
     ) -> Result<Self, Error> {
         Self::build(config, size, buffers, |live, lame, solver, work| {
             live.load(input, lame, solver, work)
@@ -263,7 +271,7 @@ impl<'a, T: Real> Model<'a, T> {
         input: &MeshInput<'_, T>,
         config: &ModelConfig<T>,
         size: &ModelSize,
-        buffers: ModelBuffers<'a, T>,
+        buffers: ModelBuffers<'a, T, F>,
         analysis: &PrecomputedAnalysis<'_>,
     ) -> Result<Self, Error> {
         Self::build(config, size, buffers, |live, lame, solver, work| {
@@ -276,7 +284,7 @@ impl<'a, T: Real> Model<'a, T> {
     fn build(
         config: &ModelConfig<T>,
         size: &ModelSize,
-        buffers: ModelBuffers<'a, T>,
+        buffers: ModelBuffers<'a, T, F>,
         load: impl FnOnce(
             &mut Discretization<'a, T>,
             &Lame<T>,
@@ -287,11 +295,17 @@ impl<'a, T: Real> Model<'a, T> {
         config.solver.validate()?;
         config.detection.validate()?;
         let lame = Lame::from_young_poisson(config.material.young, config.material.poisson)?;
-        let ModelBuffers { reals, indices } = buffers;
-        ensure_len(reals, size.real_len(), Resource::RealStorage)?;
+        let ModelBuffers {
+            reals,
+            factor_reals,
+            indices,
+        } = buffers;
+        ensure_len(reals, size.model_real_len(), Resource::RealStorage)?;
+        ensure_len(factor_reals, size.factor_real_len(), Resource::RealStorage)?;
         ensure_len(indices, size.index_len(), Resource::IndexStorage)?;
         let caps = size.capacities();
         let mut scalar_slab = Slab::new(reals, Resource::RealStorage);
+        let mut factor_slab = Slab::new(factor_reals, Resource::RealStorage);
         let mut index_slab = Slab::new(indices, Resource::IndexStorage);
         let mut live = Discretization::with_capacity(size, &mut scalar_slab, &mut index_slab)?;
         #[cfg(feature = "cut")]
@@ -300,7 +314,7 @@ impl<'a, T: Real> Model<'a, T> {
         let hessian = scalar_slab.take(size.nnz_a())?;
         let factor = LdlFactor::new(
             &size.symbolic_capacity(),
-            scalar_slab.take(LdlFactor::<T>::storage_len(&size.symbolic_capacity()))?,
+            factor_slab.take(LdlFactor::<F>::storage_len(&size.symbolic_capacity()))?,
         )?;
         let vectors = SolveVectors {
             gradient: scalar_slab.take(dofs)?,
@@ -309,13 +323,13 @@ impl<'a, T: Real> Model<'a, T> {
             preconditioned: scalar_slab.take(dofs)?,
             direction: scalar_slab.take(dofs)?,
             product: scalar_slab.take(dofs)?,
-            solve_work: scalar_slab.take(dofs)?,
+            solve_work: factor_slab.take(2 * dofs)?,
             trial: scalar_slab
                 .take(3 * caps.mesh.nodes)?
                 .as_chunks_mut::<3>()
                 .0,
-            factor_work: scalar_slab.take(LdlFactor::<T>::SUPERNODAL_WORK_LEN)?,
-            factor_indices: index_slab.take(LdlFactor::<T>::supernodal_index_work_len(dofs))?,
+            factor_work: factor_slab.take(LdlFactor::<F>::SUPERNODAL_WORK_LEN)?,
+            factor_indices: index_slab.take(LdlFactor::<F>::supernodal_index_work_len(dofs))?,
         };
         let features = Features::new(caps.features, &mut scalar_slab, &mut index_slab)?;
         let saved = Saved {
@@ -415,7 +429,7 @@ impl<'a, T: Real> Model<'a, T> {
     }
 
     /// The numeric factor (values of the last factorization in service, if any).
-    pub fn factor(&self) -> &LdlFactor<'a, T> {
+    pub fn factor(&self) -> &LdlFactor<'a, F> {
         &self.factor
     }
 
@@ -590,12 +604,20 @@ impl<'a, T: Real> Model<'a, T> {
             state_copies: 5 * feats + 3 * self.live.mesh.n_nodes() as u64,
             ..WorkCount::default()
         };
+        // Mixed precision refines each solve that follows a factorization.
+        let refine = if Self::mixed() {
+            MIXED_REFINEMENT_STEPS
+        } else {
+            0
+        };
         match s.strategy {
             Strategy::Refactor => {
                 w.factorizations = newton;
                 w.factor_flops = u64::from(newton) * sym.factor_flops();
-                w.solves = newton;
-                w.solve_flops = u64::from(newton) * sym.solve_flops();
+                w.solves = newton * (1 + refine);
+                w.solve_flops = u64::from(w.solves) * sym.solve_flops();
+                w.matvecs = newton * refine;
+                w.matvec_flops = u64::from(w.matvecs) * 2 * nnz;
             }
             Strategy::Frozen { pcg_iterations } => {
                 w.solves = newton * (pcg_iterations + 1);
@@ -607,9 +629,9 @@ impl<'a, T: Real> Model<'a, T> {
                 let later = newton.saturating_sub(1);
                 w.factorizations = 1;
                 w.factor_flops = sym.factor_flops();
-                w.solves = 1 + later * (pcg_iterations + 1);
+                w.solves = 1 + refine + later * (pcg_iterations + 1);
                 w.solve_flops = u64::from(w.solves) * sym.solve_flops();
-                w.matvecs = later * pcg_iterations;
+                w.matvecs = refine + later * pcg_iterations;
                 w.matvec_flops = u64::from(w.matvecs) * 2 * nnz;
             }
         }

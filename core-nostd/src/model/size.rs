@@ -292,7 +292,8 @@ impl ModelSize {
                 name: "solver vectors and factorization workspace",
                 grows_with: "the nodes",
                 reals: sum(&[
-                    times(7, self.unknowns), // gradient, step, the PCG vectors, solve work
+                    times(6, self.unknowns),                   // gradient, step, the PCG vectors
+                    times(2, self.unknowns), // the solves' right-hand side and scratch
                     LdlFactor::<AnyReal>::SUPERNODAL_WORK_LEN, // packed blocks of the factorization
                     times(3, c.mesh.nodes),  // trial positions of the line search
                 ]),
@@ -338,9 +339,27 @@ impl ModelSize {
     }
 
     /// Scalars of storage a model needs (the same count for `f32` and `f64`): the sum of
-    /// [`ModelSize::parts`].
+    /// [`ModelSize::parts`], [`ModelSize::factor_real_len`] included.
     pub const fn real_len(&self) -> usize {
         self.totals().0
+    }
+
+    /// Scalars of the factor's values and of the workspace of its factorization and solves
+    /// (parts of two of [`ModelSize::parts`]): the part of [`ModelSize::real_len`] in the
+    /// factor's scalar type, which a mixed-precision model ([`ModelBuffers::new_mixed`]) takes
+    /// in a slice of its own.
+    pub const fn factor_real_len(&self) -> usize {
+        sum(&[
+            LdlFactor::<AnyReal>::storage_len(&self.symbolic_capacity()),
+            LdlFactor::<AnyReal>::SUPERNODAL_WORK_LEN, // packed blocks of the factorization
+            times(2, self.unknowns),                   // the solves' right-hand side and scratch
+        ])
+    }
+
+    /// Scalars of storage in the model's scalar type: [`ModelSize::real_len`] but the
+    /// factor's part ([`ModelSize::factor_real_len`]).
+    pub const fn model_real_len(&self) -> usize {
+        self.real_len().saturating_sub(self.factor_real_len())
     }
 
     /// Indices of storage a model needs, its workspace included: the sum of
@@ -415,22 +434,33 @@ impl ModelSize {
     /// Bytes of storage for scalar type `T` (scalars and indices), saturated at `usize::MAX`
     /// (where `usize` is narrower than 64 bits, `f64` storage of a valid size may not fit).
     pub const fn bytes<T>(&self) -> usize {
+        self.bytes_mixed::<T, T>()
+    }
+
+    /// Bytes of storage for a model in scalar type `T` that factorizes in `F` (mixed
+    /// precision), saturated as [`ModelSize::bytes`].
+    pub const fn bytes_mixed<T, F>(&self) -> usize {
         sum(&[
-            times(self.real_len(), core::mem::size_of::<T>()),
+            times(self.model_real_len(), core::mem::size_of::<T>()),
+            times(self.factor_real_len(), core::mem::size_of::<F>()),
             times(self.index_len(), 4),
         ])
     }
 }
 
-/// The storage a model is built in: one slice of scalars and one of indices, of the lengths
-/// [`ModelSize::real_len`] and [`ModelSize::index_len`] give. Named fields, so the two cannot be
-/// swapped by mistake; check them with [`ModelBuffers::new`].
+/// The storage a model is built in: scalars and indices, of the lengths
+/// [`ModelSize::real_len`] and [`ModelSize::index_len`] give (a mixed-precision model takes
+/// the factor's scalars, [`ModelSize::factor_real_len`], in a slice of their own type). Made
+/// only by [`ModelBuffers::new`] and [`ModelBuffers::new_mixed`], which check the lengths, so
+/// that the slices cannot be swapped by mistake.
 #[derive(Debug)]
-pub struct ModelBuffers<'a, T> {
-    /// Scalars.
-    pub reals: &'a mut [T],
+pub struct ModelBuffers<'a, T, F = T> {
+    /// Scalars in the model's type.
+    pub(crate) reals: &'a mut [T],
+    /// Scalars in the factor's type.
+    pub(crate) factor_reals: &'a mut [F],
     /// Indices (the model's workspace included).
-    pub indices: &'a mut [u32],
+    pub(crate) indices: &'a mut [u32],
 }
 
 impl<'a, T> ModelBuffers<'a, T> {
@@ -446,7 +476,38 @@ impl<'a, T> ModelBuffers<'a, T> {
     ) -> Result<Self, Error> {
         ensure_len(reals, size.real_len(), Resource::RealStorage)?;
         ensure_len(indices, size.index_len(), Resource::IndexStorage)?;
-        Ok(ModelBuffers { reals, indices })
+        // `real_len` is at least `factor_real_len`: the split cannot fail after the check.
+        let (factor_reals, reals) = reals.split_at_mut(size.factor_real_len());
+        Ok(ModelBuffers {
+            reals,
+            factor_reals,
+            indices,
+        })
+    }
+}
+
+impl<'a, T, F> ModelBuffers<'a, T, F> {
+    /// Wraps the storage of a mixed-precision model ([`crate::Model`] with a factor scalar `F`
+    /// other than `T`): `reals` of [`ModelSize::model_real_len`] scalars, `factor_reals` of
+    /// [`ModelSize::factor_real_len`], `indices` of [`ModelSize::index_len`].
+    ///
+    /// # Errors
+    /// [`Error::Capacity`] naming [`Resource::RealStorage`] or [`Resource::IndexStorage`] for a
+    /// slice that is too short.
+    pub fn new_mixed(
+        size: &ModelSize,
+        reals: &'a mut [T],
+        factor_reals: &'a mut [F],
+        indices: &'a mut [u32],
+    ) -> Result<Self, Error> {
+        ensure_len(reals, size.model_real_len(), Resource::RealStorage)?;
+        ensure_len(factor_reals, size.factor_real_len(), Resource::RealStorage)?;
+        ensure_len(indices, size.index_len(), Resource::IndexStorage)?;
+        Ok(ModelBuffers {
+            reals,
+            factor_reals,
+            indices,
+        })
     }
 }
 

@@ -21,10 +21,10 @@ use crate::material::Lame;
 use crate::model::discretization::Discretization;
 use crate::model::{FactoredMatrix, Model, ModelConfig, SolveVectors, StepReport};
 use crate::real::Real;
-use crate::solve::{Energies, Problem, Strategy, WorkCount, dot};
+use crate::solve::{Energies, MIXED_REFINEMENT_STEPS, Problem, Strategy, WorkCount, dot};
 use crate::sparse::{LdlFactor, NONE, sym_matvec};
 
-impl<'a, T: Real> Model<'a, T> {
+impl<'a, T: Real, F: Real> Model<'a, T, F> {
     pub(crate) fn solve_frame(&mut self) -> Result<StepReport<T>, Error> {
         let n = self.n_unknowns();
         let mut work = WorkCount::default();
@@ -132,23 +132,33 @@ impl<'a, T: Real> Model<'a, T> {
         )
     }
 
-    /// Factors the Hessian just assembled and solves the Newton system exactly.
+    /// Factors the Hessian just assembled and solves the Newton system: exactly, or, with a
+    /// factor of lower precision than the model's, by [`MIXED_REFINEMENT_STEPS`] PCG
+    /// iterations on the residual in the model's precision after the first solve.
     fn refactor_and_solve(&mut self, work: &mut WorkCount) -> Result<(), Error> {
         let n = self.n_unknowns();
         self.factorize(work)?;
         self.factored = FactoredMatrix::Step;
+        if Self::mixed() {
+            return self.pcg(MIXED_REFINEMENT_STEPS, work);
+        }
         let v = &mut self.vectors;
         for (s, &g) in v.step[..n].iter_mut().zip(&v.gradient[..n]) {
             *s = -g;
         }
-        self.factor.solve_in_place(
+        self.factor.solve_converting(
             &self.live.symbolic,
             &mut v.step[..n],
-            &mut v.solve_work[..n],
+            &mut v.solve_work[..2 * n],
         )?;
         work.solves += 1;
         work.solve_flops += self.live.symbolic.solve_flops();
         Ok(())
+    }
+
+    /// Whether the factor computes in a lower precision than the model (mixed precision).
+    pub(crate) fn mixed() -> bool {
+        F::EPS.to_f64() > T::EPS.to_f64()
     }
 
     /// Factors the frozen matrix: the positive definite Hessian at the current state.
@@ -184,14 +194,14 @@ impl<'a, T: Real> Model<'a, T> {
             &mut v.preconditioned[..n],
             &mut v.direction[..n],
             &mut v.product[..n],
-            &mut v.solve_work[..n],
+            &mut v.solve_work[..2 * n],
         );
         step.fill(T::zero());
         for (ri, &g) in r.iter_mut().zip(&v.gradient[..n]) {
             *ri = -g;
         }
         z.copy_from_slice(r);
-        self.factor.solve_in_place(sym, z, y)?;
+        self.factor.solve_converting(sym, z, y)?;
         work.solves += 1;
         work.solve_flops += sym.solve_flops();
         p.copy_from_slice(z);
@@ -210,7 +220,7 @@ impl<'a, T: Real> Model<'a, T> {
                 r[i] -= alpha * q[i];
             }
             z.copy_from_slice(r);
-            self.factor.solve_in_place(sym, z, y)?;
+            self.factor.solve_converting(sym, z, y)?;
             work.solves += 1;
             work.solve_flops += sym.solve_flops();
             let rz_new = dot(r, z);
@@ -302,7 +312,7 @@ pub(crate) struct Coefficients<T> {
     pub(crate) spring_threshold_px: T,
 }
 
-impl<T: Real> Model<'_, T> {
+impl<T: Real, F: Real> Model<'_, T, F> {
     /// The constants of this model's energy.
     pub(crate) fn coefficients(&self) -> Coefficients<T> {
         Coefficients {
@@ -363,11 +373,11 @@ pub(crate) fn assemble_on<T: Real>(
 }
 
 /// Factors the Hessian values of a discretization with its symbolic analysis.
-pub(crate) fn factorize_on<T: Real>(
+pub(crate) fn factorize_on<T: Real, F: Real>(
     d: &Discretization<'_, T>,
     hessian: &[T],
-    factor: &mut LdlFactor<'_, T>,
-    vectors: &mut SolveVectors<'_, T>,
+    factor: &mut LdlFactor<'_, F>,
+    vectors: &mut SolveVectors<'_, T, F>,
     work: &mut WorkCount,
 ) -> Result<(), Error> {
     let n = d.n_unknowns();
@@ -375,7 +385,7 @@ pub(crate) fn factorize_on<T: Real>(
         &d.symbolic,
         &hessian[..d.nnz_a],
         vectors.factor_work,
-        &mut vectors.factor_indices[..LdlFactor::<T>::supernodal_index_work_len(n)],
+        &mut vectors.factor_indices[..LdlFactor::<F>::supernodal_index_work_len(n)],
     )?;
     work.factorizations += 1;
     work.factor_flops += d.symbolic.factor_flops();

@@ -100,7 +100,8 @@ impl<'a, T: Real> LdlFactor<'a, T> {
     }
 
     /// Factorizes `A` (values `a_values` in the order of the pattern the symbolic analysis was
-    /// built from) column by column (up-looking). `work` needs `n` scalars and `cursor` `n`
+    /// built from, in any scalar type: rounded to the factor's, so that an `f32` factor can be
+    /// computed from an `f64` matrix) column by column (up-looking). `work` needs `n` scalars and `cursor` `n`
     /// indices; they have no meaning on return. The cost is [`Symbolic::factor_flops`],
     /// independent of the values. [`LdlFactor::factorize_supernodal`] computes the same factor
     /// faster on all but the smallest matrices.
@@ -112,10 +113,10 @@ impl<'a, T: Real> LdlFactor<'a, T> {
     /// [`Error::Length`] / [`Error::Capacity`] for wrong buffer lengths. On any error the
     /// factor in service (if any) stays in service, unchanged; inside a
     /// [`LdlFactor::checkpoint`], the checkpoint's factor is in service again.
-    pub fn factorize(
+    pub fn factorize<V: Real>(
         &mut self,
         sym: &Symbolic<'_>,
-        a_values: &[T],
+        a_values: &[V],
         work: &mut [T],
         cursor: &mut [u32],
     ) -> Result<(), Error> {
@@ -147,10 +148,10 @@ impl<'a, T: Real> LdlFactor<'a, T> {
     /// As [`LdlFactor::factorize`]; on any error the factor in service (if any) stays in
     /// service, unchanged; inside a [`LdlFactor::checkpoint`], the checkpoint's factor is in
     /// service again.
-    pub fn factorize_supernodal(
+    pub fn factorize_supernodal<V: Real>(
         &mut self,
         sym: &Symbolic<'_>,
-        a_values: &[T],
+        a_values: &[V],
         work: &mut [T],
         iwork: &mut [u32],
     ) -> Result<(), Error> {
@@ -168,7 +169,7 @@ impl<'a, T: Real> LdlFactor<'a, T> {
     }
 
     /// Checks `sym` against the capacity and `a_values` against `sym`.
-    fn check_sizes(&self, sym: &Symbolic<'_>, a_values: &[T]) -> Result<SymbolicSize, Error> {
+    fn check_sizes<V>(&self, sym: &Symbolic<'_>, a_values: &[V]) -> Result<SymbolicSize, Error> {
         let size = sym.size_info();
         for (resource, needed, available) in [
             (Resource::Unknowns, size.n, self.capacity.n),
@@ -219,7 +220,7 @@ impl<'a, T: Real> LdlFactor<'a, T> {
         if keep == Some(0) { 1 } else { 0 }
     }
 
-    fn in_service(&self, sym: &Symbolic<'_>, v: &[T]) -> Result<(&[T], &[T]), Error> {
+    fn in_service<V>(&self, sym: &Symbolic<'_>, v: &[V]) -> Result<(&[T], &[T]), Error> {
         let (a, size) = self.active.ok_or(Error::NotFactored)?;
         if sym.size_info() != size {
             return Err(Error::SymbolicMismatch);
@@ -303,13 +304,42 @@ impl<'a, T: Real> LdlFactor<'a, T> {
         }
         Ok(())
     }
+
+    /// Solves `A x = b` in place as [`LdlFactor::solve_in_place`] does, for a right-hand side in
+    /// another scalar type `V` (mixed precision: an `f64` residual through an `f32` factor):
+    /// `b` is rounded to the factor's type on the way in and widened on the way out, and the
+    /// solves run in the factor's type in `work` (`2 n` scalars). With `V` the factor's own
+    /// type the result is [`LdlFactor::solve_in_place`]'s, bit for bit.
+    ///
+    /// # Errors
+    /// As [`LdlFactor::solve_in_place`], and [`Error::Capacity`] for a `work` shorter than
+    /// `2 n`.
+    pub fn solve_converting<V: Real>(
+        &self,
+        sym: &Symbolic<'_>,
+        b: &mut [V],
+        work: &mut [T],
+    ) -> Result<(), Error> {
+        let (l, d) = self.in_service(sym, b)?;
+        let n = sym.n();
+        ensure_len(work, times(2, n), Resource::Workspace)?;
+        let (w, tmp) = work.split_at_mut(n);
+        for (wk, &p) in w.iter_mut().zip(sym.perm()) {
+            *wk = T::of(b[ux(p)].to_f64());
+        }
+        supernodal::solve(sym, l, d, w, &mut tmp[..n]);
+        for (&wk, &p) in w.iter().zip(sym.perm()) {
+            b[ux(p)] = V::of(wk.to_f64());
+        }
+        Ok(())
+    }
 }
 
 /// The numeric loop of [`LdlFactor::factorize`] into one value set `l`, `d` (lengths checked by
 /// the caller); `y` and `cursor` hold `n` entries of workspace.
-fn up_looking<T: Real>(
+fn up_looking<T: Real, V: Real>(
     sym: &Symbolic<'_>,
-    a_values: &[T],
+    a_values: &[V],
     l: &mut [T],
     d: &mut [T],
     y: &mut [T],
@@ -325,7 +355,7 @@ fn up_looking<T: Real>(
         // eliminate along the stored row pattern (increasing columns are a topological
         // order of the elimination tree).
         for q in ux(c_ptr[k])..ux(c_ptr[k + 1]) {
-            y[ux(c_row[q])] += a_values[ux(c_src[q])];
+            y[ux(c_row[q])] += T::of(a_values[ux(c_src[q])].to_f64());
         }
         let mut dk = y[k];
         y[k] = T::zero();

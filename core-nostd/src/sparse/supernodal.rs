@@ -331,9 +331,9 @@ fn factor_block<T: Real>(
 /// # Errors
 /// [`Error::NotPositiveDefinite`] or [`Error::NotFinite`] naming the first failing column;
 /// [`Error::Capacity`] for short workspaces.
-pub(crate) fn factorize<T: Real>(
+pub(crate) fn factorize<T: Real, V: Real>(
     sym: &Symbolic<'_>,
-    a_values: &[T],
+    a_values: &[V],
     l: &mut [T],
     d: &mut [T],
     work: &mut [T],
@@ -356,7 +356,8 @@ pub(crate) fn factorize<T: Real>(
     let (c_ptr, c_src, c_dst) = (sym.c_ptr(), sym.c_src(), sym.c_dst());
     for k in 0..n {
         for q in ux(c_ptr[k])..ux(c_ptr[k + 1]) {
-            let v = a_values[ux(c_src[q])];
+            // Rounded to the factor's scalar type (a no-op when it is the matrix's).
+            let v = T::of(a_values[ux(c_src[q])].to_f64());
             match c_dst[q] {
                 NONE => d[k] += v,
                 p => l[ux(p)] += v,

@@ -328,6 +328,7 @@ impl SweepSetting {
         match self.precision {
             Precision::F64 => label,
             Precision::F32 => format!("{label}, f32"),
+            Precision::Mixed => format!("{label}, mixed"),
         }
     }
 }
@@ -462,7 +463,10 @@ pub fn plot_sweep(scene: &str, rows: &[(SweepSetting, Summary)], out: &Path) -> 
 ///
 /// # Errors
 /// The I/O error of writing `path`.
-pub fn write_mesh_vtu<T: Real>(path: &Path, model: &Model<'_, T>) -> std::io::Result<()> {
+pub fn write_mesh_vtu<T: Real, F: Real>(
+    path: &Path,
+    model: &Model<'_, T, F>,
+) -> std::io::Result<()> {
     let x: Vec<[f64; 3]> = model.positions().iter().map(|p| p.map(T::to_f64)).collect();
     let disp: Vec<[f64; 3]> = x
         .iter()

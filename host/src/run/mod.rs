@@ -123,12 +123,12 @@ pub(crate) fn scene_storage(scene: &Scene) -> Result<ModelStorage<f64>, RunError
 }
 
 /// [`scene_storage`] for the scene's mesh given in the core's scalar type.
-pub(crate) fn scene_storage_for<T: Real>(
+pub(crate) fn scene_storage_for<T: Real, F: Real>(
     scene: &Scene,
     mesh: &MeshInput<'_, T>,
-) -> Result<ModelStorage<T>, RunError> {
+) -> Result<ModelStorage<T, F>, RunError> {
     let toml = scene.dir.join("scene.toml");
-    ModelStorage::new(mesh, &scene.file.capacities).map_err(|e| match e {
+    ModelStorage::with_factor_in(mesh, &scene.file.capacities).map_err(|e| match e {
         StorageError::Refused(r) => RunError::Scene(SceneError::new(&toml, 0, r.to_string())),
         StorageError::Core(error) => RunError::Core {
             context: "sizing the model".into(),
@@ -139,8 +139,8 @@ pub(crate) fn scene_storage_for<T: Real>(
 
 /// The observations of `frame` whose features the model knows (those that missed the model at
 /// frame 0 were never embedded), in the model's scalar type.
-pub(crate) fn known_observations<T: Real>(
-    model: &Model<'_, T>,
+pub(crate) fn known_observations<T: Real, F: Real>(
+    model: &Model<'_, T, F>,
     frame: &[Observation<f64>],
 ) -> Vec<Observation<T>> {
     frame
@@ -170,7 +170,10 @@ pub(crate) fn to_f64<T: Real, const N: usize>(p: &[T; N]) -> [f64; N] {
 
 /// Embeds the internal targets of the ground truth (their frame-0 positions) in `model`,
 /// which carries them from then on (through cuts, each on its own side).
-fn embed_targets<T: Real>(truth: Option<&Truth>, model: &mut Model<'_, T>) -> Result<(), RunError> {
+fn embed_targets<T: Real, F: Real>(
+    truth: Option<&Truth>,
+    model: &mut Model<'_, T, F>,
+) -> Result<(), RunError> {
     if let Some(points) = truth.and_then(Truth::first_targets) {
         let points: Vec<[T; 3]> = points.iter().map(cast_point).collect();
         model
@@ -184,9 +187,9 @@ fn embed_targets<T: Real>(truth: Option<&Truth>, model: &mut Model<'_, T>) -> Re
 ///
 /// # Errors
 /// A [`RunError`] for a ground truth that cannot be read or targets the core refuses.
-pub(crate) fn embed_scene_targets<T: Real>(
+pub(crate) fn embed_scene_targets<T: Real, F: Real>(
     scene: &Scene,
-    model: &mut Model<'_, T>,
+    model: &mut Model<'_, T, F>,
 ) -> Result<(), RunError> {
     embed_targets(Truth::load(scene)?.as_ref(), model)
 }
@@ -248,15 +251,16 @@ pub fn run_pass(
     progress: bool,
 ) -> Result<Trace, RunError> {
     match scene.precision {
-        Precision::F64 => run_pass_in::<f64>(scene, source, cutting, out, sink, progress),
-        Precision::F32 => run_pass_in::<f32>(scene, source, cutting, out, sink, progress),
+        Precision::F64 => run_pass_in::<f64, f64>(scene, source, cutting, out, sink, progress),
+        Precision::F32 => run_pass_in::<f32, f32>(scene, source, cutting, out, sink, progress),
+        Precision::Mixed => run_pass_in::<f64, f32>(scene, source, cutting, out, sink, progress),
     }
 }
 
-/// [`run_pass`] with the core in `T`: the scene, the observations and the true targets are
+/// [`run_pass`] with the core in `T` and its factor in `F`: the scene, the observations and the true targets are
 /// rounded to `T` on their way in, the model's positions widened to `f64` on their way out,
 /// and everything the host measures and draws is `f64`.
-fn run_pass_in<T: Real>(
+fn run_pass_in<T: Real, F: Real>(
     scene: &Scene,
     source: &mut dyn FrameSource,
     cutting: Cutting,
@@ -282,7 +286,7 @@ fn run_pass_in<T: Real>(
         tets: &scene.tets,
         fixed: &scene.file.model.fixed,
     };
-    let mut storage = scene_storage_for(scene, &mesh)?;
+    let mut storage = scene_storage_for::<T, F>(scene, &mesh)?;
     let model_bytes = storage.bytes();
     let mut model = storage
         .model(&mesh, &config)

@@ -45,9 +45,9 @@ impl Pass {
 
     /// Steps the model over frame `f`'s observations (frame 0 only placed the features) and
     /// returns the frame's record, its measures still to fill.
-    pub(super) fn step<T: Real>(
+    pub(super) fn step<T: Real, F: Real>(
         &mut self,
-        model: &mut Model<'_, T>,
+        model: &mut Model<'_, T, F>,
         f: usize,
         obs: &[Observation<f64>],
     ) -> FrameRecord {
@@ -126,9 +126,9 @@ impl Pass {
 
     /// [`super::Cutting::AlongTruth`]: after frame `f`'s step, cuts the mesh along the true cut's
     /// straight line if the cut has opened (`open`) and its line is new or has grown by 5 %.
-    pub(super) fn cut_along_truth<T: Real>(
+    pub(super) fn cut_along_truth<T: Real, F: Real>(
         &mut self,
-        model: &mut Model<'_, T>,
+        model: &mut Model<'_, T, F>,
         f: usize,
         truth: &Truth,
         open: Option<u32>,
@@ -155,9 +155,9 @@ impl Pass {
     }
 
     /// Copies the model's cut line after frame `f` into the detection trace.
-    pub(super) fn read_cut_line<T: Real>(
+    pub(super) fn read_cut_line<T: Real, F: Real>(
         &mut self,
-        model: &Model<'_, T>,
+        model: &Model<'_, T, F>,
         f: usize,
     ) -> Result<(), RunError> {
         // `cut_vertices` entries: the whole line always fits.

@@ -64,7 +64,11 @@ impl<'d, 's> Outputs<'d, 's> {
     }
 
     /// Writes the model as it is after frame `f` as `mesh_<f>.vtu`.
-    pub(crate) fn mesh<T: Real>(&mut self, f: usize, model: &Model<'_, T>) -> Result<(), RunError> {
+    pub(crate) fn mesh<T: Real, F: Real>(
+        &mut self,
+        f: usize,
+        model: &Model<'_, T, F>,
+    ) -> Result<(), RunError> {
         if let Some(dir) = self.dir {
             let name = format!("mesh_{f:04}.vtu");
             write_mesh_vtu(&dir.join(&name), model).map_err(output)?;

@@ -92,7 +92,7 @@ impl Truth {
 
     /// RMS distance between the true surface and the model's, both ways (true surface points
     /// to the model's boundary, the model's boundary nodes to the true surface), metres.
-    pub(crate) fn surface_distance<T: Real>(&self, model: &Model<'_, T>) -> f64 {
+    pub(crate) fn surface_distance<T: Real, F: Real>(&self, model: &Model<'_, T, F>) -> f64 {
         let x: Vec<[f64; 3]> = model.positions().iter().map(to_f64).collect();
         let surface = model.mesh().surface();
         let (gt_pos, gt_tri) = (&self.surface.positions, &self.surface.triangles);
@@ -108,7 +108,7 @@ impl Truth {
 }
 
 /// The internal targets where the model carries them, metres.
-pub(crate) fn target_positions<T: Real>(model: &Model<'_, T>) -> Vec<[f64; 3]> {
+pub(crate) fn target_positions<T: Real, F: Real>(model: &Model<'_, T, F>) -> Vec<[f64; 3]> {
     (0..model.n_targets())
         .filter_map(|k| model.target_position(k))
         .map(|p| to_f64(&p))
@@ -131,12 +131,12 @@ pub(crate) struct FrameMeasure {
 
 impl FrameMeasure {
     /// Measures the model (node positions `x`, boundary triangles `surface`) at `frame`.
-    pub(crate) fn new<T: Real>(
+    pub(crate) fn new<T: Real, F: Real>(
         scene: &Scene,
         truth: Option<&Truth>,
         frame: usize,
         camera: &Camera<f64>,
-        model: &Model<'_, T>,
+        model: &Model<'_, T, F>,
         (x, surface): (&[[f64; 3]], &[[u32; 3]]),
     ) -> Result<Self, SceneError> {
         let model_mask = silhouette(camera, x, surface);

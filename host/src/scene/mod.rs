@@ -99,14 +99,18 @@ pub enum Precision {
     /// Double precision.
     #[default]
     F64,
+    /// Mixed precision: the model in `f64`, its factor (the factorization and the triangular
+    /// solves) in `f32`, each solve refined on the `f64` residual.
+    Mixed,
 }
 
 impl Precision {
-    /// `"f32"` or `"f64"`.
+    /// `"f32"`, `"f64"` or `"mixed"`.
     pub fn name(self) -> &'static str {
         match self {
             Precision::F32 => "f32",
             Precision::F64 => "f64",
+            Precision::Mixed => "mixed",
         }
     }
 }

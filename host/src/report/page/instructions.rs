@@ -130,13 +130,14 @@ pub fn count_frames(dir: &Path, setting: &SweepSetting, frames: usize) -> Result
     let mut scene = Scene::load(dir).map_err(|e| e.to_string())?;
     setting.apply(&mut scene);
     match setting.precision {
-        Precision::F64 => count_frames_in::<f64>(&scene, frames),
-        Precision::F32 => count_frames_in::<f32>(&scene, frames),
+        Precision::F64 => count_frames_in::<f64, f64>(&scene, frames),
+        Precision::F32 => count_frames_in::<f32, f32>(&scene, frames),
+        Precision::Mixed => count_frames_in::<f64, f32>(&scene, frames),
     }
 }
 
-/// [`count_frames`] with the core in `T`.
-fn count_frames_in<T: Real>(scene: &Scene, frames: usize) -> Result<(), String> {
+/// [`count_frames`] with the core in `T` and its factor in `F`.
+fn count_frames_in<T: Real, F: Real>(scene: &Scene, frames: usize) -> Result<(), String> {
     let config = scene
         .model_config()
         .map_err(|e| e.to_string())?
@@ -148,7 +149,7 @@ fn count_frames_in<T: Real>(scene: &Scene, frames: usize) -> Result<(), String> 
         tets: &scene.tets,
         fixed: &scene.file.model.fixed,
     };
-    let mut storage = scene_storage_for(scene, &mesh).map_err(|e| e.to_string())?;
+    let mut storage = scene_storage_for::<T, F>(scene, &mesh).map_err(|e| e.to_string())?;
     let mut model = storage
         .model(&mesh, &config)
         .map_err(|e| format!("building the model: {e}"))?;
