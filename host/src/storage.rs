@@ -202,9 +202,7 @@ impl<T: Real, F: Real> OwnedStorage<T, F> {
 
     /// Bytes of the storage (scalars and indices), what a firmware build would hold.
     pub fn bytes(&self) -> usize {
-        self.reals.len() * std::mem::size_of::<T>()
-            + self.factor_reals.len() * std::mem::size_of::<F>()
-            + self.indices.len() * 4
+        self.size.bytes_mixed::<T, F>()
     }
 }
 
@@ -292,9 +290,8 @@ impl<T: Real, F: Real> ModelStorage<T, F> {
             cut_vertices: c.cut_vertices,
         };
         let size = ModelSize::new(&caps).map_err(StorageError::Core)?;
-        let bytes = size.model_real_len() as u128 * std::mem::size_of::<T>() as u128
-            + size.factor_real_len() as u128 * std::mem::size_of::<F>() as u128
-            + size.index_len() as u128 * 4;
+        // Saturated at `usize::MAX`, which no budget admits.
+        let bytes = size.bytes_mixed::<T, F>() as u128;
         limits::budget(
             "capacities",
             "",

@@ -476,8 +476,17 @@ impl<'a, T> ModelBuffers<'a, T> {
     ) -> Result<Self, Error> {
         ensure_len(reals, size.real_len(), Resource::RealStorage)?;
         ensure_len(indices, size.index_len(), Resource::IndexStorage)?;
-        // `real_len` is at least `factor_real_len`: the split cannot fail after the check.
-        let (factor_reals, reals) = reals.split_at_mut(size.factor_real_len());
+        // `real_len` counts `factor_real_len` among its parts, so the split holds after the
+        // check; checked anyway, as everything reachable from the public API.
+        let available = reals.len();
+        let (factor_reals, reals) =
+            reals
+                .split_at_mut_checked(size.factor_real_len())
+                .ok_or(Error::Capacity {
+                    resource: Resource::RealStorage,
+                    needed: size.factor_real_len(),
+                    available,
+                })?;
         Ok(ModelBuffers {
             reals,
             factor_reals,
