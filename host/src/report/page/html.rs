@@ -4,8 +4,8 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
-use super::stability::{self, Status};
-use super::{Report, SceneReport, figures, steady_median};
+use super::stability::{self, Block, Cell, Status};
+use super::{Report, SceneReport, figures, findings, steady_median};
 use crate::scene::Precision;
 
 /// Writes every file of `report` into `out` (which exists).
@@ -39,8 +39,9 @@ pub(super) fn write(report: &Report, out: &Path) -> Result<(), String> {
         }
         None => None,
     };
-    let files: [(&str, String); 7] = [
+    let files: [(&str, String); 8] = [
         ("stability.csv", stability_csv(report)),
+        ("stability.md", findings::stability_markdown(report)),
         ("summary.md", summary_markdown(report)),
         ("error_vs_cost.csv", error_vs_cost_csv(report)),
         ("worst_case.csv", worst_case_csv(report)),
@@ -90,8 +91,8 @@ fn inline_svg(path: &Path) -> Result<String, String> {
 /// largest ratio of a work counter to its formula, and the model's storage.
 pub(super) fn summary_markdown(report: &Report) -> String {
     let mut s = String::from(
-        "| scene | own setting | instructions / frame (M) | Dice | TRE mm | recommended | instructions / frame (M) | Dice | TRE mm | own setting in f32: instructions / frame (M), Dice − f64, TRE − f64 mm | steady max / median | counted / formula (max) | stability cells: converged / not / typed error / failure | cells with TRE > 1.2 × rest | storage KiB |\n\
-         | --- | --- | ---: | ---: | ---: | --- | ---: | ---: | ---: | --- | ---: | ---: | ---: | ---: | ---: |\n",
+        "| scene | own setting | instructions / frame (M) | Dice | TRE mm | recommended | instructions / frame (M) | Dice | TRE mm | own setting in f32: instructions / frame (M), Dice − f64, TRE − f64 mm | own setting in mixed precision: the same | steady max / median | counted / formula (max) | stability cells: converged / not / typed error / failure | cells with TRE > 1.2 × rest | storage KiB |\n\
+         | --- | --- | ---: | ---: | ---: | --- | ---: | ---: | ---: | --- | --- | ---: | ---: | ---: | ---: | ---: |\n",
     );
     let millions = |v: Option<f64>| v.map_or("–".to_string(), |v| format!("{:.1}", v / 1e6));
     for scene in &report.scenes {
@@ -99,18 +100,21 @@ pub(super) fn summary_markdown(report: &Report) -> String {
             continue;
         };
         let rec = scene.recommended.map(|r| &scene.settings[r]);
-        let single = scene
-            .settings
-            .iter()
-            .find(|r| r.precision == Precision::F32)
-            .map_or("–".to_string(), |r| {
-                format!(
-                    "{}, {:+.4}, {:+.3}",
-                    millions(r.instructions_median),
-                    r.dice_final - own.dice_final,
-                    r.tre_mm_final - own.tre_mm_final
-                )
-            });
+        let against_own = |precision: Precision| {
+            scene
+                .settings
+                .iter()
+                .find(|r| r.precision == precision)
+                .map_or("–".to_string(), |r| {
+                    format!(
+                        "{}, {:+.4}, {:+.3}",
+                        millions(r.instructions_median),
+                        r.dice_final - own.dice_final,
+                        r.tre_mm_final - own.tre_mm_final
+                    )
+                })
+        };
+        let (single, mixed) = (against_own(Precision::F32), against_own(Precision::Mixed));
         let worst = scene
             .worst_case
             .iter()
@@ -139,7 +143,7 @@ pub(super) fn summary_markdown(report: &Report) -> String {
             .count();
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {:.3} | {:.2} | {} | {} | {} | {} | {single} | {} | {worst:.3} | {statuses} | {worse} of {} | {:.0} |",
+            "| {} | {} | {} | {:.3} | {:.2} | {} | {} | {} | {} | {single} | {mixed} | {} | {worst:.3} | {statuses} | {worse} of {} | {:.0} |",
             scene.name,
             own.label,
             millions(own.instructions_median),
@@ -161,22 +165,27 @@ pub(super) fn summary_markdown(report: &Report) -> String {
 
 fn stability_csv(report: &Report) -> String {
     let mut s = String::from(
-        "scene,young_pa,poisson,k_scale,spring_stiffness,status,frames_rejected,first_error,converged_frames,min_pivot,pivot_ratio,dice_final,tre_mm_final,tre_mm_rest\n",
+        "scene,block,young_pa,poisson,k_scale,precision,noise_px,outliers,spring_stiffness,status,frames_rejected,first_error,converged_frames,relative_gradient,min_pivot,pivot_ratio,dice_final,tre_mm_final,tre_mm_rest\n",
     );
     for scene in &report.scenes {
         for c in &scene.stability {
             let _ = writeln!(
                 s,
-                "{},{:e},{},{:e},{:e},{},{},\"{}\",{:.3},{:e},{:e},{:.5},{:.4},{:.4}",
+                "{},{},{:e},{},{:e},{},{},{},{:e},{},{},\"{}\",{:.3},{:e},{:e},{:e},{:.5},{:.4},{:.4}",
                 scene.name,
+                c.block.label(),
                 c.young,
                 c.poisson,
                 c.k_scale,
+                c.precision.name(),
+                c.noise_px,
+                c.outliers,
                 c.spring_stiffness,
                 c.status.label(),
                 c.frames_rejected,
                 c.first_error.as_deref().unwrap_or("").replace('"', "'"),
                 c.converged_frames,
+                c.relative_gradient,
                 c.min_pivot,
                 c.pivot_ratio,
                 c.dice_final,
@@ -188,31 +197,57 @@ fn stability_csv(report: &Report) -> String {
     s
 }
 
-/// The stability grid of one scene as a table: a row per (E, ν), a column per spring scale;
-/// each cell coloured by its status and showing the target error over the rest model's.
-fn stability_table(h: &mut String, scene: &SceneReport) {
-    let mut scales: Vec<f64> = scene.stability.iter().map(|c| c.k_scale).collect();
-    scales.sort_by(f64::total_cmp);
-    scales.dedup();
-    let mut rows: Vec<(f64, f64)> = scene
+/// A row's or a column's label of a cell.
+type CellKey = fn(&Cell) -> String;
+
+/// One block of a scene's stability grid as a table: a row per `row` key, a column per
+/// `column` key (each in the order first met); each cell coloured by its status and showing the
+/// target error over the rest model's and, in the precision block, the median relative
+/// gradient at the frames' end.
+fn stability_table(h: &mut String, scene: &SceneReport, block: Block) {
+    let cells: Vec<&Cell> = scene
         .stability
         .iter()
-        .map(|c| (c.young, c.poisson))
+        .filter(|c| c.block == block)
         .collect();
-    rows.dedup();
-    h.push_str("<table><tr><th>E Pa, ν \\ k / k<sub>scene</sub></th>");
-    for s in &scales {
-        let _ = write!(h, "<th>{s:e}</th>");
+    if cells.is_empty() {
+        return;
+    }
+    let (corner, row, column): (&str, CellKey, CellKey) = match block {
+        Block::Material => (
+            "E Pa, ν \\ k / k<sub>scene</sub>",
+            |c| format!("{:e}, {}", c.young, c.poisson),
+            |c| format!("{:e}", c.k_scale),
+        ),
+        Block::Precision => (
+            "scalar type, ν \\ k / k<sub>scene</sub>",
+            |c| format!("{}, {}", c.precision.name(), c.poisson),
+            |c| format!("{:e}", c.k_scale),
+        ),
+        Block::Tracking => (
+            "scalar type, noise px \\ outliers",
+            |c| format!("{}, {}", c.precision.name(), c.noise_px),
+            |c| format!("{:.0} %", 100.0 * c.outliers),
+        ),
+    };
+    let mut rows: Vec<String> = vec![];
+    let mut columns: Vec<String> = vec![];
+    for c in &cells {
+        for (keys, key) in [(&mut rows, row(c)), (&mut columns, column(c))] {
+            if !keys.contains(&key) {
+                keys.push(key);
+            }
+        }
+    }
+    let _ = write!(h, "<table><tr><th>{corner}</th>");
+    for k in &columns {
+        let _ = write!(h, "<th>{k}</th>");
     }
     h.push_str("</tr>");
-    for (e, nu) in rows {
-        let _ = write!(h, "<tr><td>{e:e}, {nu}</td>");
-        for s in &scales {
-            let Some(c) = scene
-                .stability
-                .iter()
-                .find(|c| c.young == e && c.poisson == nu && c.k_scale == *s)
-            else {
+    for r in &rows {
+        let _ = write!(h, "<tr><td>{r}</td>");
+        for k in &columns {
+            let Some(c) = cells.iter().find(|c| &row(c) == r && &column(c) == k) else {
                 h.push_str("<td></td>");
                 continue;
             };
@@ -222,14 +257,20 @@ fn stability_table(h: &mut String, scene: &SceneReport) {
                 Status::TypedError => "#d8e4f8",
                 Status::Failure => "#f8c8c8",
             };
-            let ratio = c.tre_mm_final / c.tre_mm_rest;
+            let residual = if block == Block::Precision {
+                format!("<br>gradient {:.0e}", c.relative_gradient)
+            } else {
+                String::new()
+            };
             let _ = write!(
                 h,
                 "<td style=\"background:{colour}\" title=\"{}; converged frames {:.0} %; \
-                 smallest pivot {:.2e}; pivot ratio {:.2e}; Dice {:.3}; target error {:.2} mm \
-                 (rest {:.2} mm){}\">{}<br>{:.2}× rest</td>",
+                 median gradient at the end over the start {:.1e}; smallest pivot {:.2e}; \
+                 pivot ratio {:.2e}; Dice {:.3}; target error {:.2} mm (rest {:.2} mm){}\">{}\
+                 <br>{:.2}× rest{residual}</td>",
                 c.status.label(),
                 100.0 * c.converged_frames,
+                c.relative_gradient,
                 c.min_pivot,
                 c.pivot_ratio,
                 c.dice_final,
@@ -239,7 +280,7 @@ fn stability_table(h: &mut String, scene: &SceneReport) {
                     .as_deref()
                     .map_or(String::new(), |e| format!("; {}", esc(e))),
                 c.status.label(),
-                ratio
+                c.tre_mm_final / c.tre_mm_rest
             );
         }
         h.push_str("</tr>");
@@ -363,9 +404,8 @@ fn page(
         }
     );
     h.push_str(
-        "<p class=\"note\">Not in this report yet (issue 14): the compression, inversion, noise \
-         and outlier axes of the stability envelope, runs in <code>f32</code> and mixed \
-         precision, and the mesh-resolution axis.</p>",
+        "<p class=\"note\">Not in this report yet (issue 14): the compression and inversion axes \
+         of the stability envelope, and the mesh-resolution axis.</p>",
     );
     // 1. Error against run time.
     let _ = write!(
@@ -472,23 +512,34 @@ fn page(
     // 3. Stability.
     let _ = write!(
         h,
-        "<h2 id=\"stability\">3. Stability envelope</h2><p>Each scene with cutting on, over a \
-         grid of Young's modulus E, Poisson ratio ν and spring stiffness k (as a multiple of the \
-         scene's own coupling, k relative to E and the feature spacing, so that E alone tests \
-         the numerics and the multiple tests the coupling). A cell is <b>converged</b> when every position stays finite, no frame is \
-         refused and the gradient falls to {} of its start in at least {:.0} % of the frames; \
-         <b>not converged</b> otherwise; <b>typed error</b> when the core refused frames (the \
-         model going on as it was); <b>failure</b> on a non-finite position or a panic. Each \
-         cell shows the last frame's target error over the rest model's (above 1: the \
-         registration places the targets worse than not moving); hover for the pivots, Dice \
-         and the first error. Not in the grid yet: compression, element inversion, noise and \
-         outlier rates, and <code>f32</code>.</p>",
+        "<h2 id=\"stability\">3. Stability envelope</h2><p>Each scene with cutting on, in three \
+         blocks of cells. <b>Material</b>: Young's modulus E × Poisson ratio ν × spring stiffness \
+         k (as a multiple of the scene's own coupling, k relative to E and the feature spacing, \
+         so that E alone tests the numerics and the multiple tests the coupling), in \
+         <code>f64</code>. <b>Precision</b>: the scene's own E, its own ν and 0.499, the same \
+         spring multiples, in <code>f64</code>, <code>f32</code> and mixed precision (an \
+         <code>f32</code> factor refined on the <code>f64</code> residual); each cell also \
+         shows the median over the frames of the gradient at the frame's end over its start, \
+         as the model computes it in its own type. <b>Tracking</b>: the scene's own material \
+         and springs, its tracks with Gaussian noise added (σ in pixels) and a fraction of the \
+         observations of every frame after the first moved 20 to 60 px (outliers), in \
+         <code>f64</code> and <code>f32</code>. A cell is <b>converged</b> when every position \
+         stays finite, no frame is refused and the gradient falls to {} of its start in at \
+         least {:.0} % of the frames; <b>not converged</b> otherwise; <b>typed error</b> when \
+         the core refused frames (the model going on as it was); <b>failure</b> on a \
+         non-finite position or a panic. Each cell shows the last frame's target error over the \
+         rest model's (above 1: the registration places the targets worse than not moving); \
+         hover for the pivots, Dice and the first error. Not in the grid yet: compression and \
+         element inversion.</p>",
         stability::CONVERGED_REDUCTION,
         100.0 * stability::CONVERGED_FRAMES
     );
     for scene in &report.scenes {
         let _ = write!(h, "<h3>{}</h3>", esc(&scene.name));
-        stability_table(&mut h, scene);
+        for block in [Block::Material, Block::Precision, Block::Tracking] {
+            let _ = write!(h, "<h4>{}</h4>", block.label());
+            stability_table(&mut h, scene, block);
+        }
     }
     // 4. Memory.
     h.push_str(

@@ -3,13 +3,14 @@
 //! the formulas, and instructions per frame), and its memory; as one self-contained HTML page
 //! (`index.html`, figures inline) beside the same figures as SVG and the data as CSV and JSON.
 //!
-//! A fourth section, the stability envelope (`stability`), runs each scene over a grid of
-//! material and spring stiffness and classifies every cell.
+//! A fourth section, the stability envelope (`stability`), runs each scene over grids of
+//! material, spring stiffness, scalar type and track quality, and classifies every cell.
 //!
-//! Not in it yet (issue 14): compression, noise and outlier axes of the envelope, runs in
-//! `f32` and mixed precision, and the mesh-resolution axis; the page says so.
+//! Not in it yet (issue 14): the compression and inversion axes of the envelope and the
+//! mesh-resolution axis; the page says so.
 
 mod figures;
+mod findings;
 mod html;
 mod instructions;
 mod pareto;
@@ -174,13 +175,17 @@ fn settings_for(solver: &SolverSection, quick: bool) -> Vec<(SweepSetting, bool)
             && s.newton == own.newton
             && (s.strategy == "refactor" || s.pcg == own.pcg)
     };
-    // The scene's own setting in single precision too: where `f32` matches `f64`.
+    // The scene's own setting in single and in mixed precision too: where each matches `f64`.
     let single = SweepSetting {
         precision: Precision::F32,
         ..own
     };
+    let mixed = SweepSetting {
+        precision: Precision::Mixed,
+        ..own
+    };
     std::iter::once((own, true))
-        .chain(std::iter::once((single, false)))
+        .chain([(single, false), (mixed, false)])
         .chain(others.into_iter().filter(|s| !same(s)).map(|s| (s, false)))
         .collect()
 }
@@ -265,12 +270,8 @@ pub fn write_report(
         }
         let trace = own_trace.ok_or("no run with the scene's own setting")?;
         let mut scene_report = scene_report(scene, settings, &trace, own_counts, counting)?;
-        for cell in stability::grid(scene, options.quick) {
-            scene_report
-                .stability
-                .push(stability::run_cell(scene, cell));
-            bar.inc(1);
-        }
+        scene_report.stability =
+            stability::run_cells(scene, &stability::grid(scene, options.quick), || bar.inc(1));
         report.scenes.push(scene_report);
     }
     if let Some(base) = scaling_base {

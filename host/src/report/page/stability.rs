@@ -1,19 +1,32 @@
-//! The stability envelope: each scene run over a grid of Young's modulus, Poisson ratio and
-//! spring stiffness relative to the material, and each cell classified.
+//! The stability envelope: each scene run over grids of its material, its springs, the scalar
+//! type the core computes in and the quality of its tracks, and each cell classified.
 //!
-//! The registration depends on the springs only through `k / E`, so the grid holds the
-//! springs relative to the material at the scene's own coupling times a scale (`[solver]
-//! coupling`, whose `k` follows `E` by itself) while `E` sweeps eight decades: `E` alone tests
-//! the numerics (every energy and pivot scales with it), the scale tests how well posed the
-//! coupling is.
+//! Three blocks of cells:
+//! - **material** (`f64`): Young's modulus × Poisson ratio × spring stiffness relative to the
+//!   material. The registration depends on the springs only through `k / E`, so the springs
+//!   are held relative to the material at the scene's own coupling times a scale (`[solver]
+//!   coupling`, whose `k` follows `E` by itself) while `E` sweeps eight decades: `E` alone tests
+//!   the numerics (every energy and pivot scales with it), the scale tests how well posed the
+//!   coupling is.
+//! - **precision**: the scene's own `E`, its own ν and the near-incompressible 0.499, the same
+//!   spring scales, in `f64`, `f32` and mixed precision: where plain `f32` stops reaching
+//!   `f64`'s residual and whether mixed precision does.
+//! - **tracking**: the scene's own material and springs, its recorded tracks with Gaussian
+//!   noise added and a fraction of the observations jumping each frame (outliers), in `f64` and
+//!   `f32`.
 
 use std::panic::{AssertUnwindSafe, catch_unwind};
 
 use incise_core::solve::DEFAULT_COUPLING;
 use serde::Serialize;
 
+use incise_core::Observation;
+
+use crate::rng::Rng;
 use crate::run::{Trace, run_once};
-use crate::scene::Scene;
+use crate::scene::{Precision, Scene};
+
+use crate::report::SweepSetting;
 
 /// A frame converges when the gradient at its end is at most this fraction of its start.
 pub(super) const CONVERGED_REDUCTION: f64 = 1e-3;
@@ -47,9 +60,53 @@ impl Status {
     }
 }
 
+/// The block of the envelope a cell belongs to (see the module's doc).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Block {
+    /// Young's modulus × Poisson ratio × spring stiffness, in `f64`.
+    Material,
+    /// Poisson ratio × spring stiffness × scalar type, at the scene's own `E`.
+    Precision,
+    /// Tracking noise × outlier rate × scalar type, at the scene's own material and springs.
+    Tracking,
+}
+
+impl Block {
+    /// A short label.
+    pub(super) fn label(self) -> &'static str {
+        match self {
+            Block::Material => "material",
+            Block::Precision => "precision",
+            Block::Tracking => "tracking",
+        }
+    }
+}
+
+/// What one cell runs: the scene with these changed.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct CellSetting {
+    pub block: Block,
+    pub young: f64,
+    pub poisson: f64,
+    pub k_scale: f64,
+    pub precision: Precision,
+    pub noise_px: f64,
+    pub outliers: f64,
+    /// Newton steps of `Refactor` in place of the scene's own solver setting.
+    pub refactor_newton: Option<u32>,
+}
+
+/// Newton steps per frame of the precision block, each with its own factorization
+/// (`Refactor`): enough for every frame to settle as far as its scalar type lets it, so that
+/// the cells compare the residual each type reaches rather than how many steps a frame has.
+pub(super) const PRECISION_NEWTON: u32 = 8;
+
 /// One cell of the grid.
 #[derive(Clone, Debug, Serialize)]
 pub struct Cell {
+    /// The block it belongs to.
+    pub block: Block,
     /// Young's modulus, pascals.
     pub young: f64,
     /// Poisson ratio.
@@ -57,6 +114,14 @@ pub struct Cell {
     /// The springs' stiffness over the scene's own, relative to the material: the scene's
     /// `coupling` times this (or its `k / E` times `E` times this, for a scene that gives `k`).
     pub k_scale: f64,
+    /// The scalar type the core computed in.
+    pub precision: Precision,
+    /// The solver setting (the scene's own, or [`PRECISION_NEWTON`] steps of `Refactor`).
+    pub solver: String,
+    /// Standard deviation of the Gaussian noise added to every tracked position, pixels.
+    pub noise_px: f64,
+    /// Fraction of the observations of each frame after the first moved by 20 to 60 pixels.
+    pub outliers: f64,
     /// The spring stiffness `k` in service, J/px² (NaN when the run was refused).
     pub spring_stiffness: f64,
     /// What the cell came to.
@@ -67,6 +132,9 @@ pub struct Cell {
     pub first_error: Option<String>,
     /// Fraction of solved frames whose gradient fell by [`CONVERGED_REDUCTION`].
     pub converged_frames: f64,
+    /// Median over the solved frames of the gradient's norm at the frame's end over its norm
+    /// at the start, each computed by the model in its own scalar type (NaN if none).
+    pub relative_gradient: f64,
     /// Smallest pivot of the factor over the run.
     pub min_pivot: f64,
     /// Largest ratio of the largest to the smallest pivot (a lower bound of the condition
@@ -80,37 +148,178 @@ pub struct Cell {
     pub tre_mm_rest: f64,
 }
 
-/// The grid: `(young, poisson, k_scale)` for each cell. Default: `E` in 10², 10⁵, 10⁹ Pa, ν in
-/// 0, 0.45, 0.499, the springs' scale in 10⁻⁶ … 10⁶ by factors of 1000; `--quick`: the
-/// scene's own `E` and ν, the scale in 10⁻³, 1, 10³.
-pub(super) fn grid(scene: &Scene, quick: bool) -> Vec<(f64, f64, f64)> {
+/// Spring scales of the material and precision blocks: 10⁻⁶ … 10⁶ by factors of 1000.
+pub(super) const SCALES: [f64; 5] = [1e-6, 1e-3, 1.0, 1e3, 1e6];
+
+/// Noise added to the tracks in the tracking block, pixels.
+const NOISE_PX: [f64; 3] = [0.0, 1.0, 3.0];
+
+/// Outlier rates of the tracking block.
+const OUTLIERS: [f64; 3] = [0.0, 0.05, 0.2];
+
+/// The cells. Default:
+/// - material: `E` in 10², 10⁵, 10⁹ Pa × ν in 0, 0.45, 0.499 × [`SCALES`] (45 cells);
+/// - precision: the scene's own `E`, ν its own and 0.499, [`SCALES`], in `f64`, `f32` and
+///   mixed, each frame solved by [`PRECISION_NEWTON`] steps of `Refactor` (30 cells);
+/// - tracking: [`NOISE_PX`] × [`OUTLIERS`] in `f64` and `f32` (18 cells).
+///
+/// `--quick`: the scene's own `E` and ν with the springs at 10⁻³, 1 and 10³ (material); the
+/// springs at 10³ in `f64`, `f32` and mixed (precision); 3 px of noise and 20 % outliers
+/// (tracking).
+pub(super) fn grid(scene: &Scene, quick: bool) -> Vec<CellSetting> {
     let own = (scene.file.model.young, scene.file.model.poisson);
-    let (youngs, poissons, scales): (Vec<f64>, Vec<f64>, Vec<f64>) = if quick {
-        (vec![own.0], vec![own.1], vec![1e-3, 1.0, 1e3])
-    } else {
-        (
-            vec![1e2, 1e5, 1e9],
-            vec![0.0, 0.45, 0.499],
-            vec![1e-6, 1e-3, 1.0, 1e3, 1e6],
-        )
+    let base = CellSetting {
+        block: Block::Material,
+        young: own.0,
+        poisson: own.1,
+        k_scale: 1.0,
+        precision: Precision::F64,
+        noise_px: 0.0,
+        outliers: 0.0,
+        refactor_newton: None,
+    };
+    let precise = CellSetting {
+        block: Block::Precision,
+        refactor_newton: Some(PRECISION_NEWTON),
+        ..base
     };
     let mut cells = vec![];
-    for &e in &youngs {
-        for &nu in &poissons {
-            for &s in &scales {
-                cells.push((e, nu, s));
+    if quick {
+        for k_scale in [1e-3, 1.0, 1e3] {
+            cells.push(CellSetting { k_scale, ..base });
+        }
+        for precision in [Precision::F64, Precision::F32, Precision::Mixed] {
+            cells.push(CellSetting {
+                k_scale: 1e3,
+                precision,
+                ..precise
+            });
+        }
+        cells.push(CellSetting {
+            block: Block::Tracking,
+            noise_px: 3.0,
+            outliers: 0.2,
+            ..base
+        });
+        return cells;
+    }
+    for young in [1e2, 1e5, 1e9] {
+        for poisson in [0.0, 0.45, 0.499] {
+            for k_scale in SCALES {
+                cells.push(CellSetting {
+                    young,
+                    poisson,
+                    k_scale,
+                    ..base
+                });
+            }
+        }
+    }
+    for precision in [Precision::F64, Precision::F32, Precision::Mixed] {
+        for poisson in [own.1, 0.499] {
+            for k_scale in SCALES {
+                cells.push(CellSetting {
+                    poisson,
+                    k_scale,
+                    precision,
+                    ..precise
+                });
+            }
+        }
+    }
+    for precision in [Precision::F64, Precision::F32] {
+        for noise_px in NOISE_PX {
+            for outliers in OUTLIERS {
+                cells.push(CellSetting {
+                    block: Block::Tracking,
+                    precision,
+                    noise_px,
+                    outliers,
+                    ..base
+                });
             }
         }
     }
     cells
 }
 
-/// Runs `scene` (cutting on) with one cell's material and springs.
-pub(super) fn run_cell(scene: &Scene, (young, poisson, k_scale): (f64, f64, f64)) -> Cell {
+/// `frames` with Gaussian noise of `noise_px` on every position and, in every frame after the
+/// first (where the features are placed on the model), a fraction `outliers` of the
+/// observations moved by 20 to 60 pixels in a random direction: a tracker that slips. A
+/// position that leaves the image (`size`, pixels) is dropped, the feature lost for that frame,
+/// as a tracker reports it. Seeded, so a cell repeats.
+fn degrade(frames: &mut [Vec<Observation<f64>>], size: [f64; 2], noise_px: f64, outliers: f64) {
+    let mut rng = Rng::new(0x5eed_0f7a);
+    for (f, frame) in frames.iter_mut().enumerate() {
+        for o in frame.iter_mut() {
+            if noise_px > 0.0 {
+                o.uv[0] += noise_px * rng.normal();
+                o.uv[1] += noise_px * rng.normal();
+            }
+            if f > 0 && outliers > 0.0 && rng.uniform() < outliers {
+                let (r, a) = (rng.range(20.0, 60.0), rng.range(0.0, std::f64::consts::TAU));
+                o.uv[0] += r * a.cos();
+                o.uv[1] += r * a.sin();
+            }
+        }
+        // A tracker reports no position outside the image: it loses the feature.
+        frame.retain(|o| (0.0..size[0]).contains(&o.uv[0]) && (0.0..size[1]).contains(&o.uv[1]));
+    }
+}
+
+/// Runs the `cells` of `scene`, as many at once as the machine has cores (each run is
+/// independent and deterministic, so the result does not depend on how many), calling `done`
+/// after each; the cells in the order given.
+pub(super) fn run_cells(scene: &Scene, cells: &[CellSetting], done: impl Fn() + Sync) -> Vec<Cell> {
+    let workers = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let mut results: Vec<(usize, Cell)> = std::thread::scope(|s| {
+        let handles: Vec<_> = (0..workers)
+            .map(|_| {
+                s.spawn(|| {
+                    let mut mine = vec![];
+                    loop {
+                        let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                        let Some(&cell) = cells.get(i) else {
+                            break mine;
+                        };
+                        mine.push((i, run_cell(scene, cell)));
+                        done();
+                    }
+                })
+            })
+            .collect();
+        handles
+            .into_iter()
+            .flat_map(|h| h.join().unwrap_or_default())
+            .collect()
+    });
+    results.sort_by_key(|(i, _)| *i);
+    results.into_iter().map(|(_, c)| c).collect()
+}
+
+/// Runs `scene` (cutting on) with one cell's material, springs, precision and tracks.
+pub(super) fn run_cell(scene: &Scene, setting: CellSetting) -> Cell {
+    let CellSetting {
+        block,
+        young,
+        poisson,
+        k_scale,
+        precision,
+        noise_px,
+        outliers,
+        refactor_newton,
+    } = setting;
     let own = &scene.file;
     let mut s = scene.clone();
     s.file.model.young = young;
     s.file.model.poisson = poisson;
+    s.precision = precision;
+    if let Some(newton) = refactor_newton {
+        s.file.solver.strategy = "refactor".into();
+        s.file.solver.newton_iterations = newton;
+    }
+    let solver = SweepSetting::of(&s.file.solver).label();
     // A derived `k` follows `E` by itself; a given one is scaled with it.
     match own.solver.spring_stiffness {
         Some(k) => s.file.solver.spring_stiffness = Some(k / own.model.young * young * k_scale),
@@ -119,16 +328,27 @@ pub(super) fn run_cell(scene: &Scene, (young, poisson, k_scale): (f64, f64, f64)
             s.file.solver.coupling = Some(beta * k_scale);
         }
     }
+    if noise_px > 0.0 || outliers > 0.0 {
+        let camera = &s.file.camera;
+        let size = [f64::from(camera.width), f64::from(camera.height)];
+        degrade(&mut s.frames, size, noise_px, outliers);
+    }
     let run = catch_unwind(AssertUnwindSafe(|| run_once(&s, true, None, false)));
     let mut cell = Cell {
+        block,
         young,
         poisson,
         k_scale,
+        precision,
+        solver,
+        noise_px,
+        outliers,
         spring_stiffness: f64::NAN,
         status: Status::Failure,
         frames_rejected: 0,
         first_error: None,
         converged_frames: 0.0,
+        relative_gradient: f64::NAN,
         min_pivot: f64::NAN,
         pivot_ratio: f64::NAN,
         dice_final: f64::NAN,
@@ -159,6 +379,13 @@ fn classify(cell: &mut Cell, trace: &Trace) {
     } else {
         converged as f64 / health.len() as f64
     };
+    let mut ratios: Vec<f64> = health
+        .iter()
+        .map(|h| h.gradient_after / h.gradient_before)
+        .filter(|r| !r.is_nan())
+        .collect();
+    ratios.sort_by(f64::total_cmp);
+    cell.relative_gradient = ratios.get(ratios.len() / 2).copied().unwrap_or(f64::NAN);
     cell.min_pivot = health
         .iter()
         .map(|h| h.pivots.0)
