@@ -90,6 +90,32 @@ pub fn median_mad<T: Real>(v: &mut [T]) -> (T, T, u64) {
     (median, quantile_sorted(v, T::of(0.5)), comparisons)
 }
 
+/// Median and MAD of the first `count` values of `v`, as [`median_mad`]; the values after them
+/// are overwritten with `+∞` and sorted along. The work then depends on `v.len()`, not on
+/// `count`: a caller that passes all the slots it has in use makes every frame sort as much,
+/// however many of them it measured (the finite values sort ahead of the `+∞`s, so the
+/// result is [`median_mad`] of `v[..count]`, bit for bit).
+pub fn median_mad_of<T: Real>(v: &mut [T], count: usize) -> (T, T, u64) {
+    let count = count.min(v.len());
+    pad(v, count);
+    let mut comparisons = sort(v);
+    let median = quantile_sorted(v.get(..count).unwrap_or_default(), T::of(0.5));
+    for x in v.iter_mut().take(count) {
+        *x = (*x - median).abs();
+    }
+    pad(v, count);
+    comparisons += sort(v);
+    let mad = quantile_sorted(v.get(..count).unwrap_or_default(), T::of(0.5));
+    (median, mad, comparisons)
+}
+
+/// Sets the values of `v` from `count` on to `+∞`.
+pub fn pad<T: Real>(v: &mut [T], count: usize) {
+    for x in v.iter_mut().skip(count) {
+        *x = T::of(f64::INFINITY);
+    }
+}
+
 /// Standard deviations per MAD for normally distributed values (`1 / Φ⁻¹(3/4)`).
 pub const MAD_TO_SIGMA: f64 = 1.482_602_218_505_602;
 
@@ -112,6 +138,21 @@ mod tests {
         assert!(v[200].is_nan());
         let mut empty: [f64; 0] = [];
         assert_eq!(sort(&mut empty), 0);
+    }
+
+    #[test]
+    fn padded_median_and_mad_equal_those_of_the_values_alone() {
+        let values = [4.0, -1.5, 9.25, 3.0, 3.0, 0.5, 12.0];
+        for count in 0..=values.len() {
+            let mut alone = values;
+            let expected = median_mad(&mut alone[..count]);
+            let mut padded = [0.0f64; 20];
+            padded[..count].copy_from_slice(&values[..count]);
+            let got = median_mad_of(&mut padded, count);
+            assert_eq!(got.0.to_bits(), expected.0.to_bits(), "{count}");
+            assert_eq!(got.1.to_bits(), expected.1.to_bits(), "{count}");
+            assert!(got.2 <= 2 * sort_bound(20), "{count}");
+        }
     }
 
     #[test]

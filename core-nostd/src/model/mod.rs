@@ -585,7 +585,8 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
         self.features.set_frame(&self.config.camera, frame, margin)
     }
 
-    /// The worst-case work of one [`Model::step`]'s steady part with every feature observed:
+    /// The worst-case work of one [`Model::step`]'s steady part (every embedded feature is
+    /// evaluated in every frame, observed or not):
     /// a formula of the scene's sizes and the configuration.
     pub fn worst_case_work(&self) -> WorkCount {
         let s = &self.config.solver;

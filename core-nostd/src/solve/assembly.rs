@@ -141,24 +141,38 @@ impl<T: Real> Problem<'_, '_, T> {
         Ok(e)
     }
 
+    /// The stiffness of the spring of a feature observed (`active` ≠ 0) or not in this frame.
+    ///
+    /// Every embedded feature's spring is evaluated in every pass, an unobserved one with
+    /// stiffness zero (its stale target then adds exact zeros to every sum, and changes no
+    /// result): so a frame's work does not depend on how many features the tracker still
+    /// follows, and every frame of one topology costs the same, as the line search evaluates all
+    /// its trials whatever it finds. A timing test on any frame measures the worst case.
+    fn spring_weight(&self, active: u32) -> T {
+        if active == 0 {
+            T::zero()
+        } else {
+            self.spring_stiffness
+        }
+    }
+
     fn spring_energy(&self, x: &[[T; 3]], work: &mut WorkCount) -> Result<T, Error> {
-        let k = self.spring_stiffness;
         let mut sum = T::zero();
         let observations = self.features.active().iter().zip(self.features.targets());
         for (slot, (&active, target)) in observations.enumerate() {
-            if active == 0 {
-                continue;
-            }
             let p = self
                 .embedding
                 .position(slot, self.mesh, x)
                 .ok_or(Error::NoFeatures)?;
-            let uv = self
-                .camera
-                .project(&Vector3::from(p), slot)
-                .map_err(|_| self.features.behind_camera(slot))?;
+            let uv = match self.camera.project(&Vector3::from(p), slot) {
+                Ok(uv) => uv,
+                // Not observed: nothing pulls it, wherever it is.
+                Err(_) if active == 0 => continue,
+                Err(_) => return Err(self.features.behind_camera(slot)),
+            };
             let (du, dv) = (target[0] - uv.x, target[1] - uv.y);
-            sum += k * huber(du * du + dv * dv, self.spring_threshold_px).0;
+            sum +=
+                self.spring_weight(active) * huber(du * du + dv * dv, self.spring_threshold_px).0;
             work.feature_evaluations += 1;
         }
         Ok(sum)
@@ -259,12 +273,9 @@ impl<T: Real> Problem<'_, '_, T> {
         }
 
         // Springs, Gauss–Newton through the projection, reweighted by Huber's loss.
-        let k_spring = self.spring_stiffness;
         let observations = self.features.active().iter().zip(self.features.targets());
         for (slot, (&active, target)) in observations.enumerate() {
-            if active == 0 {
-                continue;
-            }
+            let k_spring = self.spring_weight(active);
             // As in [`Embedding::position`], which fails the same way.
             let (Some(&t), Some(w)) = (
                 self.embedding.tets().get(slot),
@@ -279,10 +290,12 @@ impl<T: Real> Problem<'_, '_, T> {
                 .embedding
                 .position(slot, self.mesh, x)
                 .ok_or(Error::NoFeatures)?;
-            let (uv, j) = self
-                .camera
-                .project_with_jacobian(&Vector3::from(p), slot)
-                .map_err(|_| self.features.behind_camera(slot))?;
+            let (uv, j) = match self.camera.project_with_jacobian(&Vector3::from(p), slot) {
+                Ok(projected) => projected,
+                // Not observed: nothing pulls it, wherever it is.
+                Err(_) if active == 0 => continue,
+                Err(_) => return Err(self.features.behind_camera(slot)),
+            };
             let r = nalgebra::Vector2::new(target[0] - uv.x, target[1] - uv.y);
             let (rho, weight) = huber(r.norm_squared(), self.spring_threshold_px);
             e.spring += k_spring * rho;

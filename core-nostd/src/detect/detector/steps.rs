@@ -41,8 +41,10 @@ impl<'a, T: Real> Detector<'a, T> {
         let filtering = cfg!(feature = "temporal-filter") && config.temporal_sigmas.finite();
         let mut newly_filtered = false;
         if filtering {
+            // Every feature takes part, an ineligible one as `+∞` (as the pairs below): the
+            // sort costs as much in every frame, the median and MAD are the eligible ones'.
             let (median, mad, comparisons) =
-                median_mad(self.scratch.get_mut(..count).unwrap_or_default());
+                median_mad_of(self.scratch.get_mut(..n).unwrap_or_default(), count);
             work.comparisons += comparisons;
             let limit = (median + config.temporal_sigmas * T::of(MAD_TO_SIGMA) * mad)
                 .max(config.min_difference_px);
@@ -141,8 +143,13 @@ impl<'a, T: Real> Detector<'a, T> {
                 None => T::of(UNMEASURED),
             };
         }
-        let (median, mad, comparisons) =
-            median_mad(self.scratch.get_mut(..active).unwrap_or_default());
+        // Every pair in use takes part, an unmeasured one as `+∞` behind the measured ones:
+        // the sorts cost as much in every frame of a topology, however many pairs are
+        // measured, and the median and MAD are those of the measured pairs.
+        let (median, mad, comparisons) = median_mad_of(
+            self.scratch.get_mut(..self.n_pairs).unwrap_or_default(),
+            active,
+        );
         work.comparisons += comparisons;
         // `incident_start` holds `n + 1` ascending starts into `incident`, whose entries
         // are pair indices below `n_pairs`.
@@ -170,10 +177,12 @@ impl<'a, T: Real> Detector<'a, T> {
                 }
             }
             work.pair_visits += incident.len() as u64;
-            let sorted = self.scratch.get_mut(..m).unwrap_or_default();
+            // As above: the feature's unmeasured pairs sort along as `+∞`.
+            let sorted = self.scratch.get_mut(..incident.len()).unwrap_or_default();
+            pad(sorted, m);
             work.comparisons += sort(sorted);
             *slope = if m >= 3 {
-                quantile_sorted(sorted, T::of(1.0 / 3.0))
+                quantile_sorted(sorted.get(..m).unwrap_or_default(), T::of(1.0 / 3.0))
             } else {
                 T::zero()
             };
