@@ -250,9 +250,8 @@ fn precision(s: &mut String, report: &Report) {
                 );
                 // Cells where `f64` solved every frame; a refused frame in the other type
                 // counts as not reaching it.
-                let solved = |status: Status| {
-                    matches!(status, Status::Converged | Status::NotConverged)
-                };
+                let solved =
+                    |status: Status| matches!(status, Status::Converged | Status::NotConverged);
                 if let Some((d, _)) = double.filter(|&(_, status)| solved(status)) {
                     let close = |v: Option<(f64, Status)>| {
                         v.is_some_and(|(g, status)| {
