@@ -81,13 +81,8 @@ pub fn quantile_sorted<T: Real>(v: &[T], q: T) -> T {
 /// returns `(median, mad, comparisons)`. The MAD of normally distributed values is 0.6745
 /// standard deviations.
 pub fn median_mad<T: Real>(v: &mut [T]) -> (T, T, u64) {
-    let mut comparisons = sort(v);
-    let median = quantile_sorted(v, T::of(0.5));
-    for x in v.iter_mut() {
-        *x = (*x - median).abs();
-    }
-    comparisons += sort(v);
-    (median, quantile_sorted(v, T::of(0.5)), comparisons)
+    let n = v.len();
+    median_mad_of(v, n)
 }
 
 /// Median and MAD of the first `count` values of `v`, as [`median_mad`]; the values after them

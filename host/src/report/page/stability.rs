@@ -269,7 +269,8 @@ fn degrade(frames: &mut [Vec<Observation<f64>>], size: [f64; 2], noise_px: f64, 
 
 /// Runs the `cells` of `scene`, as many at once as the machine has cores (each run is
 /// independent and deterministic, so the result does not depend on how many), calling `done`
-/// after each; the cells in the order given.
+/// after each; the cells in the order given. A panic outside a cell's own run (which
+/// [`run_cell`] catches and classifies) is passed on, not a cell silently lost.
 pub(super) fn run_cells(scene: &Scene, cells: &[CellSetting], done: impl Fn() + Sync) -> Vec<Cell> {
     let workers = std::thread::available_parallelism().map_or(1, |n| n.get());
     let next = std::sync::atomic::AtomicUsize::new(0);
@@ -291,7 +292,7 @@ pub(super) fn run_cells(scene: &Scene, cells: &[CellSetting], done: impl Fn() + 
             .collect();
         handles
             .into_iter()
-            .flat_map(|h| h.join().unwrap_or_default())
+            .flat_map(|h| h.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
             .collect()
     });
     results.sort_by_key(|(i, _)| *i);
