@@ -104,13 +104,34 @@ fn quick_report_on_every_committed_scene_is_written_and_well_formed() {
         }
         // The stability grid (`--quick`): the scene's own material with springs at 10⁻³, 1
         // and 10³ times its own coupling; at 10³ in f64, f32 and mixed precision (8 Newton
-        // steps of `Refactor`); its tracks with 3 px of noise and 20 % outliers.
+        // steps of `Refactor`); its tracks with 3 px of noise and 20 % outliers; its tracks with
+        // the first frames after frame 0 mirrored (the model pulled inside out), and on
+        // block-extreme the block generated squeezed to 60 % of its length, in f32.
         // Nothing non-finite and no panic anywhere; at the scene's own k and its own tracks
         // the targets end nearer the truth than the rest model's; on the intact scenes no cell
         // places them more than 1.2 times farther than the rest model's; mixed precision
         // settles within 10× of f64's residual.
         let cells = scene["stability"].as_array().unwrap();
-        assert_eq!(cells.len(), 7, "{name}");
+        let compression = name == "block-extreme";
+        assert_eq!(cells.len(), 8 + usize::from(compression), "{name}");
+        assert!(
+            cells
+                .iter()
+                .any(|c| c["block"] == "deformation" && c["mirrored_frames"].as_u64() == Some(3)),
+            "{name}"
+        );
+        if compression {
+            // Squeezed to 60 %: registered nearer than the rest model, nothing left inside out.
+            let cell = cells
+                .iter()
+                .find(|c| c["compression"].as_f64() == Some(0.6))
+                .unwrap();
+            assert!(
+                cell["tre_mm_final"].as_f64().unwrap() < cell["tre_mm_rest"].as_f64().unwrap(),
+                "{cell}"
+            );
+            assert_eq!(cell["inverted_final"], 0, "{cell}");
+        }
         let intact = ["band-no-cut", "band-stiff", "block-extreme"].contains(&name);
         for cell in cells {
             assert_ne!(cell["status"], "failure", "{name}: {cell}");
@@ -167,7 +188,7 @@ fn quick_report_on_every_committed_scene_is_written_and_well_formed() {
     let html = std::fs::read_to_string(out.path().join("index.html")).unwrap();
     assert_eq!(
         csv_rows(&out.path().join("stability.csv")).len(),
-        7 * scenes.len()
+        8 * scenes.len() + 1
     );
     for section in [
         "id=\"error\"",

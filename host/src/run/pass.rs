@@ -10,6 +10,7 @@ use super::{
     CutTrace, DetectionTrace, FrameHealth, FrameRecord, FrameWork, RunError, cast_point, core,
     known_observations, to_f64,
 };
+use crate::generate::object::signed_volume6;
 
 /// What the frame loop gathers over one pass.
 pub(super) struct Pass {
@@ -109,6 +110,7 @@ impl Pass {
                     gradient_after: report.gradient_norm_after.to_f64(),
                     pivots,
                     finite: model.positions().iter().flatten().all(|v| v.finite()),
+                    inverted: inverted_tets(model),
                 });
                 self.cuts.record(f, &report.cut);
                 let d = &mut self.detection;
@@ -183,6 +185,23 @@ fn straight_line(points: &[[f64; 2]]) -> Option<[[f64; 2]; 2]> {
             [c[0] + e[0] * hi, c[1] + e[1] * hi],
         ]
     })
+}
+
+/// Tetrahedra of `model` whose signed volume in the current positions is not positive (turned
+/// inside out, or flat).
+fn inverted_tets<T: Real, F: Real>(model: &Model<'_, T, F>) -> usize {
+    let x = model.positions();
+    let at = |v: u32| x.get(v as usize).map_or([f64::NAN; 3], to_f64);
+    model
+        .mesh()
+        .tets()
+        .iter()
+        .filter(|t| {
+            let [a, b, c, d] = t.map(at);
+            // NaN compares false: a tetrahedron with a non-finite corner counts as inverted.
+            !(signed_volume6(a, b, c, d) > 0.0)
+        })
+        .count()
 }
 
 #[cfg(test)]

@@ -133,6 +133,8 @@ pub struct FrameHealth {
     pub pivots: (f64, f64),
     /// Every node position finite after the frame.
     pub finite: bool,
+    /// Tetrahedra turned inside out (signed volume not positive) after the frame.
+    pub inverted: usize,
 }
 
 /// The work the core counted in one frame ([`incise_core::StepReport`]'s counters), beside the

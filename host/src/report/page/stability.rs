@@ -14,6 +14,12 @@
 //! - **tracking**: the scene's own material and springs, its recorded tracks with Gaussian
 //!   noise added and a fraction of the observations jumping each frame (outliers), in `f64` and
 //!   `f32`.
+//! - **deformation**, in `f64` and `f32`: *inversion*, the observations of the first frames
+//!   after frame 0 mirrored left to right in the image, so that the springs pull the model
+//!   through itself (elements turn inside out) before the true tracks take over again, at the
+//!   scene's own springs and 10³× them; and, on [`COMPRESSION_BASE`] only, *compression*:
+//!   variants of its scenario generated with the block squeezed to 90 %, 75 % and 60 % of its
+//!   length (its own scene: 67 %).
 
 use std::panic::{AssertUnwindSafe, catch_unwind};
 
@@ -22,6 +28,8 @@ use serde::Serialize;
 
 use incise_core::Observation;
 
+use crate::generate::pipeline::{simulate, write_scene};
+use crate::generate::scenario::Scenario;
 use crate::rng::Rng;
 use crate::run::{Trace, run_once};
 use crate::scene::{Precision, Scene};
@@ -70,6 +78,8 @@ pub enum Block {
     Precision,
     /// Tracking noise × outlier rate × scalar type, at the scene's own material and springs.
     Tracking,
+    /// Mirrored frames (inversion) and compression, × scalar type.
+    Deformation,
 }
 
 impl Block {
@@ -79,6 +89,7 @@ impl Block {
             Block::Material => "material",
             Block::Precision => "precision",
             Block::Tracking => "tracking",
+            Block::Deformation => "deformation",
         }
     }
 }
@@ -95,6 +106,11 @@ pub(super) struct CellSetting {
     pub outliers: f64,
     /// Newton steps of `Refactor` in place of the scene's own solver setting.
     pub refactor_newton: Option<u32>,
+    /// The length the block keeps under compression (a variant of [`COMPRESSION_BASE`]
+    /// generated for it), or `None` for the scene as recorded.
+    pub compression: Option<f64>,
+    /// Frames after frame 0 whose observations are mirrored left to right.
+    pub mirrored: usize,
 }
 
 /// Newton steps per frame of the precision block, each with its own factorization
@@ -122,6 +138,15 @@ pub struct Cell {
     pub noise_px: f64,
     /// Fraction of the observations of each frame after the first moved by 20 to 60 pixels.
     pub outliers: f64,
+    /// The length the block keeps, as a fraction of its rest length (a generated variant), or
+    /// NaN for the scene as recorded.
+    pub compression: f64,
+    /// Frames after frame 0 whose observations were mirrored left to right.
+    pub mirrored_frames: usize,
+    /// Most tetrahedra inside out (or flat) after any frame.
+    pub inverted_max: usize,
+    /// Tetrahedra inside out after the last solved frame.
+    pub inverted_final: usize,
     /// The spring stiffness `k` in service, J/px² (NaN when the run was refused).
     pub spring_stiffness: f64,
     /// What the cell came to.
@@ -157,15 +182,31 @@ const NOISE_PX: [f64; 3] = [0.0, 1.0, 3.0];
 /// Outlier rates of the tracking block.
 const OUTLIERS: [f64; 3] = [0.0, 0.05, 0.2];
 
+/// The scene whose scenario the compression cells are generated from: a block held at `x = 0`
+/// and pushed along `-x` by one grasp.
+pub(super) const COMPRESSION_BASE: &str = "block-extreme";
+
+/// Lengths the block keeps in the compression cells.
+const COMPRESSIONS: [f64; 3] = [0.9, 0.75, 0.6];
+
+/// Frames after frame 0 mirrored in the inversion cells (then the true tracks again).
+pub(super) const MIRRORED_FRAMES: usize = 3;
+
+/// Spring scales of the inversion cells.
+const MIRRORED_SCALES: [f64; 2] = [1.0, 1e3];
+
 /// The cells. Default:
 /// - material: `E` in 10², 10⁵, 10⁹ Pa × ν in 0, 0.45, 0.499 × [`SCALES`] (45 cells);
 /// - precision: the scene's own `E`, ν its own and 0.499, [`SCALES`], in `f64`, `f32` and
 ///   mixed, each frame solved by [`PRECISION_NEWTON`] steps of `Refactor` (30 cells);
-/// - tracking: [`NOISE_PX`] × [`OUTLIERS`] in `f64` and `f32` (18 cells).
+/// - tracking: [`NOISE_PX`] × [`OUTLIERS`] in `f64` and `f32` (18 cells);
+/// - deformation: [`MIRRORED_FRAMES`] mirrored frames at [`MIRRORED_SCALES`], and on
+///   [`COMPRESSION_BASE`] [`COMPRESSIONS`], in `f64` and `f32` (4 cells, 10 on the base).
 ///
 /// `--quick`: the scene's own `E` and ν with the springs at 10⁻³, 1 and 10³ (material); the
 /// springs at 10³ in `f64`, `f32` and mixed (precision); 3 px of noise and 20 % outliers
-/// (tracking).
+/// (tracking); mirrored frames at the scene's own springs in `f64`, and on the base the
+/// block at 60 % in `f32` (deformation).
 pub(super) fn grid(scene: &Scene, quick: bool) -> Vec<CellSetting> {
     let own = (scene.file.model.young, scene.file.model.poisson);
     let base = CellSetting {
@@ -177,7 +218,14 @@ pub(super) fn grid(scene: &Scene, quick: bool) -> Vec<CellSetting> {
         noise_px: 0.0,
         outliers: 0.0,
         refactor_newton: None,
+        compression: None,
+        mirrored: 0,
     };
+    let deformed = CellSetting {
+        block: Block::Deformation,
+        ..base
+    };
+    let compressible = scene.file.name == COMPRESSION_BASE;
     let precise = CellSetting {
         block: Block::Precision,
         refactor_newton: Some(PRECISION_NEWTON),
@@ -201,6 +249,17 @@ pub(super) fn grid(scene: &Scene, quick: bool) -> Vec<CellSetting> {
             outliers: 0.2,
             ..base
         });
+        cells.push(CellSetting {
+            mirrored: MIRRORED_FRAMES,
+            ..deformed
+        });
+        if compressible {
+            cells.push(CellSetting {
+                compression: Some(0.6),
+                precision: Precision::F32,
+                ..deformed
+            });
+        }
         return cells;
     }
     for young in [1e2, 1e5, 1e9] {
@@ -240,7 +299,68 @@ pub(super) fn grid(scene: &Scene, quick: bool) -> Vec<CellSetting> {
             }
         }
     }
+    for precision in [Precision::F64, Precision::F32] {
+        for k_scale in MIRRORED_SCALES {
+            cells.push(CellSetting {
+                k_scale,
+                precision,
+                mirrored: MIRRORED_FRAMES,
+                ..deformed
+            });
+        }
+        if compressible {
+            for keep in COMPRESSIONS {
+                cells.push(CellSetting {
+                    compression: Some(keep),
+                    precision,
+                    ..deformed
+                });
+            }
+        }
+    }
     cells
+}
+
+/// `frames` with the observations of frames `1..=count` mirrored left to right about the
+/// centre of frame 0's observations: the features ask for the model's mirror image, which an
+/// elastic body held at one end reaches only by turning elements inside out.
+fn mirror(frames: &mut [Vec<Observation<f64>>], count: usize) {
+    let Some(first) = frames.first() else {
+        return;
+    };
+    let centre = first.iter().map(|o| o.uv[0]).sum::<f64>() / first.len().max(1) as f64;
+    for frame in frames.iter_mut().skip(1).take(count) {
+        for o in frame.iter_mut() {
+            o.uv[0] = 2.0 * centre - o.uv[0];
+        }
+    }
+}
+
+/// Generates the variant of `scene` (whose `scenario.toml` lies beside it) with its block
+/// squeezed to `keep` of its length by its grasp, into `dir`, and loads it.
+///
+/// # Errors
+/// A message naming what could not be read, generated or loaded.
+fn compressed(scene: &Scene, keep: f64, dir: &std::path::Path) -> Result<Scene, String> {
+    let path = scene.dir.join("scenario.toml");
+    let mut scenario = Scenario::load(&path).map_err(|e| e.to_string())?;
+    let length = scenario.object.size[0];
+    let [grasp] = scenario.motion.grasp.as_mut_slice() else {
+        return Err(format!(
+            "{}: the compression cells need exactly one grasp",
+            path.display()
+        ));
+    };
+    grasp.displacement = [-(1.0 - keep) * length, 0.0, 0.0];
+    std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    let variant = dir.join("scenario.toml");
+    std::fs::write(&variant, scenario.to_toml()?)
+        .map_err(|e| format!("{}: {e}", variant.display()))?;
+    let sim = simulate(&variant, false).map_err(|e| e.to_string())?;
+    write_scene(&sim, &variant, dir, false).map_err(|e| e.to_string())?;
+    let mut loaded = Scene::load(dir).map_err(|e| e.to_string())?;
+    loaded.precision = scene.precision;
+    Ok(loaded)
 }
 
 /// `frames` with Gaussian noise of `noise_px` on every position and, in every frame after the
@@ -271,7 +391,30 @@ fn degrade(frames: &mut [Vec<Observation<f64>>], size: [f64; 2], noise_px: f64, 
 /// independent and deterministic, so the result does not depend on how many), calling `done`
 /// after each; the cells in the order given. A panic outside a cell's own run (which
 /// [`run_cell`] catches and classifies) is passed on, not a cell silently lost.
-pub(super) fn run_cells(scene: &Scene, cells: &[CellSetting], done: impl Fn() + Sync) -> Vec<Cell> {
+///
+/// # Errors
+/// A compression variant that could not be generated.
+pub(super) fn run_cells(
+    scene: &Scene,
+    cells: &[CellSetting],
+    done: impl Fn() + Sync,
+) -> Result<Vec<Cell>, String> {
+    // The compression variants, generated once each before the cells run.
+    let work = std::env::temp_dir().join(format!("incise-compression-{}", std::process::id()));
+    let mut variants: Vec<(f64, Scene)> = vec![];
+    for keep in cells.iter().filter_map(|c| c.compression) {
+        if variants.iter().all(|(k, _)| *k != keep) {
+            let dir = work.join(format!("{}-{keep}", scene.file.name));
+            let variant = compressed(scene, keep, &dir)
+                .map_err(|e| format!("{} squeezed to {keep}: {e}", scene.file.name));
+            variants.push((keep, variant?));
+        }
+    }
+    let scene_of = |cell: &CellSetting| {
+        cell.compression
+            .and_then(|keep| variants.iter().find(|(k, _)| *k == keep))
+            .map_or(scene, |(_, s)| s)
+    };
     let workers = std::thread::available_parallelism().map_or(1, |n| n.get());
     let next = std::sync::atomic::AtomicUsize::new(0);
     let mut results: Vec<(usize, Cell)> = std::thread::scope(|s| {
@@ -284,7 +427,7 @@ pub(super) fn run_cells(scene: &Scene, cells: &[CellSetting], done: impl Fn() + 
                         let Some(&cell) = cells.get(i) else {
                             break mine;
                         };
-                        mine.push((i, run_cell(scene, cell)));
+                        mine.push((i, run_cell(scene_of(&cell), cell)));
                         done();
                     }
                 })
@@ -295,8 +438,10 @@ pub(super) fn run_cells(scene: &Scene, cells: &[CellSetting], done: impl Fn() + 
             .flat_map(|h| h.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
             .collect()
     });
+    // The variants' ground truth is read from their directories by the runs: kept until now.
+    let _ = std::fs::remove_dir_all(&work);
     results.sort_by_key(|(i, _)| *i);
-    results.into_iter().map(|(_, c)| c).collect()
+    Ok(results.into_iter().map(|(_, c)| c).collect())
 }
 
 /// Runs `scene` (cutting on) with one cell's material, springs, precision and tracks.
@@ -310,6 +455,8 @@ pub(super) fn run_cell(scene: &Scene, setting: CellSetting) -> Cell {
         noise_px,
         outliers,
         refactor_newton,
+        compression,
+        mirrored,
     } = setting;
     let own = &scene.file;
     let mut s = scene.clone();
@@ -334,6 +481,7 @@ pub(super) fn run_cell(scene: &Scene, setting: CellSetting) -> Cell {
         let size = [f64::from(camera.width), f64::from(camera.height)];
         degrade(&mut s.frames, size, noise_px, outliers);
     }
+    mirror(&mut s.frames, mirrored);
     let run = catch_unwind(AssertUnwindSafe(|| run_once(&s, true, None, false)));
     let mut cell = Cell {
         block,
@@ -344,6 +492,10 @@ pub(super) fn run_cell(scene: &Scene, setting: CellSetting) -> Cell {
         solver,
         noise_px,
         outliers,
+        compression: compression.unwrap_or(f64::NAN),
+        mirrored_frames: mirrored,
+        inverted_max: 0,
+        inverted_final: 0,
         spring_stiffness: f64::NAN,
         status: Status::Failure,
         frames_rejected: 0,
@@ -395,6 +547,8 @@ fn classify(cell: &mut Cell, trace: &Trace) {
         .iter()
         .map(|h| h.pivots.1 / h.pivots.0)
         .fold(0.0, f64::max);
+    cell.inverted_max = health.iter().map(|h| h.inverted).max().unwrap_or(0);
+    cell.inverted_final = health.last().map_or(0, |h| h.inverted);
     cell.frames_rejected = trace.rejected.len();
     cell.first_error = trace
         .rejected
