@@ -22,6 +22,7 @@ use std::path::{Path, PathBuf};
 
 use incise_core::{Material, MeshInput, ModelConfig, Observation};
 
+use crate::generate::object::TetMesh;
 use crate::limits;
 use crate::msh;
 use crate::storage::{ModelStorage, StorageError};
@@ -223,8 +224,25 @@ impl Scene {
         file.camera(&toml_path)?;
         file.solver(&toml_path)?;
         let mesh_path = dir.join(&file.model.mesh);
-        let mut mesh = msh::read_msh(&mesh_path)
-            .map_err(|e| SceneError::new(&e.file, e.line, e.message.clone()))?;
+        // Gmsh (`.msh`) or VTK XML (`.vtu`, SOFA's fine liver), as the generator reads them.
+        let is_vtu = mesh_path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("vtu"));
+        let mut mesh = if is_vtu {
+            let m = crate::vtu::read_vtu(&mesh_path)
+                .map_err(|e| SceneError::new(&e.file, 0, e.message.clone()))?;
+            TetMesh {
+                nodes: m.nodes,
+                tets: m.tets,
+            }
+        } else {
+            let m = msh::read_msh(&mesh_path)
+                .map_err(|e| SceneError::new(&e.file, e.line, e.message.clone()))?;
+            TetMesh {
+                nodes: m.nodes,
+                tets: m.tets,
+            }
+        };
         mesh.orient_positive();
         let scale = file.model.scale;
         let rest: Vec<[f64; 3]> = mesh.nodes.iter().map(|p| p.map(|c| c * scale)).collect();

@@ -8,7 +8,7 @@ mod prepare;
 mod write;
 
 pub use prepare::{
-    Meshes, Prepared, object_meshes, prepare, prepare_scenario, rest_silhouette_dice,
+    Meshes, Prepared, held_nodes, object_meshes, prepare, prepare_scenario, rest_silhouette_dice,
     scenario_camera, spec_camera,
 };
 pub use write::{Generated, rebase_mesh_paths, write_scene};

@@ -57,6 +57,15 @@ fn in_box(p: [f64; 3], b: &[[f64; 3]; 2]) -> bool {
     (0..3).all(|k| p[k] >= b[0][k] && p[k] <= b[1][k])
 }
 
+/// The nodes (of a model mesh) that lie in one of the `held` boxes: the nodes it holds fixed.
+pub fn held_nodes(nodes: &[[f64; 3]], held: &[[[f64; 3]; 2]]) -> Vec<u32> {
+    (0u32..)
+        .zip(nodes)
+        .filter(|&(_, &p)| held.iter().any(|b| in_box(p, b)))
+        .map(|(v, _)| v)
+        .collect()
+}
+
 /// The meshes of a scenario at rest: the model, and the real object with its slit. What
 /// [`Prepared`] builds and [`super::Simulation`] keeps, frame after frame.
 #[derive(Clone, Debug)]
@@ -293,14 +302,7 @@ pub fn prepare_scenario(s: Scenario, base: &Path) -> Result<Prepared, GenError> 
             prescribed.push((v as u32, Some(g)));
         }
     }
-    let model_fixed: Vec<u32> = (0..model.nodes.len() as u32)
-        .filter(|&v| {
-            s.motion
-                .held
-                .iter()
-                .any(|b| in_box(model.nodes[v as usize], b))
-        })
-        .collect();
+    let model_fixed = held_nodes(&model.nodes, &s.motion.held);
     if model_fixed.is_empty() {
         return Err(GenError("[motion] no model node lies in a held box".into()));
     }

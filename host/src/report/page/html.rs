@@ -39,7 +39,8 @@ pub(super) fn write(report: &Report, out: &Path) -> Result<(), String> {
         }
         None => None,
     };
-    let files: [(&str, String); 8] = [
+    let files: [(&str, String); 9] = [
+        ("resolution.md", resolution_markdown(report)),
         ("stability.csv", stability_csv(report)),
         ("stability.md", findings::stability_markdown(report)),
         ("summary.md", summary_markdown(report)),
@@ -420,10 +421,6 @@ fn page(
             ""
         }
     );
-    h.push_str(
-        "<p class=\"note\">Not in this report yet (issue 14): the mesh-resolution axis of the \
-         error against run time (the fine liver among the models).</p>",
-    );
     // 1. Error against run time.
     let _ = write!(
         h,
@@ -450,6 +447,16 @@ fn page(
         }
         h.push_str(&inline_svg(cost)?);
         settings_table(&mut h, scene);
+    }
+    if !report.resolution.is_empty() {
+        h.push_str(
+            "<h3 id=\"resolution\">Mesh resolution</h3><p>The same object, truth and tracks, \
+             modelled by three meshes: the scene's own, that mesh refined (every tetrahedron \
+             into eight, new nodes at the edge midpoints) and the real object's own fine mesh \
+             (before its slit; for the liver, SOFA's fine liver), each run with the scene's \
+             own setting and cut capacities grown with the cut's area in elements.</p>",
+        );
+        h.push_str(&html_table(&resolution_rows(report)));
     }
     // 2. Worst case.
     h.push_str(
@@ -661,4 +668,89 @@ fn memory_table(h: &mut String, report: &Report) {
         let _ = write!(h, "<td>{:.1}</td>", total as f64 / 1024.0);
     }
     h.push_str("<td></td></tr></table>");
+}
+
+/// The mesh-resolution axis as rows of cells (a header row first).
+fn resolution_rows(report: &Report) -> Vec<Vec<String>> {
+    let mut rows = vec![
+        [
+            "scene",
+            "model mesh",
+            "nodes",
+            "tetrahedra",
+            "Dice uncut",
+            "Dice",
+            "TRE rest mm",
+            "TRE mm",
+            "surface mm",
+            "ms / frame",
+            "instructions / frame (M)",
+            "model MB",
+        ]
+        .map(String::from)
+        .to_vec(),
+    ];
+    for r in &report.resolution {
+        for m in &r.models {
+            rows.push(vec![
+                r.scene.clone(),
+                format!(
+                    "{}{}",
+                    m.mesh,
+                    m.cut_refused
+                        .as_ref()
+                        .map_or(String::new(), |_| " (a cut refused)".into())
+                ),
+                m.nodes.to_string(),
+                m.tets.to_string(),
+                format!("{:.3}", m.dice_final_uncut),
+                format!("{:.3}", m.dice_final),
+                format!("{:.2}", m.tre_mm_rest),
+                format!("{:.2}", m.tre_mm_final),
+                format!("{:.2}", m.surface_mm_final),
+                format!("{:.1}", m.ms_steady),
+                m.instructions
+                    .map_or("–".into(), |v| format!("{:.1}", v / 1e6)),
+                format!("{:.1}", m.model_bytes as f64 / 1e6),
+            ]);
+        }
+    }
+    rows
+}
+
+/// `rows` (a header first) as an HTML table.
+fn html_table(rows: &[Vec<String>]) -> String {
+    let mut h = String::from("<table>");
+    for (i, row) in rows.iter().enumerate() {
+        h.push_str("<tr>");
+        for cell in row {
+            let tag = if i == 0 { "th" } else { "td" };
+            let _ = write!(h, "<{tag}>{}</{tag}>", esc(cell));
+        }
+        h.push_str("</tr>");
+    }
+    h.push_str("</table>");
+    h
+}
+
+/// `resolution.md`: the mesh-resolution axis as a Markdown table (empty without it).
+fn resolution_markdown(report: &Report) -> String {
+    if report.resolution.is_empty() {
+        return "(no mesh-resolution axis in this report: made with `--quick`, or without \
+                `band-side-cut` and `liver-lobe`)\n"
+            .into();
+    }
+    let rows = resolution_rows(report);
+    let mut s = String::new();
+    for (i, row) in rows.iter().enumerate() {
+        let _ = writeln!(s, "| {} |", row.join(" | "));
+        if i == 0 {
+            let _ = writeln!(
+                s,
+                "| --- | --- |{}",
+                " ---: |".repeat(row.len().saturating_sub(2))
+            );
+        }
+    }
+    s
 }

@@ -7,14 +7,15 @@
 //! material, spring stiffness, scalar type, track quality and deformation (elements pulled
 //! inside out, a block squeezed to 60 %), and classifies every cell.
 //!
-//! Not in it yet (issue 14): the mesh-resolution axis of the error against run time; the page
-//! says so.
+//! The error against run time also has a mesh-resolution axis (`resolution`): the band and the
+//! liver modelled by their own mesh, that mesh refined, and the real object's fine mesh.
 
 mod figures;
 mod findings;
 mod html;
 mod instructions;
 mod pareto;
+mod resolution;
 mod scaling;
 mod stability;
 
@@ -54,6 +55,9 @@ pub struct Report {
     /// How the cost grows with nodes and features (not with `--quick`, and only when
     /// `band-no-cut`, whose scenario the variants are made from, is among the scenes).
     pub scaling: Option<scaling::Scaling>,
+    /// The mesh-resolution axis of [`resolution::BASES`] among the scenes (not with
+    /// `--quick`).
+    pub resolution: Vec<resolution::Resolution>,
 }
 
 /// One scene's part of the report.
@@ -213,6 +217,15 @@ pub fn write_report(
         .then(|| scenes.iter().find(|s| s.file.name == scaling::BASE))
         .flatten();
     let runs = runs + scaling_base.map_or(0, |_| scaling::len());
+    let resolution_bases: Vec<&Scene> = if options.quick {
+        vec![]
+    } else {
+        scenes
+            .iter()
+            .filter(|s| resolution::BASES.contains(&s.file.name.as_str()))
+            .collect()
+    };
+    let runs = runs + resolution_bases.len() * resolution::len();
     let bar = if options.progress {
         let bar = indicatif::ProgressBar::new(runs as u64);
         if let Ok(style) =
@@ -244,6 +257,7 @@ pub fn write_report(
         recommendation_rule: pareto::RULE,
         scenes: vec![],
         scaling: None,
+        resolution: vec![],
     };
     for scene in scenes {
         let name = scene.file.name.clone();
@@ -278,6 +292,12 @@ pub fn write_report(
     if let Some(base) = scaling_base {
         bar.set_prefix("cost growth");
         report.scaling = Some(scaling::measure(&base.dir, counting, || bar.inc(1))?);
+    }
+    for base in resolution_bases {
+        bar.set_prefix(format!("{} meshes", base.file.name));
+        report
+            .resolution
+            .push(resolution::measure(base, counting, || bar.inc(1))?);
     }
     bar.finish_and_clear();
     html::write(&report, out)?;

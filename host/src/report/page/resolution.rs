@@ -1,0 +1,185 @@
+//! The mesh-resolution axis of the error against run time: a scene run with three model meshes
+//! of the same object against the same ground truth. The scene's own (coarse) model, that mesh
+//! refined (every tetrahedron into eight), and the real object's own fine mesh (before its
+//! slit: for the liver, SOFA's fine liver, 4293 nodes). The object is simulated once; each
+//! model is written as a scene beside the same truth and tracks, and run with the scene's own
+//! setting.
+
+use std::path::Path;
+
+use serde::Serialize;
+
+use crate::generate::pipeline::{held_nodes, simulate, write_scene};
+use crate::run::{RunOptions, run_scene};
+use crate::scene::Scene;
+
+use super::super::SweepSetting;
+use super::instructions;
+
+/// The scenes whose shapes get the axis: the band (cut from one side) and the liver.
+pub(super) const BASES: [&str; 2] = ["band-side-cut", "liver-lobe"];
+
+/// Frames counted under callgrind per model (the fine liver costs about a minute per frame
+/// there).
+const COUNTED_FRAMES: usize = 2;
+
+/// The models of the axis, coarsest first.
+const MODELS: [&str; 3] = ["the scene's", "refined ×8", "the real object's"];
+
+/// One model of the axis.
+#[derive(Clone, Debug, Serialize)]
+pub struct Model {
+    /// Which mesh ([`MODELS`]).
+    pub mesh: &'static str,
+    /// Its nodes.
+    pub nodes: usize,
+    /// Its tetrahedra.
+    pub tets: usize,
+    /// Dice of the last frame (cutting on), and with cutting off.
+    pub dice_final: f64,
+    /// ... with cutting off.
+    pub dice_final_uncut: f64,
+    /// Target error of the last frame, millimetres.
+    pub tre_mm_final: f64,
+    /// Target error of the rest model left in place, millimetres.
+    pub tre_mm_rest: f64,
+    /// Surface error of the last frame, millimetres.
+    pub surface_mm_final: f64,
+    /// Wall time of a steady step, milliseconds (median).
+    pub ms_steady: f64,
+    /// Instructions of a steady frame (mean of the counted frames), if counted.
+    pub instructions: Option<f64>,
+    /// A cut the core refused, with its reason.
+    pub cut_refused: Option<String>,
+    /// The model's static storage, bytes.
+    pub model_bytes: usize,
+}
+
+/// The axis of one scene.
+#[derive(Clone, Debug, Serialize)]
+pub struct Resolution {
+    /// The scene.
+    pub scene: String,
+    /// Its models, coarsest first.
+    pub models: Vec<Model>,
+}
+
+/// How many models [`measure`] runs per base (for the progress bar).
+pub(super) const fn len() -> usize {
+    MODELS.len()
+}
+
+/// Runs the three models of `scene` (whose `scenario.toml` lies beside it), calling `tick`
+/// after each.
+///
+/// # Errors
+/// A message naming the model that could not be made or run.
+pub(super) fn measure(
+    scene: &Scene,
+    counting: bool,
+    mut tick: impl FnMut(),
+) -> Result<Resolution, String> {
+    let name = &scene.file.name;
+    let scenario = scene.dir.join("scenario.toml");
+    let mut sim = simulate(&scenario, false).map_err(|e| format!("{name}: {e}"))?;
+    let coarse = sim.meshes.model.clone();
+    let finer = [
+        (MODELS[1], coarse.refine()),
+        (MODELS[2], sim.meshes.fine.clone()),
+    ];
+    let work = std::env::temp_dir().join(format!("incise-resolution-{}", std::process::id()));
+    // The scene's own model first, then the finer ones written beside the same truth.
+    let mut models = vec![
+        run_model(scene, &scene.dir, MODELS[0], counting)
+            .map_err(|e| format!("{name} with {} mesh: {e}", MODELS[0]))?,
+    ];
+    tick();
+    for (label, mesh) in finer {
+        let dir = work.join(format!("{name}-{}", mesh.nodes.len()));
+        // Room for a cut grows with the cut's area in elements.
+        let growth = (mesh.nodes.len() as f64 / coarse.nodes.len() as f64).powf(2.0 / 3.0);
+        let own = &scene.file.capacities;
+        let capacities = &mut sim.scenario.capacities;
+        capacities.cut_nodes = (own.cut_nodes as f64 * growth).ceil() as usize;
+        capacities.cut_tets = (own.cut_tets as f64 * growth).ceil() as usize;
+        sim.meshes.model_fixed = held_nodes(&mesh.nodes, &sim.scenario.motion.held);
+        sim.meshes.model = mesh;
+        // Written beside the scene as `model.msh`.
+        sim.meshes.model_mesh_file = None;
+        let model = write_scene(&sim, &scenario, &dir, false)
+            .map_err(|e| e.to_string())
+            .and_then(|_| Scene::load(&dir).map_err(|e| e.to_string()))
+            .and_then(|variant| run_model(&variant, &dir, label, counting));
+        let _ = std::fs::remove_dir_all(&dir);
+        models.push(model.map_err(|e| format!("{name} with {label} mesh: {e}"))?);
+        tick();
+    }
+    let _ = std::fs::remove_dir_all(&work);
+    Ok(Resolution {
+        scene: name.clone(),
+        models,
+    })
+}
+
+fn run_model(
+    scene: &Scene,
+    dir: &Path,
+    mesh: &'static str,
+    counting: bool,
+) -> Result<Model, String> {
+    let (summary, _) = run_scene(scene, &RunOptions::default()).map_err(|e| e.to_string())?;
+    let instructions = if counting {
+        let setting = SweepSetting::of(&scene.file.solver);
+        let counts = instructions::per_frame(dir, &setting, COUNTED_FRAMES)?;
+        Some(counts.iter().map(|&c| c as f64).sum::<f64>() / counts.len().max(1) as f64)
+    } else {
+        None
+    };
+    Ok(Model {
+        mesh,
+        nodes: summary.nodes_initial,
+        tets: scene.tets.len(),
+        dice_final: summary.dice_final,
+        dice_final_uncut: summary.dice_final_uncut,
+        tre_mm_final: summary.tre_mm_final,
+        tre_mm_rest: summary.tre_mm_final_rest,
+        surface_mm_final: summary.surface_rmse_mm_final,
+        ms_steady: summary.ms_steady_median,
+        instructions,
+        cut_refused: summary.cut_refused,
+        model_bytes: summary.model_bytes,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The band's three models, run against the same truth: the scene's own is the committed
+    /// scene, the finer ones have more nodes and register as well as a model should (nearer
+    /// than the rest model, the cut improving Dice).
+    #[test]
+    fn the_band_is_run_with_three_meshes_against_one_truth() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/band-side-cut");
+        let scene = Scene::load(&dir).unwrap();
+        let mut ticks = 0;
+        let axis = measure(&scene, false, || ticks += 1).unwrap();
+        assert_eq!(ticks, len());
+        assert_eq!(axis.models.len(), 3);
+        let own = run_scene(&scene, &RunOptions::default()).unwrap().0;
+        assert_eq!(axis.models[0].dice_final, own.dice_final);
+        assert_eq!(axis.models[0].nodes, scene.rest.len());
+        for pair in axis.models.windows(2) {
+            assert!(pair[1].nodes > pair[0].nodes, "{pair:?}");
+        }
+        for m in &axis.models {
+            // One truth: the rest model's error does not depend on the model's mesh.
+            assert!(
+                (m.tre_mm_rest - own.tre_mm_final_rest).abs() < 0.05 * own.tre_mm_final_rest,
+                "{m:?}"
+            );
+            assert!(m.tre_mm_final < m.tre_mm_rest, "{m:?}");
+            assert!(m.dice_final >= m.dice_final_uncut, "{m:?}");
+        }
+    }
+}
