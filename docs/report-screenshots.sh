@@ -14,14 +14,14 @@ import sys
 d = sys.argv[1]
 page = open(f"{d}/index.html").read()
 head = page[: page.index("<h1>")]
-ids = ["error", "worst", "growth", "stability", "memory"]
+ids = ["error", "resolution", "worst", "growth", "stability", "memory"]
 starts = [page.index(f' id="{k}"') for k in ids]
 starts = [page.rindex("<h", 0, a) for a in starts]
 for i, k in enumerate(ids):
     b = starts[i + 1] if i + 1 < len(ids) else len(page)
     open(f"{d}/section-{k}.html", "w").write(head + page[starts[i]:b] + "</body></html>")
 PY
-for s in error:1000 worst:1000 growth:760 stability:1000 memory:620; do
+for s in error:1000 resolution:420 worst:1000 growth:760 stability:1000 memory:620; do
     name=${s%%:*}
     height=${s##*:}
     chromium --headless --no-sandbox --disable-gpu --hide-scrollbars \
