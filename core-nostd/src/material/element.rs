@@ -57,9 +57,9 @@ impl<T: Real> ElementRest<T> {
         let p = nodes(x);
         let dm = Matrix3::from_columns(&[p[1] - p[0], p[2] - p[0], p[3] - p[0]]);
         let mut longest_sq = T::zero();
-        for a in 0..4 {
-            for b in (a + 1)..4 {
-                longest_sq = longest_sq.max((p[b] - p[a]).norm_squared());
+        for (a, pa) in p.iter().enumerate() {
+            for pb in p.iter().skip(a + 1) {
+                longest_sq = longest_sq.max((pb - pa).norm_squared());
             }
         }
         let scale = longest_sq * longest_sq.sqrt();

@@ -24,6 +24,7 @@
 //! inputs, including inverted (`det F < 0`) and collapsed (`F = 0`) elements: nothing divides by
 //! a quantity of the current configuration. The one place that divides, the Jacobi rotation of
 //! the positive semidefinite projection, guards its divisor.
+#![cfg_attr(not(test), deny(clippy::indexing_slicing))]
 
 mod eigen3;
 mod element;
@@ -148,16 +149,30 @@ pub fn element_energy_gradient_tangent<T: Real>(
     let sg = g.map(|gb| s_geo * gb);
     let ff = f * f.transpose();
     let mut tangent = [[Matrix3::zeros(); 4]; 4];
-    for a in 0..4 {
-        for b in a..4 {
-            let geometric = g[a].dot(&sg[b]);
+    // The blocks `K_ab`, `b ≥ a`…
+    for (a, ((ga, fa), row)) in g.iter().zip(&fg).zip(&mut tangent).enumerate() {
+        for (((gb, sgb), fb), k_ab) in g.iter().zip(&sg).zip(&fg).zip(row.iter_mut()).skip(a) {
+            let geometric = ga.dot(sgb);
             let block = Matrix3::from_diagonal_element(geometric)
-                + fg[a] * fg[b].transpose() * lambda
-                + fg[b] * fg[a].transpose() * mu
-                + ff * (mu * g[a].dot(&g[b]));
-            tangent[a][b] = block * v;
-            tangent[b][a] = tangent[a][b].transpose();
+                + *fa * fb.transpose() * lambda
+                + *fb * fa.transpose() * mu
+                + ff * (mu * ga.dot(gb));
+            *k_ab = block * v;
         }
+    }
+    // …and below the diagonal their transposes, `K_ba = K_abᵀ`: row `a` hands its blocks
+    // right of the diagonal to the rows below it.
+    let mut rest: &mut [[Matrix3<T>; 4]] = &mut tangent;
+    let mut a = 0;
+    while let Some((row_a, below)) = rest.split_first_mut() {
+        for (k_ab, row_b) in row_a.iter().skip(a + 1).zip(below.iter_mut()) {
+            // Always there: `a < 4`, the length of a row.
+            if let Some(k_ba) = row_b.get_mut(a) {
+                *k_ba = k_ab.transpose();
+            }
+        }
+        rest = below;
+        a += 1;
     }
     ElementEval {
         energy,
@@ -183,9 +198,8 @@ fn positive_part<T: Real>(s: &Matrix3<T>) -> Matrix3<T> {
         return *s;
     }
     let mut out = Matrix3::zeros();
-    for i in 0..3 {
-        let qi = q.column(i);
-        out += qi * qi.transpose() * lam[i].max(T::zero());
+    for (qi, &l) in q.column_iter().zip(lam.iter()) {
+        out += qi * qi.transpose() * l.max(T::zero());
     }
     out
 }

@@ -3,11 +3,10 @@
 //! factorization per frame and PCG after it) and a line search over fixed trial lengths; and
 //! the assembly and factorization that a cut's rebuild shares with it.
 
-// The parent module denies `clippy::indexing_slicing`; this part, moved here from the model, still
-// slices its vectors to the model's unknowns and nodes (`v.gradient[..n]`), lengths that the
-// model's storage was sized for (`ModelSize`) and that every cut re-checks. Rewriting its 44
-// sites with checked slices is open work (issue 13).
-#![cfg_attr(not(test), allow(clippy::indexing_slicing))]
+// The vectors are cut to the model's unknowns and nodes with checked prefixes (`prefix`), once
+// per use and before any loop over them. The model's storage is sized for those lengths
+// (`ModelSize`) and every cut re-checks them, so the `Error::Capacity` a short buffer would
+// give cannot occur for a model built by its constructors; it stands where a panic would.
 
 #[cfg(feature = "cut")]
 use crate::cut::CutReport;
@@ -15,14 +14,15 @@ use crate::cut::CutReport;
 use crate::cutline::CutLineReport;
 #[cfg(feature = "detect")]
 use crate::detect::DetectionReport;
-use crate::error::{Error, Parameter};
+use crate::error::{Error, Parameter, Resource};
 use crate::features::Features;
 use crate::material::Lame;
 use crate::model::discretization::Discretization;
 use crate::model::{FactoredMatrix, Model, ModelConfig, SolveVectors, StepReport};
 use crate::real::Real;
 use crate::solve::{Energies, MIXED_REFINEMENT_STEPS, Problem, Strategy, WorkCount, dot};
-use crate::sparse::{LdlFactor, NONE, sym_matvec};
+use crate::sparse::{LdlFactor, NONE, sym_matvec, ux};
+use crate::storage::{ensure_exact_len, prefix, prefix_mut, times};
 
 impl<'a, T: Real, F: Real> Model<'a, T, F> {
     pub(crate) fn solve_frame(&mut self) -> Result<StepReport<T>, Error> {
@@ -47,7 +47,8 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
             let v = &mut self.vectors;
             if it == 0 {
                 energy_before = e;
-                gradient_norm_before = dot(&v.gradient[..n], &v.gradient[..n]).sqrt();
+                let gradient = prefix(v.gradient, n, Resource::Unknowns)?;
+                gradient_norm_before = dot(gradient, gradient).sqrt();
             }
             // The guards are constants: a strategy left out of the build leaves its code out.
             let (refactor, frozen, once) = (
@@ -75,16 +76,19 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
                 }
             }
             let v = &self.vectors;
-            let slope = dot(&v.gradient[..n], &v.step[..n]);
+            let slope = dot(
+                prefix(v.gradient, n, Resource::Unknowns)?,
+                prefix(v.step, n, Resource::Unknowns)?,
+            );
             let alpha = self.line_search(&e, slope, trials, &mut work)?;
             min_step = min_step.min(alpha);
             if alpha > T::zero() {
-                self.move_along(alpha);
+                self.move_along(alpha)?;
             }
         }
         let energy_after = self.assemble(false, &mut work)?;
-        let v = &self.vectors;
-        let gradient_norm_after = dot(&v.gradient[..n], &v.gradient[..n]).sqrt();
+        let gradient = prefix(self.vectors.gradient, n, Resource::Unknowns)?;
+        let gradient_norm_after = dot(gradient, gradient).sqrt();
         if !(gradient_norm_after.finite() && energy_after.total().finite()) {
             return Err(Error::Diverged);
         }
@@ -143,14 +147,14 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
             return self.pcg(MIXED_REFINEMENT_STEPS, work);
         }
         let v = &mut self.vectors;
-        for (s, &g) in v.step[..n].iter_mut().zip(&v.gradient[..n]) {
+        let step = prefix_mut(v.step, n, Resource::Unknowns)?;
+        let gradient = prefix(v.gradient, n, Resource::Unknowns)?;
+        let solve_work = prefix_mut(v.solve_work, times(2, n), Resource::Workspace)?;
+        for (s, &g) in step.iter_mut().zip(gradient) {
             *s = -g;
         }
-        self.factor.solve_converting(
-            &self.live.symbolic,
-            &mut v.step[..n],
-            &mut v.solve_work[..2 * n],
-        )?;
+        self.factor
+            .solve_converting(&self.live.symbolic, step, solve_work)?;
         work.solves += 1;
         work.solve_flops += self.live.symbolic.solve_flops();
         Ok(())
@@ -188,16 +192,19 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
         let a = self.live.pattern()?;
         let sym = &self.live.symbolic;
         let v = &mut self.vectors;
+        // All of length `n` (`y`, `2 n`): `copy_from_slice` between them cannot fail.
         let (step, r, z, p, q, y) = (
-            &mut v.step[..n],
-            &mut v.residual[..n],
-            &mut v.preconditioned[..n],
-            &mut v.direction[..n],
-            &mut v.product[..n],
-            &mut v.solve_work[..2 * n],
+            prefix_mut(v.step, n, Resource::Unknowns)?,
+            prefix_mut(v.residual, n, Resource::Unknowns)?,
+            prefix_mut(v.preconditioned, n, Resource::Unknowns)?,
+            prefix_mut(v.direction, n, Resource::Unknowns)?,
+            prefix_mut(v.product, n, Resource::Unknowns)?,
+            prefix_mut(v.solve_work, times(2, n), Resource::Workspace)?,
         );
+        let gradient = prefix(v.gradient, n, Resource::Unknowns)?;
+        let hessian = prefix(self.hessian, nnz, Resource::MatrixEntries)?;
         step.fill(T::zero());
-        for (ri, &g) in r.iter_mut().zip(&v.gradient[..n]) {
+        for (ri, &g) in r.iter_mut().zip(gradient) {
             *ri = -g;
         }
         z.copy_from_slice(r);
@@ -207,7 +214,7 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
         p.copy_from_slice(z);
         let mut rz = dot(r, z);
         for _ in 0..iterations {
-            sym_matvec(&a, &self.hessian[..nnz], p, q)?;
+            sym_matvec(&a, hessian, p, q)?;
             work.matvecs += 1;
             work.matvec_flops += 2 * nnz as u64;
             let pq = dot(p, q);
@@ -215,9 +222,9 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
                 break;
             }
             let alpha = rz / pq;
-            for i in 0..n {
-                step[i] += alpha * p[i];
-                r[i] -= alpha * q[i];
+            for (((si, ri), &pi), &qi) in step.iter_mut().zip(r.iter_mut()).zip(&*p).zip(&*q) {
+                *si += alpha * pi;
+                *ri -= alpha * qi;
             }
             z.copy_from_slice(r);
             self.factor.solve_converting(sym, z, y)?;
@@ -225,8 +232,8 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
             work.solve_flops += sym.solve_flops();
             let rz_new = dot(r, z);
             let beta = rz_new / rz;
-            for i in 0..n {
-                p[i] = z[i] + beta * p[i];
+            for (pi, &zi) in p.iter_mut().zip(&*z) {
+                *pi = zi + beta * *pi;
             }
             rz = rz_new;
         }
@@ -253,14 +260,15 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
         let mut chosen: Option<T> = None;
         let mut best = (energy, T::zero());
         for _ in 0..trials {
-            self.fill_trial(alpha);
+            self.fill_trial(alpha)?;
             let problem = problem_of(
                 &self.live,
                 &self.features,
                 self.coefficients(),
                 &self.config,
-            );
-            let e = match problem.energy(&self.vectors.trial[..n_nodes], work) {
+            )?;
+            let trial = prefix(self.vectors.trial, n_nodes, Resource::Nodes)?;
+            let e = match problem.energy(trial, work) {
                 Ok(e) => e.total(),
                 Err(Error::FeatureBehindCamera { .. }) => T::zero() / T::zero(),
                 Err(e) => return Err(e),
@@ -278,26 +286,52 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
         Ok(chosen.unwrap_or(best.1))
     }
 
-    fn fill_trial(&mut self, alpha: T) {
+    /// The positions `x + alpha · step` into `trial`, node by node (a fixed node stays).
+    ///
+    /// # Errors
+    /// [`Error::IndexOutOfRange`] for a free index beyond the free nodes, and
+    /// [`Error::Length`] / [`Error::Capacity`] for a free-index map or a vector shorter than the
+    /// mesh's nodes or unknowns: none can occur for a model built by its constructors.
+    fn fill_trial(&mut self, alpha: T) -> Result<(), Error> {
         let n_nodes = self.live.mesh.n_nodes();
+        let n_free = self.live.mesh.n_free();
         let free = self.live.mesh.free_index();
+        ensure_exact_len(free, n_nodes, Resource::Nodes)?;
         let v = &mut self.vectors;
-        for node in 0..n_nodes {
-            let f = free[node];
-            v.trial[node] = self.live.x[node];
+        let trial = prefix_mut(v.trial, n_nodes, Resource::Nodes)?;
+        let x = prefix(self.live.x, n_nodes, Resource::Nodes)?;
+        // The step of free node `f` is `step[3 f..3 f + 3]`.
+        let (step, _) = prefix(v.step, times(3, n_free), Resource::Unknowns)?.as_chunks::<3>();
+        for (node, ((t, &xn), &f)) in trial.iter_mut().zip(x).zip(free).enumerate() {
+            *t = xn;
             if f != NONE {
-                let b = 3 * f as usize;
-                for c in 0..3 {
-                    v.trial[node][c] += alpha * v.step[b + c];
+                let Some(d) = step.get(ux(f)) else {
+                    return Err(Error::IndexOutOfRange {
+                        resource: Resource::Nodes,
+                        position: node,
+                        index: ux(f),
+                        bound: n_free,
+                    });
+                };
+                for (tc, &dc) in t.iter_mut().zip(d) {
+                    *tc += alpha * dc;
                 }
             }
         }
+        Ok(())
     }
 
-    fn move_along(&mut self, alpha: T) {
-        self.fill_trial(alpha);
+    /// Moves the nodes to `x + alpha · step`.
+    ///
+    /// # Errors
+    /// As `fill_trial`; on an error the positions are unchanged.
+    fn move_along(&mut self, alpha: T) -> Result<(), Error> {
+        self.fill_trial(alpha)?;
         let n_nodes = self.live.mesh.n_nodes();
-        self.live.x[..n_nodes].copy_from_slice(&self.vectors.trial[..n_nodes]);
+        let trial = prefix(self.vectors.trial, n_nodes, Resource::Nodes)?;
+        // Both of length `n_nodes`.
+        prefix_mut(self.live.x, n_nodes, Resource::Nodes)?.copy_from_slice(trial);
+        Ok(())
     }
 }
 
@@ -324,19 +358,23 @@ impl<T: Real, F: Real> Model<'_, T, F> {
 }
 
 /// The energy of a discretization with the features' observations.
+///
+/// # Errors
+/// [`Error::Capacity`] if a per-node, per-tetrahedron or column-pointer array of `d` is
+/// shorter than its mesh and unknowns: it cannot be for a model built by its constructors.
 fn problem_of<'p, 'a, T: Real>(
     d: &'p Discretization<'a, T>,
     features: &'p Features<'a, T>,
     coefficients: Coefficients<T>,
     config: &'p ModelConfig<T>,
-) -> Problem<'p, 'a, T> {
+) -> Result<Problem<'p, 'a, T>, Error> {
     let n = d.mesh.n_nodes();
     let Coefficients {
         lame,
         spring_stiffness,
         spring_threshold_px,
     } = coefficients;
-    Problem {
+    Ok(Problem {
         mesh: &d.mesh,
         lame,
         camera: &config.camera,
@@ -344,15 +382,20 @@ fn problem_of<'p, 'a, T: Real>(
         embedding: &d.features,
         spring_stiffness,
         spring_threshold_px,
-        damping: &d.damping[..n],
-        depth_weight: &d.depth_weight[..n],
-        previous: &d.previous[..n],
-        scatter: &d.scatter[..d.mesh.n_tets()],
-        col_ptr: &d.col_ptr[..d.n_unknowns() + 1],
-    }
+        damping: prefix(d.damping, n, Resource::Nodes)?,
+        depth_weight: prefix(d.depth_weight, n, Resource::Nodes)?,
+        previous: prefix(d.previous, n, Resource::Nodes)?,
+        scatter: prefix(d.scatter, d.mesh.n_tets(), Resource::Tetrahedra)?,
+        col_ptr: prefix(d.col_ptr, d.n_unknowns() + 1, Resource::ColumnPointers)?,
+    })
 }
 
 /// Gradient (and, if given, the Hessian values) of a discretization at its positions.
+///
+/// # Errors
+/// As [`Problem::assemble`], and [`Error::Capacity`] if `gradient`, `hessian` or an array of
+/// `d` is shorter than the unknowns, entries or mesh it holds (not for a model built by its
+/// constructors).
 pub(crate) fn assemble_on<T: Real>(
     d: &Discretization<'_, T>,
     features: &Features<'_, T>,
@@ -364,15 +407,22 @@ pub(crate) fn assemble_on<T: Real>(
 ) -> Result<Energies<T>, Error> {
     let n = d.n_unknowns();
     let nnz = d.nnz_a;
-    problem_of(d, features, coefficients, config).assemble(
-        &d.x[..d.mesh.n_nodes()],
-        &mut gradient[..n],
-        hessian.map(|h| &mut h[..nnz]),
+    problem_of(d, features, coefficients, config)?.assemble(
+        prefix(d.x, d.mesh.n_nodes(), Resource::Nodes)?,
+        prefix_mut(gradient, n, Resource::Unknowns)?,
+        hessian
+            .map(|h| prefix_mut(h, nnz, Resource::MatrixEntries))
+            .transpose()?,
         work,
     )
 }
 
 /// Factors the Hessian values of a discretization with its symbolic analysis.
+///
+/// # Errors
+/// As [`LdlFactor::factorize_supernodal`], and [`Error::Capacity`] if `hessian` or the index
+/// workspace is shorter than the pattern's entries or than the factorization needs (not for a
+/// model built by its constructors).
 pub(crate) fn factorize_on<T: Real, F: Real>(
     d: &Discretization<'_, T>,
     hessian: &[T],
@@ -383,9 +433,13 @@ pub(crate) fn factorize_on<T: Real, F: Real>(
     let n = d.n_unknowns();
     factor.factorize_supernodal(
         &d.symbolic,
-        &hessian[..d.nnz_a],
+        prefix(hessian, d.nnz_a, Resource::MatrixEntries)?,
         vectors.factor_work,
-        &mut vectors.factor_indices[..LdlFactor::<F>::supernodal_index_work_len(n)],
+        prefix_mut(
+            vectors.factor_indices,
+            LdlFactor::<F>::supernodal_index_work_len(n),
+            Resource::Workspace,
+        )?,
     )?;
     work.factorizations += 1;
     work.factor_flops += d.symbolic.factor_flops();

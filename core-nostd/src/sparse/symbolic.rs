@@ -1,11 +1,12 @@
 //! The symbolic phase: permuted pattern, elimination tree, column counts and the row and column
 //! patterns of the factor `L`, computed once per pattern.
+#![cfg_attr(not(test), deny(clippy::indexing_slicing))]
 
 use super::pattern::{MAX_INDEX, UpperCsc};
 use super::precomputed::{PrecomputedAnalysis, check_work_len};
 use super::{NONE, ux};
 use crate::error::{Error, PatternProblem, PrecomputedProblem, Resource};
-use crate::storage::{Slab, ensure_exact_len, ensure_len, sum, times};
+use crate::storage::{Slab, ensure_exact_len, ensure_len, prefix, prefix_mut, sum, times};
 
 /// Sizes of a symbolic factorization: what the storage of [`Symbolic`] and of the numeric
 /// factor ([`crate::sparse::LdlFactor`]) depends on.
@@ -150,13 +151,16 @@ impl<'a> Symbolic<'a> {
             supernodes: 0,
             factor_flops: 0,
         };
+        // Each pointer array holds `capacity.n + 1 >= 1` entries, so none is skipped.
         for ptr in [
             &mut sym.c_ptr,
             &mut sym.l_ptr,
             &mut sym.lt_ptr,
             &mut sym.sn_ptr,
         ] {
-            ptr[0] = 0;
+            if let Some(first) = ptr.first_mut() {
+                *first = 0;
+            }
         }
         Ok(sym)
     }
@@ -188,7 +192,9 @@ impl<'a> Symbolic<'a> {
     /// # Errors
     /// As [`Symbolic::size`]; [`Error::Capacity`] naming [`Resource::Unknowns`],
     /// [`Resource::MatrixEntries`] or [`Resource::FactorEntries`] when the pattern exceeds the
-    /// capacity.
+    /// capacity. (Every index into the arrays the analysis builds is checked as well, with
+    /// [`Error::IndexOutOfRange`] or [`Error::Capacity`]; once `A` and `perm` have passed, none
+    /// of those checks fails.)
     // Kept out of line so that a firmware build's symbols show whether it is linked
     // (tests/firmware.rs).
     #[inline(never)]
@@ -201,27 +207,29 @@ impl<'a> Symbolic<'a> {
         let size = Self::size(a, perm, work)?;
         self.check_capacity(&size)?;
         let n = size.n;
+        // The storage was sized for the capacity, which `size` fits: no prefix below is short.
         let (perm_s, iperm, etree) = (
-            &mut self.perm[..n],
-            &mut self.iperm[..n],
-            &mut self.etree[..n],
+            live_mut(self.perm, n)?,
+            live_mut(self.iperm, n)?,
+            live_mut(self.etree, n)?,
         );
         let (c_ptr, c_row, c_src) = (
-            &mut self.c_ptr[..n + 1],
-            &mut self.c_row[..size.nnz_a],
-            &mut self.c_src[..size.nnz_a],
+            live_mut(self.c_ptr, n + 1)?,
+            live_mut(self.c_row, size.nnz_a)?,
+            live_mut(self.c_src, size.nnz_a)?,
         );
         let (l_ptr, l_row, lt_ptr, lt_col) = (
-            &mut self.l_ptr[..n + 1],
-            &mut self.l_row[..size.nnz_l],
-            &mut self.lt_ptr[..n + 1],
-            &mut self.lt_col[..size.nnz_l],
+            live_mut(self.l_ptr, n + 1)?,
+            live_mut(self.l_row, size.nnz_l)?,
+            live_mut(self.lt_ptr, n + 1)?,
+            live_mut(self.lt_col, size.nnz_l)?,
         );
         let (c_dst, sn_ptr, col_sn) = (
-            &mut self.c_dst[..size.nnz_a],
-            &mut self.sn_ptr[..n + 1],
-            &mut self.col_sn[..n],
+            live_mut(self.c_dst, size.nnz_a)?,
+            live_mut(self.sn_ptr, n + 1)?,
+            live_mut(self.col_sn, n)?,
         );
+        // `Symbolic::size` checked that `perm` has `n` entries.
         perm_s.copy_from_slice(perm);
         invert_permutation(perm, iperm)?;
 
@@ -235,42 +243,69 @@ impl<'a> Symbolic<'a> {
         // Column pointers of L from the column counts; the flop count of the up-looking
         // numeric phase follows from them: row k of column j costs one multiply-add per entry
         // of column j above row k.
-        l_ptr[0] = 0;
-        for j in 0..n {
-            l_ptr[j + 1] = l_ptr[j] + col_count[j];
+        if let Some((first, rest)) = l_ptr.split_first_mut() {
+            *first = 0;
+            let mut start = 0;
+            for (end, &count) in rest.iter_mut().zip(col_count.iter()) {
+                *end = start + count;
+                start = *end;
+            }
         }
         let flops = factor_flops(l_ptr);
         // Row patterns (sorted), then the column patterns by scattering rows in increasing
-        // order, so every column comes out sorted too.
-        for k in 0..n {
-            let mut at = ux(lt_ptr[k]);
-            mark[k] = k as u32;
-            for &r in &c_row[ux(c_ptr[k])..ux(c_ptr[k + 1])] {
+        // order, so every column comes out sorted too. Row k's walks fill its slots
+        // `lt_ptr[k]..lt_ptr[k + 1]` exactly, as they did when they were counted.
+        for (k, ((cs, ce), (ls, le))) in pairs(c_ptr).zip(pairs(lt_ptr)).enumerate() {
+            let row = segment_mut(lt_col, ls, le, k, Resource::FactorEntries)?;
+            let mut slots = row.iter_mut();
+            *at_mut(mark, k, k)? = k as u32;
+            for &r in segment(c_row, cs, ce, k, Resource::MatrixEntries)? {
                 let mut i = r;
-                while i != NONE && mark[ux(i)] != k as u32 {
-                    lt_col[at] = i;
-                    at += 1;
-                    mark[ux(i)] = k as u32;
-                    i = etree[ux(i)];
+                while i != NONE {
+                    let seen = at_mut(mark, ux(i), k)?;
+                    if *seen == k as u32 {
+                        break;
+                    }
+                    *seen = k as u32;
+                    *slots.next().ok_or(Error::Capacity {
+                        resource: Resource::FactorEntries,
+                        needed: le - ls + 1,
+                        available: le - ls,
+                    })? = i;
+                    i = at(etree, ux(i), k)?;
                 }
             }
-            lt_col[ux(lt_ptr[k])..at].sort_unstable();
+            row.sort_unstable();
         }
         let supernodes = find_supernodes(etree, l_ptr, sn_ptr, col_sn);
         // Column patterns; on the way, where each entry C(j, k) (j < k, that is L(k, j)) lands
         // in L's values: row k's entries are placed in increasing column order, `mark[j]` keeps
         // the place of L(k, j) while row k is open.
-        col_count.copy_from_slice(&l_ptr[..n]);
-        for k in 0..n {
-            for &j in &lt_col[ux(lt_ptr[k])..ux(lt_ptr[k + 1])] {
+        for (cursor, &start) in col_count.iter_mut().zip(l_ptr.iter()) {
+            *cursor = start;
+        }
+        for (k, ((cs, ce), (ls, le))) in pairs(c_ptr).zip(pairs(lt_ptr)).enumerate() {
+            for &j in segment(lt_col, ls, le, k, Resource::FactorEntries)? {
                 let j = ux(j);
-                mark[j] = col_count[j];
-                l_row[ux(col_count[j])] = k as u32;
-                col_count[j] += 1;
+                let cursor = at_mut(col_count, j, k)?;
+                let place = *cursor;
+                *cursor += 1;
+                *at_mut(mark, j, k)? = place;
+                *l_row.get_mut(ux(place)).ok_or(Error::IndexOutOfRange {
+                    resource: Resource::FactorEntries,
+                    position: k,
+                    index: ux(place),
+                    bound: size.nnz_l,
+                })? = k as u32;
             }
-            for q in ux(c_ptr[k])..ux(c_ptr[k + 1]) {
-                let j = c_row[q];
-                c_dst[q] = if ux(j) == k { NONE } else { mark[ux(j)] };
+            let rows = segment(c_row, cs, ce, k, Resource::MatrixEntries)?;
+            let dsts = segment_mut(c_dst, cs, ce, k, Resource::MatrixEntries)?;
+            for (dst, &j) in dsts.iter_mut().zip(rows) {
+                *dst = if ux(j) == k {
+                    NONE
+                } else {
+                    at(mark, ux(j), k)?
+                };
             }
         }
         self.size = size;
@@ -312,20 +347,24 @@ impl<'a> Symbolic<'a> {
         // Checked: every array has the length its size says, and the sizes fit the capacity.
         let n = size.n;
         let supernodes = pre.supernodes();
+        // The whole array is built, every prefix taken, before anything is copied.
         for (dst, src) in [
-            (&mut self.perm[..n], pre.perm),
-            (&mut self.iperm[..n], &work[..n]),
-            (&mut self.etree[..n], pre.etree),
-            (&mut self.c_ptr[..n + 1], pre.c_ptr),
-            (&mut self.c_row[..size.nnz_a], pre.c_row),
-            (&mut self.c_src[..size.nnz_a], pre.c_src),
-            (&mut self.c_dst[..size.nnz_a], pre.c_dst),
-            (&mut self.l_ptr[..n + 1], pre.l_ptr),
-            (&mut self.l_row[..size.nnz_l], pre.l_row),
-            (&mut self.lt_ptr[..n + 1], pre.lt_ptr),
-            (&mut self.lt_col[..size.nnz_l], pre.lt_col),
-            (&mut self.sn_ptr[..supernodes + 1], pre.sn_ptr),
-            (&mut self.col_sn[..n], pre.col_sn),
+            (live_mut(self.perm, n)?, pre.perm),
+            (
+                live_mut(self.iperm, n)?,
+                prefix(work, n, Resource::Workspace)?,
+            ),
+            (live_mut(self.etree, n)?, pre.etree),
+            (live_mut(self.c_ptr, n + 1)?, pre.c_ptr),
+            (live_mut(self.c_row, size.nnz_a)?, pre.c_row),
+            (live_mut(self.c_src, size.nnz_a)?, pre.c_src),
+            (live_mut(self.c_dst, size.nnz_a)?, pre.c_dst),
+            (live_mut(self.l_ptr, n + 1)?, pre.l_ptr),
+            (live_mut(self.l_row, size.nnz_l)?, pre.l_row),
+            (live_mut(self.lt_ptr, n + 1)?, pre.lt_ptr),
+            (live_mut(self.lt_col, size.nnz_l)?, pre.lt_col),
+            (live_mut(self.sn_ptr, supernodes + 1)?, pre.sn_ptr),
+            (live_mut(self.col_sn, n)?, pre.col_sn),
         ] {
             dst.copy_from_slice(src);
         }
@@ -396,48 +435,48 @@ impl<'a> Symbolic<'a> {
     }
     /// `perm[k]` is the column of `A` that comes `k`-th.
     pub fn perm(&self) -> &[u32] {
-        &self.perm[..self.size.n]
+        live(self.perm, self.size.n)
     }
     /// Inverse permutation: `iperm[perm[k]] == k`.
     pub fn iperm(&self) -> &[u32] {
-        &self.iperm[..self.size.n]
+        live(self.iperm, self.size.n)
     }
     /// Parent of each column in the elimination tree of `C` ([`NONE`] for a root).
     pub fn etree(&self) -> &[u32] {
-        &self.etree[..self.size.n]
+        live(self.etree, self.size.n)
     }
     /// Column pointers of `L` (`n + 1`).
     pub fn l_ptr(&self) -> &[u32] {
-        &self.l_ptr[..self.size.n + 1]
+        live(self.l_ptr, self.size.n + 1)
     }
     /// Row indices of `L`, column by column, increasing.
     pub fn l_row(&self) -> &[u32] {
-        &self.l_row[..self.size.nnz_l]
+        live(self.l_row, self.size.nnz_l)
     }
     /// Row pointers of `L` (`n + 1`).
     pub fn lt_ptr(&self) -> &[u32] {
-        &self.lt_ptr[..self.size.n + 1]
+        live(self.lt_ptr, self.size.n + 1)
     }
     /// Column indices of `L`, row by row, increasing.
     pub fn lt_col(&self) -> &[u32] {
-        &self.lt_col[..self.size.nnz_l]
+        live(self.lt_col, self.size.nnz_l)
     }
     /// Upper pattern of `C = P A Pᵀ`: column pointers.
     pub fn c_ptr(&self) -> &[u32] {
-        &self.c_ptr[..self.size.n + 1]
+        live(self.c_ptr, self.size.n + 1)
     }
     /// Upper pattern of `C`: row indices, increasing per column.
     pub fn c_row(&self) -> &[u32] {
-        &self.c_row[..self.size.nnz_a]
+        live(self.c_row, self.size.nnz_a)
     }
     /// For each entry of `C`, the position of its value in `A`'s value array.
     pub fn c_src(&self) -> &[u32] {
-        &self.c_src[..self.size.nnz_a]
+        live(self.c_src, self.size.nnz_a)
     }
     /// For each entry of `C` (in [`Symbolic::c_row`] order), the position of its value in
     /// `L`'s values ([`Symbolic::l_row`] order), or [`NONE`] for a diagonal entry.
     pub fn c_dst(&self) -> &[u32] {
-        &self.c_dst[..self.size.nnz_a]
+        live(self.c_dst, self.size.nnz_a)
     }
     /// Number of supernodes.
     pub fn supernodes(&self) -> usize {
@@ -445,11 +484,11 @@ impl<'a> Symbolic<'a> {
     }
     /// First column of each supernode, then `n` (`supernodes() + 1` entries, increasing).
     pub fn sn_ptr(&self) -> &[u32] {
-        &self.sn_ptr[..self.supernodes + 1]
+        live(self.sn_ptr, self.supernodes + 1)
     }
     /// The supernode each column belongs to.
     pub fn col_sn(&self) -> &[u32] {
-        &self.col_sn[..self.size.n]
+        live(self.col_sn, self.size.n)
     }
     /// Multiply-adds (and divisions) of one numeric factorization: a data-independent count.
     pub fn factor_flops(&self) -> u64 {
@@ -461,14 +500,92 @@ impl<'a> Symbolic<'a> {
     }
 }
 
+/// The first `len` entries of an array of the analysis. An analysis is recorded only once its
+/// sizes have passed [`Symbolic::check_capacity`], and every array was sized for the capacity,
+/// so the prefix always exists; the empty fallback is never taken.
+fn live(array: &[u32], len: usize) -> &[u32] {
+    array.get(..len).unwrap_or_default()
+}
+
+/// The first `len` entries of an array of the analysis, mutable, or [`Error::Capacity`] naming
+/// [`Resource::IndexStorage`] (never, once the sizes passed [`Symbolic::check_capacity`]).
+fn live_mut(array: &mut [u32], len: usize) -> Result<&mut [u32], Error> {
+    prefix_mut(array, len, Resource::IndexStorage)
+}
+
+/// The consecutive pairs `(ptr[k], ptr[k + 1])` of a pointer array, as `usize`.
+fn pairs(ptr: &[u32]) -> impl Iterator<Item = (usize, usize)> + '_ {
+    ptr.iter()
+        .zip(ptr.iter().skip(1))
+        .map(|(&s, &e)| (ux(s), ux(e)))
+}
+
+/// The entries `idx[start..end]` of column (or row) `k`, or [`Error::IndexOutOfRange`] naming
+/// `resource` if the pointers do not delimit a part of `idx`.
+fn segment(
+    idx: &[u32],
+    start: usize,
+    end: usize,
+    k: usize,
+    resource: Resource,
+) -> Result<&[u32], Error> {
+    let bound = idx.len();
+    idx.get(start..end).ok_or(Error::IndexOutOfRange {
+        resource,
+        position: k,
+        index: end,
+        bound,
+    })
+}
+
+/// [`segment`], mutable.
+fn segment_mut(
+    idx: &mut [u32],
+    start: usize,
+    end: usize,
+    k: usize,
+    resource: Resource,
+) -> Result<&mut [u32], Error> {
+    let bound = idx.len();
+    idx.get_mut(start..end).ok_or(Error::IndexOutOfRange {
+        resource,
+        position: k,
+        index: end,
+        bound,
+    })
+}
+
+/// `x[i]`, read while column `k` is processed, or [`Error::IndexOutOfRange`] naming
+/// [`Resource::Unknowns`]: `x` is indexed by a row or column of `C`.
+fn at(x: &[u32], i: usize, k: usize) -> Result<u32, Error> {
+    x.get(i).copied().ok_or(Error::IndexOutOfRange {
+        resource: Resource::Unknowns,
+        position: k,
+        index: i,
+        bound: x.len(),
+    })
+}
+
+/// [`at`], mutable.
+fn at_mut(x: &mut [u32], i: usize, k: usize) -> Result<&mut u32, Error> {
+    let bound = x.len();
+    x.get_mut(i).ok_or(Error::IndexOutOfRange {
+        resource: Resource::Unknowns,
+        position: k,
+        index: i,
+        bound,
+    })
+}
+
 /// Multiply-adds (and divisions) of the up-looking numeric factorization with the column
 /// pointers `l_ptr` of `L`: row k of column j costs one multiply-add per entry of column j
 /// above row k.
 fn factor_flops(l_ptr: &[u32]) -> u64 {
     l_ptr
-        .windows(2)
-        .map(|w| {
-            let c = u64::from(w[1] - w[0]);
+        .iter()
+        .zip(l_ptr.iter().skip(1))
+        .map(|(&start, &end)| {
+            let c = u64::from(end - start);
             c * c.saturating_sub(1) / 2 + 2 * c
         })
         .sum()
@@ -479,18 +596,29 @@ fn factor_flops(l_ptr: &[u32]) -> u64 {
 /// (then `struct(L(:, j−1)) = {j} ∪ struct(L(:, j))`). Writes the first column of each
 /// supernode (then `n`) into `sn_ptr` (`n + 1`) and the supernode of each column into `col_sn`
 /// (`n`); returns their number.
+///
+/// The lengths above are the analysis's own (`l_ptr` has `n + 1` entries), so every column is
+/// visited and no supernode start is dropped.
 fn find_supernodes(etree: &[u32], l_ptr: &[u32], sn_ptr: &mut [u32], col_sn: &mut [u32]) -> usize {
-    let count = |j: usize| l_ptr[j + 1] - l_ptr[j];
+    let counts = l_ptr.iter().zip(l_ptr.iter().skip(1)).map(|(&s, &e)| e - s);
+    let mut starts = sn_ptr.iter_mut();
     let mut s = 0usize;
-    for j in 0..etree.len() {
-        let continues = j > 0 && ux(etree[j - 1]) == j && count(j - 1) == count(j) + 1;
+    // Parent and column count of column `j − 1`.
+    let mut previous: Option<(u32, u32)> = None;
+    for (j, ((sn, &parent), count)) in col_sn.iter_mut().zip(etree).zip(counts).enumerate() {
+        let continues = matches!(previous, Some((p, c)) if ux(p) == j && c == count + 1);
         if !continues {
-            sn_ptr[s] = j as u32;
+            if let Some(start) = starts.next() {
+                *start = j as u32;
+            }
             s += 1;
         }
-        col_sn[j] = (s - 1) as u32;
+        *sn = (s - 1) as u32;
+        previous = Some((parent, count));
     }
-    sn_ptr[s] = etree.len() as u32;
+    if let Some(end) = starts.next() {
+        *end = etree.len() as u32;
+    }
     s
 }
 
@@ -516,6 +644,11 @@ fn invert_permutation(perm: &[u32], iperm: &mut [u32]) -> Result<(), Error> {
 
 /// The upper pattern of `C = P A Pᵀ`, rows sorted per column, with the source position of each
 /// entry in `A`. `work` needs `n` entries.
+///
+/// # Errors
+/// [`Error::Length`] if `c_ptr` does not have `n + 1` entries, [`Error::IndexOutOfRange`] if
+/// `iperm` is not a permutation of `0..n` or another buffer is shorter than stated (neither
+/// happens in the analysis, which sizes the buffers and checks `iperm` first).
 fn permute_upper(
     a: &UpperCsc<'_>,
     iperm: &[u32],
@@ -525,62 +658,107 @@ fn permute_upper(
     work: &mut [u32],
 ) -> Result<(), Error> {
     let n = a.n();
+    ensure_exact_len(c_ptr, n + 1, Resource::ColumnPointers)?;
     let count = work;
     count.fill(0);
+    // Entry `p` of `A`, in column `j`, goes to column `max(iperm[i], iperm[j])` of `C`, row
+    // the other.
+    let column = |j: usize| -> Result<&[u32], Error> {
+        let range = a.column_range(j);
+        segment(
+            a.row_idx(),
+            range.start,
+            range.end,
+            j,
+            Resource::MatrixEntries,
+        )
+    };
+    let place = |i: u32, j: usize| -> Result<(u32, u32), Error> {
+        let (ci, cj) = (at(iperm, ux(i), j)?, at(iperm, j, j)?);
+        Ok((ci.min(cj), ci.max(cj)))
+    };
     for j in 0..n {
-        for &i in &a.row_idx()[a.column_range(j)] {
-            let col = iperm[ux(i)].max(iperm[j]);
-            count[ux(col)] += 1;
+        for &i in column(j)? {
+            let (_, col) = place(i, j)?;
+            *at_mut(count, ux(col), j)? += 1;
         }
     }
-    c_ptr[0] = 0;
-    for k in 0..n {
-        c_ptr[k + 1] = c_ptr[k] + count[k];
-        count[k] = c_ptr[k];
+    if let Some((first, rest)) = c_ptr.split_first_mut() {
+        *first = 0;
+        let mut start = 0;
+        for (end, c) in rest.iter_mut().zip(count.iter_mut()) {
+            *end = start + *c;
+            *c = start;
+            start = *end;
+        }
     }
     for j in 0..n {
-        for p in a.column_range(j) {
-            let (ci, cj) = (iperm[ux(a.row_idx()[p])], iperm[j]);
-            let (row, col) = (ci.min(cj), ci.max(cj));
-            let at = ux(count[ux(col)]);
-            c_row[at] = row;
-            c_src[at] = p as u32;
-            count[ux(col)] += 1;
+        for (p, &i) in a.column_range(j).zip(column(j)?) {
+            let (row, col) = place(i, j)?;
+            let cursor = at_mut(count, ux(col), j)?;
+            let slot = ux(*cursor);
+            *cursor += 1;
+            let bound = c_row.len().min(c_src.len());
+            let out_of_range = Error::IndexOutOfRange {
+                resource: Resource::MatrixEntries,
+                position: j,
+                index: slot,
+                bound,
+            };
+            *c_row.get_mut(slot).ok_or(out_of_range)? = row;
+            *c_src.get_mut(slot).ok_or(out_of_range)? = p as u32;
         }
     }
     // Sort each column by row, moving the source positions along: columns are short (a few
     // dozen entries for a tetrahedral mesh), so an insertion sort in place is the simple choice.
-    for k in 0..n {
-        let (s, e) = (ux(c_ptr[k]), ux(c_ptr[k + 1]));
-        for x in s + 1..e {
-            let (r, src) = (c_row[x], c_src[x]);
-            let mut y = x;
-            while y > s && c_row[y - 1] > r {
-                c_row[y] = c_row[y - 1];
-                c_src[y] = c_src[y - 1];
-                y -= 1;
-            }
-            c_row[y] = r;
-            c_src[y] = src;
-        }
+    for (k, (s, e)) in pairs(c_ptr).enumerate() {
+        let rows = segment_mut(c_row, s, e, k, Resource::MatrixEntries)?;
+        let srcs = segment_mut(c_src, s, e, k, Resource::MatrixEntries)?;
+        insertion_sort_by_row(rows, srcs);
     }
     Ok(())
 }
 
+/// Sorts `rows` increasing by insertion, applying the same moves to `srcs` (as long).
+fn insertion_sort_by_row(rows: &mut [u32], srcs: &mut [u32]) {
+    for x in 1..rows.len() {
+        // Entry `x` moves down past the entries before it that are larger (the prefix is
+        // sorted), and those move up one place. `x < rows.len() == srcs.len()`: every range
+        // below exists.
+        let Some((&r, sorted)) = rows.get(..=x).and_then(|run| run.split_last()) else {
+            return;
+        };
+        let y = sorted.iter().rposition(|&v| v <= r).map_or(0, |q| q + 1);
+        if let (Some(run), Some(src_run)) = (rows.get_mut(y..=x), srcs.get_mut(y..=x)) {
+            run.rotate_right(1);
+            src_run.rotate_right(1);
+        }
+    }
+}
+
 /// Elimination tree of the matrix with upper pattern `(c_ptr, c_row)` (Liu's algorithm with
 /// path compression); `ancestor` is `n` entries of scratch.
+///
+/// The pattern is [`permute_upper`]'s: its pointers delimit `c_row` and its rows are below
+/// `n`, so no column is skipped and every walk stays inside `parent` and `ancestor`.
 fn elimination_tree(c_ptr: &[u32], c_row: &[u32], parent: &mut [u32], ancestor: &mut [u32]) {
-    let n = parent.len();
-    for k in 0..n {
-        parent[k] = NONE;
-        ancestor[k] = NONE;
-        for &r in &c_row[ux(c_ptr[k])..ux(c_ptr[k + 1])] {
+    // Column k's walks only reach columns below k, which earlier iterations initialised, so
+    // every entry can start as a root up front.
+    parent.fill(NONE);
+    ancestor.fill(NONE);
+    for (k, (s, e)) in pairs(c_ptr).take(parent.len()).enumerate() {
+        for &r in c_row.get(s..e).unwrap_or_default() {
             let mut i = r;
-            while i != NONE && ux(i) < k {
-                let next = ancestor[ux(i)];
-                ancestor[ux(i)] = k as u32;
-                if next == NONE {
-                    parent[ux(i)] = k as u32;
+            while i != NONE
+                && ux(i) < k
+                && let Some(a) = ancestor.get_mut(ux(i))
+            {
+                let next = *a;
+                *a = k as u32;
+                if next == NONE
+                    && let Some(p) = parent.get_mut(ux(i))
+                {
+                    *p = k as u32;
                 }
                 i = next;
             }
@@ -590,30 +768,43 @@ fn elimination_tree(c_ptr: &[u32], c_row: &[u32], parent: &mut [u32], ancestor: 
 
 /// Column counts of `L` (strictly lower) into `col_count`, and, if asked, row pointers of `L`
 /// into `row_ptr` (`n + 1`), by walking the row subtrees of the elimination tree.
+///
+/// # Errors
+/// [`Error::Pattern`] with [`PatternProblem::TooLarge`] if `L` would not fit the `u32`
+/// indices; [`Error::Length`] or [`Error::IndexOutOfRange`] if the pattern, the tree and the
+/// buffers disagree on `n` (never for the analysis's own).
 fn row_and_column_counts(
     c_ptr: &[u32],
     c_row: &[u32],
     parent: &[u32],
     mark: &mut [u32],
     col_count: &mut [u32],
-    mut row_ptr: Option<&mut [u32]>,
+    row_ptr: Option<&mut [u32]>,
 ) -> Result<(), Error> {
     let n = parent.len();
+    ensure_exact_len(c_ptr, n + 1, Resource::ColumnPointers)?;
     col_count.fill(0);
     mark.fill(NONE);
     let mut total: usize = 0;
-    if let Some(rp) = row_ptr.as_deref_mut() {
-        rp[0] = 0;
-    }
-    for k in 0..n {
-        mark[k] = k as u32;
-        for &r in &c_row[ux(c_ptr[k])..ux(c_ptr[k + 1])] {
+    // Row pointers: 0, then the running total after each row.
+    let mut row_ends = row_ptr.and_then(|rp| {
+        let (first, rest) = rp.split_first_mut()?;
+        *first = 0;
+        Some(rest.iter_mut())
+    });
+    for (k, (s, e)) in pairs(c_ptr).enumerate() {
+        *at_mut(mark, k, k)? = k as u32;
+        for &r in segment(c_row, s, e, k, Resource::MatrixEntries)? {
             let mut i = r;
-            while i != NONE && mark[ux(i)] != k as u32 {
-                col_count[ux(i)] += 1;
+            while i != NONE {
+                let seen = at_mut(mark, ux(i), k)?;
+                if *seen == k as u32 {
+                    break;
+                }
+                *seen = k as u32;
+                *at_mut(col_count, ux(i), k)? += 1;
                 total += 1;
-                mark[ux(i)] = k as u32;
-                i = parent[ux(i)];
+                i = at(parent, ux(i), k)?;
             }
         }
         if total > MAX_INDEX {
@@ -622,8 +813,8 @@ fn row_and_column_counts(
                 problem: PatternProblem::TooLarge,
             });
         }
-        if let Some(rp) = row_ptr.as_deref_mut() {
-            rp[k + 1] = total as u32;
+        if let Some(end) = row_ends.as_mut().and_then(Iterator::next) {
+            *end = total as u32;
         }
     }
     Ok(())
