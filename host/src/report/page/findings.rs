@@ -325,11 +325,7 @@ fn tracking(s: &mut String, report: &Report) {
     for (noise, outliers) in &columns {
         let _ = write!(s, " {noise} px, {:.0} % |", 100.0 * outliers);
     }
-    s.push_str("\n| --- |");
-    for _ in &columns {
-        s.push_str(" ---: |");
-    }
-    s.push('\n');
+    push_rule(s, columns.len());
     for scene in &report.scenes {
         let _ = write!(s, "| {} |", scene.name);
         for &(noise, outliers) in &columns {
@@ -396,11 +392,7 @@ fn deformation(s: &mut String, report: &Report) {
     for c in &columns {
         let _ = write!(s, " {c} |");
     }
-    s.push_str("\n| --- |");
-    for _ in &columns {
-        s.push_str(" ---: |");
-    }
-    s.push('\n');
+    push_rule(s, columns.len());
     for scene in &report.scenes {
         let _ = write!(s, "| {} |", scene.name);
         for column in &columns {
@@ -425,4 +417,11 @@ fn deformation(s: &mut String, report: &Report) {
         }
         s.push('\n');
     }
+}
+
+/// Ends a table's header row and writes its rule: the scene column, then `columns` numeric ones.
+fn push_rule(s: &mut String, columns: usize) {
+    s.push_str("\n| --- |");
+    s.push_str(&" ---: |".repeat(columns));
+    s.push('\n');
 }

@@ -57,6 +57,26 @@ pub fn per_frame(
     result
 }
 
+/// The mean instructions of the first `frames` stepped frames of the scene in `scene_dir` with
+/// its own solver setting, or `None` when not `counting`.
+///
+/// # Errors
+/// As [`per_frame`].
+pub(super) fn mean_of_own_setting(
+    scene: &Scene,
+    scene_dir: &Path,
+    frames: usize,
+    counting: bool,
+) -> Result<Option<f64>, String> {
+    if !counting {
+        return Ok(None);
+    }
+    let counts = per_frame(scene_dir, &SweepSetting::of(&scene.file.solver), frames)?;
+    Ok(Some(
+        counts.iter().map(|&c| c as f64).sum::<f64>() / counts.len().max(1) as f64,
+    ))
+}
+
 /// Whether callgrind can be run here.
 pub(super) fn available() -> bool {
     Command::new("valgrind")

@@ -13,7 +13,6 @@ use crate::generate::pipeline::{held_nodes, simulate, write_scene};
 use crate::run::{RunOptions, run_scene};
 use crate::scene::Scene;
 
-use super::super::SweepSetting;
 use super::instructions;
 
 /// The scenes whose shapes get the axis: the band (cut from one side) and the liver.
@@ -128,13 +127,7 @@ fn run_model(
     counting: bool,
 ) -> Result<Model, String> {
     let (summary, _) = run_scene(scene, &RunOptions::default()).map_err(|e| e.to_string())?;
-    let instructions = if counting {
-        let setting = SweepSetting::of(&scene.file.solver);
-        let counts = instructions::per_frame(dir, &setting, COUNTED_FRAMES)?;
-        Some(counts.iter().map(|&c| c as f64).sum::<f64>() / counts.len().max(1) as f64)
-    } else {
-        None
-    };
+    let instructions = instructions::mean_of_own_setting(scene, dir, COUNTED_FRAMES, counting)?;
     Ok(Model {
         mesh,
         nodes: summary.nodes_initial,

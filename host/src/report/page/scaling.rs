@@ -10,7 +10,6 @@ use crate::generate::pipeline::{simulate, write_scene};
 use crate::run::run_once;
 use crate::scene::Scene;
 
-use super::super::SweepSetting;
 use super::instructions;
 
 /// The scenario the variants are made from (the intact band: no cut event in any frame).
@@ -166,13 +165,7 @@ fn measure_variant(
     let scene = Scene::load(dir).map_err(|e| e.to_string())?;
     let trace = run_once(&scene, true, None, false).map_err(|e| e.to_string())?;
     let ms: Vec<f64> = trace.frames.iter().skip(1).map(|r| r.ms).collect();
-    let instructions = if counting {
-        let setting = SweepSetting::of(&scene.file.solver);
-        let counts = instructions::per_frame(dir, &setting, COUNTED_FRAMES)?;
-        Some(counts.iter().map(|&c| c as f64).sum::<f64>() / counts.len().max(1) as f64)
-    } else {
-        None
-    };
+    let instructions = instructions::mean_of_own_setting(&scene, dir, COUNTED_FRAMES, counting)?;
     Ok(Point {
         nodes: scene.rest.len(),
         features: scene.frames.first().map_or(0, Vec::len),
