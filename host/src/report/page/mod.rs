@@ -55,7 +55,7 @@ pub struct Report {
     /// How the cost grows with nodes and features (not with `--quick`, and only when
     /// `band-no-cut`, whose scenario the variants are made from, is among the scenes).
     pub scaling: Option<scaling::Scaling>,
-    /// The mesh-resolution axis of [`resolution::BASES`] among the scenes (not with
+    /// The mesh-resolution axis of `band-side-cut` and `liver-lobe` among the scenes (not with
     /// `--quick`).
     pub resolution: Vec<resolution::Resolution>,
 }
