@@ -10,8 +10,6 @@
 //! metre and every ray parallel to the optical axis. Lens distortion is the host's concern (it
 //! undistorts tracked points before they reach the core).
 
-#![cfg_attr(not(test), deny(clippy::indexing_slicing))]
-
 use nalgebra::{Matrix2x3, Matrix3, Vector2, Vector3};
 
 use crate::error::{Error, Parameter};

@@ -3,10 +3,6 @@
 //! tumour, vessel points) are both embeddings; a cut re-embeds them in the piece of their own
 //! side ([`crate::cut`]).
 
-// Embedded points are looked up by slot and tetrahedron numbers that come from input and
-// from cuts: indexing that could panic is denied, each access is checked (issue 13).
-#![cfg_attr(not(test), deny(clippy::indexing_slicing))]
-
 use crate::error::{Error, Resource};
 use crate::mesh::Mesh;
 use crate::real::Real;

@@ -3,8 +3,6 @@
 //! Every fallible entry point returns [`Error`]. A call that fails leaves the structure it was
 //! called on as it was before the call, unless its documentation says otherwise.
 
-#![cfg_attr(not(test), deny(clippy::indexing_slicing))]
-
 use core::fmt;
 
 /// Names a buffer or fixed capacity, so that a [`Error::Capacity`] or [`Error::Length`] says

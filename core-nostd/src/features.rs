@@ -3,10 +3,6 @@
 //! observation. This module holds the observation side (ids, the latest pixel of each feature,
 //! whether it is seen in this frame) and places the features at frame 0.
 
-// The reader of the frames: every index here comes from input (ids, slots, counts), so indexing
-// that could panic is denied and each access is checked (issue 13).
-#![cfg_attr(not(test), deny(clippy::indexing_slicing))]
-
 use nalgebra::Vector3;
 
 use crate::camera::Camera;

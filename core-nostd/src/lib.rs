@@ -38,12 +38,14 @@
 //! - [`error`]: the one error type of the crate.
 #![no_std]
 #![forbid(unsafe_code)]
-// No panic reachable from the public API (issue 13): the panicking shortcuts are denied outside
-// the unit tests. Indexing and arithmetic are not linted crate-wide (the README's
-// "Reliability" section says how input-derived indices and sizes are checked instead).
+// No panic reachable from the public API (issue 13): the panicking shortcuts and indexing
+// (`x[i]`, `&x[a..b]`: every index goes through `get`, and a miss is a typed error) are denied
+// outside the unit tests. Arithmetic is not linted (the README's "Reliability" section says
+// how input-derived sizes are checked instead).
 #![cfg_attr(
     not(test),
     deny(
+        clippy::indexing_slicing,
         clippy::unwrap_used,
         clippy::expect_used,
         clippy::panic,

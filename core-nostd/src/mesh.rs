@@ -1,10 +1,6 @@
 //! The tetrahedral volume mesh of the model: rest positions, tetrahedra, fixed nodes and the
 //! boundary surface, in fixed-capacity storage.
 
-// The reader of the mesh a user hands in (and of the cut's edits to it): every node index
-// comes from input, so indexing that could panic is denied and each access is checked.
-#![cfg_attr(not(test), deny(clippy::indexing_slicing))]
-
 use crate::error::{Error, Resource};
 use crate::material::ElementRest;
 use crate::real::Real;

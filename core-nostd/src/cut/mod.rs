@@ -37,8 +37,6 @@
 //! and split, a sort of the `4 t` faces, and the stars of the nodes on the cut; it is counted in
 //! [`CutWork`] and bounded by [`CutWork::bound`].
 
-#![cfg_attr(not(test), deny(clippy::indexing_slicing))]
-
 mod place;
 mod reembed;
 mod report;

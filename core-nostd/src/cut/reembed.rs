@@ -2,8 +2,6 @@
 //! piece holding their material point; a feature whose piece lies on the other side of the cut
 //! than its observation goes to the surface of its own side.
 
-#![cfg_attr(not(test), deny(clippy::indexing_slicing))]
-
 use crate::camera::Camera;
 use crate::embed::{Embedding, barycentric, clamp_weights, gather, interpolate};
 use crate::mesh::{Mesh, orientation};

@@ -4,8 +4,6 @@
 //! not cut; a node at the end of a partial cut keeps a single group and is not duplicated, so
 //! the material stays joined beyond the cut.
 
-#![cfg_attr(not(test), deny(clippy::indexing_slicing))]
-
 use crate::error::{Error, Resource};
 use crate::mesh::Mesh;
 use crate::real::Real;

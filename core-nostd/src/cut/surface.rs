@@ -7,8 +7,6 @@
 //! the polyline — within the tube, not beyond either end — so that a cut can stop where the
 //! surface stops.
 
-#![cfg_attr(not(test), deny(clippy::indexing_slicing))]
-
 use nalgebra::Vector3;
 
 use crate::camera::Camera;

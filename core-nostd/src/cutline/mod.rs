@@ -12,8 +12,6 @@
 //! on demand: each vertex is carried onto the model surface along its camera ray and the line is
 //! extruded along the camera direction, or a configured depth vector, through the model.
 
-#![cfg_attr(not(test), deny(clippy::indexing_slicing))]
-
 use nalgebra::Vector3;
 
 use crate::camera::Camera;

@@ -16,8 +16,6 @@
 //!
 //! Cost per frame: bounded by [`DetectionWork::bound`] in the capacities.
 
-#![cfg_attr(not(test), deny(clippy::indexing_slicing))]
-
 use crate::error::Error;
 use crate::error::Parameter;
 use crate::real::Real;

@@ -24,7 +24,6 @@
 //! inputs, including inverted (`det F < 0`) and collapsed (`F = 0`) elements: nothing divides by
 //! a quantity of the current configuration. The one place that divides, the Jacobi rotation of
 //! the positive semidefinite projection, guards its divisor.
-#![cfg_attr(not(test), deny(clippy::indexing_slicing))]
 
 mod eigen3;
 mod element;

@@ -6,8 +6,6 @@
 //! one in service into the spare, cuts the spare, rebuilds its system and factors it; only when
 //! all of that succeeds are the two swapped, so a refused cut leaves the model as it was.
 
-#![cfg_attr(not(test), deny(clippy::indexing_slicing))]
-
 use crate::embed::Embedding;
 use crate::error::{Error, Resource};
 use crate::material::{Lame, TangentProjection, element_energy_gradient_tangent};

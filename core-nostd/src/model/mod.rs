@@ -12,8 +12,6 @@
 //! The storage that a cut changes lives twice (`discretization.rs`): the half in service and a
 //! spare the cut is built into, swapped in only when the whole rebuild succeeded.
 
-#![cfg_attr(not(test), deny(clippy::indexing_slicing))]
-
 #[cfg(feature = "cut")]
 mod cutting;
 #[cfg(feature = "detect")]

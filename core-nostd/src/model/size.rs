@@ -5,8 +5,6 @@
 //! mesh itself except the initial fill of the factor, which [`analyse_mesh`] reports to help
 //! choose [`Capacities::factor_entries`].
 
-#![cfg_attr(not(test), deny(clippy::indexing_slicing))]
-
 use crate::embed::Embedding;
 use crate::error::{Error, Resource};
 use crate::features::Features;

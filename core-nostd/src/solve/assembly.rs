@@ -2,8 +2,6 @@
 //! (elastic energy, feature springs through the camera, damping and depth prior), element by
 //! element into the stiffness pattern through the scatter map.
 
-#![cfg_attr(not(test), deny(clippy::indexing_slicing))]
-
 use nalgebra::{Matrix3, Vector3};
 
 use super::{Energies, WorkCount};

@@ -77,6 +77,9 @@ struct Quotient<'w> {
 ///
 /// # Errors
 /// [`Error::Length`] if `perm` has the wrong length, [`Error::Capacity`] if `work` is too short.
+/// The same [`Error::Capacity`] of the workspace, with `needed` and `available` 0, reports
+/// bookkeeping that contradicts itself (an index out of range, a list that does not fit),
+/// which correct code never produces.
 // Kept out of line so that a firmware build's symbols show whether it is linked
 // (tests/firmware.rs).
 #[inline(never)]
@@ -103,46 +106,55 @@ pub fn minimum_degree(graph: &Graph<'_>, perm: &mut [u32], work: &mut [u32]) -> 
         member_last: slab.take(n)?,
         hash: slab.take(n)?,
     };
-    q.iw[..graph.nnz()].copy_from_slice(graph.adj());
+    // `iw` was taken with `nnz + n` entries: the adjacency fits at its front.
+    let Some(adjacency) = q.iw.get_mut(..graph.nnz()) else {
+        return Err(internal());
+    };
+    adjacency.copy_from_slice(graph.adj());
     q.head.fill(NONE);
     q.mark.fill(0);
+    q.elen.fill(0);
+    q.state.fill(VARIABLE);
+    q.weight.fill(1);
+    q.member_next.fill(NONE);
+    // The graph's `n + 1` pointers give the `n` lists, in place in the copied adjacency.
+    let ptr = graph.ptr();
+    let bounds = ptr.iter().zip(ptr.iter().skip(1));
+    let (pe, len, degree) = (q.pe.iter_mut(), q.len.iter_mut(), q.degree.iter_mut());
+    for ((&s, &e), (pe, (len, degree))) in bounds.zip(pe.zip(len.zip(degree))) {
+        *pe = s;
+        *len = e - s;
+        *degree = e - s;
+    }
+    for (v, last) in q.member_last.iter_mut().enumerate() {
+        *last = v as u32;
+    }
     for v in 0..n {
-        let (s, e) = (graph.ptr()[v], graph.ptr()[v + 1]);
-        q.pe[v] = s;
-        q.len[v] = e - s;
-        q.elen[v] = 0;
-        q.state[v] = VARIABLE;
-        q.degree[v] = e - s;
-        q.weight[v] = 1;
-        q.member_next[v] = NONE;
-        q.member_last[v] = v as u32;
-        q.bucket_insert(v);
+        q.bucket_insert(v)?;
     }
     let mut min_degree = 0usize;
     let mut eliminated = 0usize;
     while eliminated < n {
-        while min_degree < n && q.head[min_degree] == NONE {
+        while min_degree < n && q.head.get(min_degree) == Some(&NONE) {
             min_degree += 1;
         }
         let p = match q.head.get(min_degree) {
             Some(&p) if p != NONE => ux(p),
             _ => return Err(internal()),
         };
-        q.bucket_remove(p);
+        q.bucket_remove(p)?;
         // The supervariable's members are eliminated together, in the order they joined.
         let mut v = p as u32;
         while v != NONE {
             *perm.get_mut(eliminated).ok_or_else(internal)? = v;
             eliminated += 1;
-            v = q.member_next[ux(v)];
+            v = at(q.member_next, ux(v))?;
         }
         q.eliminate(p)?;
         // Degrees of the variables in the new element were recounted and may have dropped.
-        let (s, l) = (ux(q.pe[p]), ux(q.len[p]));
-        for k in s..s + l {
-            let i = ux(q.iw[k]);
-            if q.state[i] == VARIABLE {
-                min_degree = min_degree.min(ux(q.degree[i]));
+        for &i in list(q.iw, q.pe, q.len, p)? {
+            if at(q.state, ux(i))? == VARIABLE {
+                min_degree = min_degree.min(ux(at(q.degree, ux(i))?));
             }
         }
     }
@@ -151,6 +163,7 @@ pub fn minimum_degree(graph: &Graph<'_>, perm: &mut [u32], work: &mut [u32]) -> 
 
 /// The workspace bookkeeping contradicted itself; with correct code this cannot happen, and it
 /// is reported rather than panicking.
+#[cold]
 fn internal() -> Error {
     Error::Capacity {
         resource: Resource::Workspace,
@@ -159,29 +172,67 @@ fn internal() -> Error {
     }
 }
 
+/// `x[i]`, or the [`internal`] error.
+fn at(x: &[u32], i: usize) -> Result<u32, Error> {
+    x.get(i).copied().ok_or_else(internal)
+}
+
+/// `&mut x[i]`, or the [`internal`] error.
+fn at_mut(x: &mut [u32], i: usize) -> Result<&mut u32, Error> {
+    x.get_mut(i).ok_or_else(internal)
+}
+
+/// The list of object `v`, `iw[pe[v]..pe[v] + len[v]]`, or the [`internal`] error if it is not
+/// inside `iw`. An empty list is empty whatever its start, which compaction leaves stale.
+fn list<'a>(iw: &'a [u32], pe: &[u32], len: &[u32], v: usize) -> Result<&'a [u32], Error> {
+    let l = ux(at(len, v)?);
+    if l == 0 {
+        return Ok(&[]);
+    }
+    let s = ux(at(pe, v)?);
+    iw.get(s..s + l).ok_or_else(internal)
+}
+
+/// [`list`], mutable.
+fn list_mut<'a>(
+    iw: &'a mut [u32],
+    pe: &[u32],
+    len: &[u32],
+    v: usize,
+) -> Result<&'a mut [u32], Error> {
+    let l = ux(at(len, v)?);
+    if l == 0 {
+        return Ok(&mut []);
+    }
+    let s = ux(at(pe, v)?);
+    iw.get_mut(s..s + l).ok_or_else(internal)
+}
+
 impl Quotient<'_> {
-    fn bucket_insert(&mut self, v: usize) {
-        let d = ux(self.degree[v]).min(self.head.len() - 1);
-        let h = self.head[d];
-        self.next[v] = h;
-        self.prev[v] = NONE;
+    fn bucket_insert(&mut self, v: usize) -> Result<(), Error> {
+        let d = ux(at(self.degree, v)?).min(self.head.len().saturating_sub(1));
+        let h = at(self.head, d)?;
+        *at_mut(self.next, v)? = h;
+        *at_mut(self.prev, v)? = NONE;
         if h != NONE {
-            self.prev[ux(h)] = v as u32;
+            *at_mut(self.prev, ux(h))? = v as u32;
         }
-        self.head[d] = v as u32;
+        *at_mut(self.head, d)? = v as u32;
+        Ok(())
     }
 
-    fn bucket_remove(&mut self, v: usize) {
-        let d = ux(self.degree[v]).min(self.head.len() - 1);
-        let (nx, pv) = (self.next[v], self.prev[v]);
+    fn bucket_remove(&mut self, v: usize) -> Result<(), Error> {
+        let d = ux(at(self.degree, v)?).min(self.head.len().saturating_sub(1));
+        let (nx, pv) = (at(self.next, v)?, at(self.prev, v)?);
         if pv != NONE {
-            self.next[ux(pv)] = nx;
+            *at_mut(self.next, ux(pv))? = nx;
         } else {
-            self.head[d] = nx;
+            *at_mut(self.head, d)? = nx;
         }
         if nx != NONE {
-            self.prev[ux(nx)] = pv;
+            *at_mut(self.prev, ux(nx))? = pv;
         }
+        Ok(())
     }
 
     fn new_stamp(&mut self) -> u32 {
@@ -197,108 +248,145 @@ impl Quotient<'_> {
     /// prunes the lists of the variables in the new element and recounts their degrees.
     fn eliminate(&mut self, p: usize) -> Result<(), Error> {
         // The degree of `p` is exact, so the new element has exactly that many variables.
-        let size = ux(self.degree[p]);
+        let size = ux(at(self.degree, p)?);
         if self.pfree + size > self.iw.len() {
-            self.compact();
+            self.compact()?;
             if self.pfree + size > self.iw.len() {
                 return Err(internal());
             }
         }
         let s = self.new_stamp();
-        self.mark[p] = s;
+        *at_mut(self.mark, p)? = s;
         let start = self.pfree;
-        let (ps, pl, pe_len) = (ux(self.pe[p]), ux(self.len[p]), ux(self.elen[p]));
-        for k in ps..ps + pl {
-            let x = ux(self.iw[k]);
-            if k < ps + pe_len {
-                // An element `p` belongs to: its variables join element `p`, and it is absorbed.
-                let (es, el) = (ux(self.pe[x]), ux(self.len[x]));
-                for m in es..es + el {
-                    let v = ux(self.iw[m]);
-                    if self.state[v] == VARIABLE && self.mark[v] != s {
-                        self.mark[v] = s;
-                        *self.iw.get_mut(self.pfree).ok_or_else(internal)? = v as u32;
+        // Every live list lies in `iw[..pfree]`; element `p` is built in the room after it.
+        let Some((lists, room)) = self.iw.split_at_mut_checked(start) else {
+            return Err(internal());
+        };
+        let lists: &[u32] = lists;
+        let mut room = room.iter_mut();
+        let p_list = list(lists, self.pe, self.len, p)?;
+        let Some((elements, variables)) = p_list.split_at_checked(ux(at(self.elen, p)?)) else {
+            return Err(internal());
+        };
+        for &x in elements {
+            // An element `p` belongs to: its variables join element `p`, and it is absorbed.
+            let x = ux(x);
+            for &v in list(lists, self.pe, self.len, x)? {
+                let v = ux(v);
+                if at(self.state, v)? == VARIABLE {
+                    let mark = at_mut(self.mark, v)?;
+                    if *mark != s {
+                        *mark = s;
+                        *room.next().ok_or_else(internal)? = v as u32;
                         self.pfree += 1;
                     }
                 }
-                self.state[x] = ABSORBED;
-                self.len[x] = 0;
-            } else if self.state[x] == VARIABLE && self.mark[x] != s {
-                self.mark[x] = s;
-                *self.iw.get_mut(self.pfree).ok_or_else(internal)? = x as u32;
-                self.pfree += 1;
+            }
+            *at_mut(self.state, x)? = ABSORBED;
+            *at_mut(self.len, x)? = 0;
+        }
+        for &x in variables {
+            let x = ux(x);
+            if at(self.state, x)? == VARIABLE {
+                let mark = at_mut(self.mark, x)?;
+                if *mark != s {
+                    *mark = s;
+                    *room.next().ok_or_else(internal)? = x as u32;
+                    self.pfree += 1;
+                }
             }
         }
-        self.state[p] = ELEMENT;
-        self.pe[p] = start as u32;
-        self.len[p] = (self.pfree - start) as u32;
-        self.elen[p] = 0;
+        *at_mut(self.state, p)? = ELEMENT;
+        *at_mut(self.pe, p)? = start as u32;
+        *at_mut(self.len, p)? = (self.pfree - start) as u32;
+        *at_mut(self.elen, p)? = 0;
 
         // Prune: every variable `i` in element `p` drops the absorbed elements and the variables
         // now reached through `p` (those marked `s`), and gains `p`. It loses at least one entry
-        // (`p` itself or an absorbed element), so the list never grows.
-        for k in start..self.pfree {
-            let i = ux(self.iw[k]);
-            let (is, il, ie) = (ux(self.pe[i]), ux(self.len[i]), ux(self.elen[i]));
-            let mut w = is;
-            for r in is..is + ie {
-                let e = self.iw[r];
-                if self.state[ux(e)] == ELEMENT && ux(e) != p {
-                    self.iw[w] = e;
+        // (`p` itself or an absorbed element), so the list never grows. The variables' lists lie
+        // before element `p`, in `iw[..start]`.
+        let Some((lists, rest)) = self.iw.split_at_mut_checked(start) else {
+            return Err(internal());
+        };
+        let Some(element) = rest.get(..self.pfree - start) else {
+            return Err(internal());
+        };
+        for &i in element {
+            let i = ux(i);
+            let li = list_mut(lists, self.pe, self.len, i)?;
+            let ie = ux(at(self.elen, i)?);
+            // Kept entries are written back from the front: the write position `w` never
+            // passes the read position `r`.
+            let mut w = 0;
+            for r in 0..ie {
+                let e = at(li, r)?;
+                if at(self.state, ux(e))? == ELEMENT && ux(e) != p {
+                    *at_mut(li, w)? = e;
                     w += 1;
                 }
             }
-            let kept_elements = w - is;
-            for r in is + ie..is + il {
-                let v = self.iw[r];
-                if self.state[ux(v)] == VARIABLE && self.mark[ux(v)] != s {
-                    self.iw[w] = v;
+            let kept_elements = w;
+            for r in ie..li.len() {
+                let v = at(li, r)?;
+                if at(self.state, ux(v))? == VARIABLE && at(self.mark, ux(v))? != s {
+                    *at_mut(li, w)? = v;
                     w += 1;
                 }
             }
-            if w - is + 1 > il {
+            // Element `p` goes after the kept elements: shift the variables up by one, into the
+            // first dropped entry (`None` if nothing was dropped).
+            let Some(shifted) = li.get_mut(kept_elements..=w) else {
                 return Err(internal());
+            };
+            shifted.rotate_right(1);
+            if let Some(first) = shifted.first_mut() {
+                *first = p as u32;
             }
-            // Element `p` goes after the kept elements: shift the variables up by one.
-            self.iw
-                .copy_within(is + kept_elements..w, is + kept_elements + 1);
-            self.iw[is + kept_elements] = p as u32;
-            self.len[i] = (w - is + 1) as u32;
-            self.elen[i] = (kept_elements + 1) as u32;
+            *at_mut(self.len, i)? = (w + 1) as u32;
+            *at_mut(self.elen, i)? = (kept_elements + 1) as u32;
         }
 
-        self.merge_indistinguishable(start);
+        self.merge_indistinguishable(start)?;
 
         // Recount the exact external degree of each variable in element `p`: the weight of the
         // variables it is joined to, its own supervariable left out.
         for k in start..self.pfree {
-            let i = ux(self.iw[k]);
-            if self.state[i] != VARIABLE {
+            let i = ux(at(self.iw, k)?);
+            if at(self.state, i)? != VARIABLE {
                 continue;
             }
-            self.bucket_remove(i);
+            self.bucket_remove(i)?;
             let t = self.new_stamp();
-            self.mark[i] = t;
-            let (is, il, ie) = (ux(self.pe[i]), ux(self.len[i]), ux(self.elen[i]));
+            *at_mut(self.mark, i)? = t;
+            let li = list(self.iw, self.pe, self.len, i)?;
+            let Some((elements, variables)) = li.split_at_checked(ux(at(self.elen, i)?)) else {
+                return Err(internal());
+            };
             let mut d = 0u32;
-            for r in is..is + il {
-                let x = ux(self.iw[r]);
-                if r < is + ie {
-                    let (es, el) = (ux(self.pe[x]), ux(self.len[x]));
-                    for m in es..es + el {
-                        let v = ux(self.iw[m]);
-                        if self.state[v] == VARIABLE && self.mark[v] != t {
-                            self.mark[v] = t;
-                            d += self.weight[v];
+            for &x in elements {
+                for &v in list(self.iw, self.pe, self.len, ux(x))? {
+                    let v = ux(v);
+                    if at(self.state, v)? == VARIABLE {
+                        let mark = at_mut(self.mark, v)?;
+                        if *mark != t {
+                            *mark = t;
+                            d += at(self.weight, v)?;
                         }
                     }
-                } else if self.state[x] == VARIABLE && self.mark[x] != t {
-                    self.mark[x] = t;
-                    d += self.weight[x];
                 }
             }
-            self.degree[i] = d;
-            self.bucket_insert(i);
+            for &x in variables {
+                let x = ux(x);
+                if at(self.state, x)? == VARIABLE {
+                    let mark = at_mut(self.mark, x)?;
+                    if *mark != t {
+                        *mark = t;
+                        d += at(self.weight, x)?;
+                    }
+                }
+            }
+            *at_mut(self.degree, i)? = d;
+            self.bucket_insert(i)?;
         }
         Ok(())
     }
@@ -306,83 +394,104 @@ impl Quotient<'_> {
     /// Merges the variables of the element just built (`iw[start..pfree]`, pruned) that are
     /// indistinguishable: the same elements and the same neighbouring variables. Candidates
     /// share a hash of their lists; each pair is then compared entry by entry with a marker.
-    fn merge_indistinguishable(&mut self, start: usize) {
-        for k in start..self.pfree {
-            let i = ux(self.iw[k]);
-            let (is, il) = (ux(self.pe[i]), ux(self.len[i]));
-            let mut h = 0u32;
-            for r in is..is + il {
-                h = h.wrapping_add(self.iw[r]);
-            }
-            self.hash[i] = h;
+    fn merge_indistinguishable(&mut self, start: usize) -> Result<(), Error> {
+        let Some(element) = self.iw.get(start..self.pfree) else {
+            return Err(internal());
+        };
+        for &i in element {
+            let i = ux(i);
+            let h = list(self.iw, self.pe, self.len, i)?
+                .iter()
+                .fold(0u32, |h, &x| h.wrapping_add(x));
+            *at_mut(self.hash, i)? = h;
         }
         let hash = &*self.hash;
-        self.iw[start..self.pfree].sort_unstable_by_key(|&v| (hash[ux(v)], v));
+        let Some(element) = self.iw.get_mut(start..self.pfree) else {
+            return Err(internal());
+        };
+        // Every variable of the element has just been hashed: the fallback is never used.
+        element.sort_unstable_by_key(|&v| (hash.get(ux(v)).copied().unwrap_or(NONE), v));
         let mut a = start;
         while a < self.pfree {
-            let h = self.hash[ux(self.iw[a])];
+            let h = at(self.hash, ux(at(self.iw, a)?))?;
             let mut b = a + 1;
-            while b < self.pfree && self.hash[ux(self.iw[b])] == h {
+            while b < self.pfree && at(self.hash, ux(at(self.iw, b)?))? == h {
                 b += 1;
             }
             for x in a..b {
-                let i = ux(self.iw[x]);
-                if self.state[i] != VARIABLE {
+                let i = ux(at(self.iw, x)?);
+                if at(self.state, i)? != VARIABLE {
                     continue;
                 }
                 let t = self.new_stamp();
-                let (is, il, ie) = (ux(self.pe[i]), ux(self.len[i]), ux(self.elen[i]));
-                for r in is..is + il {
-                    self.mark[ux(self.iw[r])] = t;
+                let li = list(self.iw, self.pe, self.len, i)?;
+                let (il, ie) = (li.len(), ux(at(self.elen, i)?));
+                for &r in li {
+                    *at_mut(self.mark, ux(r))? = t;
                 }
                 for y in x + 1..b {
-                    let j = ux(self.iw[y]);
-                    let (js, jl, je) = (ux(self.pe[j]), ux(self.len[j]), ux(self.elen[j]));
-                    if self.state[j] != VARIABLE || jl != il || je != ie {
+                    let j = ux(at(self.iw, y)?);
+                    let (jl, je) = (ux(at(self.len, j)?), ux(at(self.elen, j)?));
+                    if at(self.state, j)? != VARIABLE || jl != il || je != ie {
                         continue;
                     }
-                    if (js..js + jl).all(|r| self.mark[ux(self.iw[r])] == t) {
-                        self.merge(i, j);
+                    let lj = list(self.iw, self.pe, self.len, j)?;
+                    if lj.iter().all(|&r| self.mark.get(ux(r)) == Some(&t)) {
+                        self.merge(i, j)?;
                     }
                 }
             }
             a = b;
         }
+        Ok(())
     }
 
     /// Merges variable `j` into supervariable `i`.
-    fn merge(&mut self, i: usize, j: usize) {
-        self.bucket_remove(j);
-        self.weight[i] += self.weight[j];
-        self.weight[j] = 0;
-        self.state[j] = MERGED;
-        self.len[j] = 0;
-        self.elen[j] = 0;
-        let last = ux(self.member_last[i]);
-        self.member_next[last] = j as u32;
-        self.member_last[i] = self.member_last[j];
+    fn merge(&mut self, i: usize, j: usize) -> Result<(), Error> {
+        self.bucket_remove(j)?;
+        let wj = at(self.weight, j)?;
+        *at_mut(self.weight, i)? += wj;
+        *at_mut(self.weight, j)? = 0;
+        *at_mut(self.state, j)? = MERGED;
+        *at_mut(self.len, j)? = 0;
+        *at_mut(self.elen, j)? = 0;
+        let last = ux(at(self.member_last, i)?);
+        *at_mut(self.member_next, last)? = j as u32;
+        *at_mut(self.member_last, i)? = at(self.member_last, j)?;
+        Ok(())
     }
 
     /// Moves the lists of all live objects to the front of `iw`, in their current order.
-    fn compact(&mut self) {
+    fn compact(&mut self) -> Result<(), Error> {
         let mut live = 0;
-        for v in 0..self.pe.len() {
-            if self.state[v] != ABSORBED && self.len[v] > 0 {
-                self.order[live] = v as u32;
+        let mut out = self.order.iter_mut();
+        for (v, (&state, &len)) in self.state.iter().zip(self.len.iter()).enumerate() {
+            if state != ABSORBED && len > 0 {
+                *out.next().ok_or_else(internal)? = v as u32;
                 live += 1;
             }
         }
         let pe = &*self.pe;
-        self.order[..live].sort_unstable_by_key(|&v| pe[ux(v)]);
+        let Some(order) = self.order.get_mut(..live) else {
+            return Err(internal());
+        };
+        // Every live object is a vertex below `n`: the fallback is never used.
+        order.sort_unstable_by_key(|&v| pe.get(ux(v)).copied().unwrap_or(NONE));
         let mut to = 0usize;
-        for k in 0..live {
-            let v = ux(self.order[k]);
-            let (s, l) = (ux(self.pe[v]), ux(self.len[v]));
+        for &v in order.iter() {
+            let v = ux(v);
+            let (s, l) = (ux(at(self.pe, v)?), ux(at(self.len, v)?));
+            // The live lists are disjoint and taken by start, so each moves down (`to <= s`)
+            // and stays inside `iw`.
+            if to > s || self.iw.get(s..s + l).is_none() {
+                return Err(internal());
+            }
             self.iw.copy_within(s..s + l, to);
-            self.pe[v] = to as u32;
+            *at_mut(self.pe, v)? = to as u32;
             to += l;
         }
         self.pfree = to;
+        Ok(())
     }
 }
 
@@ -397,10 +506,14 @@ pub fn expand_block_permutation(
     b: usize,
     dof_perm: &mut [u32],
 ) -> Result<(), Error> {
-    ensure_exact_len(dof_perm, node_perm.len() * b, Resource::Permutation)?;
-    for (k, &v) in node_perm.iter().enumerate() {
-        for c in 0..b {
-            dof_perm[k * b + c] = (ux(v) * b + c) as u32;
+    ensure_exact_len(dof_perm, times(b, node_perm.len()), Resource::Permutation)?;
+    if b == 0 {
+        // Nothing to write (and no chunks of size 0).
+        return Ok(());
+    }
+    for (&v, block) in node_perm.iter().zip(dof_perm.chunks_exact_mut(b)) {
+        for (c, dof) in block.iter_mut().enumerate() {
+            *dof = (ux(v) * b + c) as u32;
         }
     }
     Ok(())

@@ -1,8 +1,6 @@
 //! Sparse patterns: the upper triangle of a symmetric matrix, and the adjacency graph of mesh
 //! nodes from which the stiffness pattern is built.
 
-#![cfg_attr(not(test), deny(clippy::indexing_slicing))]
-
 use super::{NONE, ux};
 use crate::error::{Error, PatternProblem, Resource};
 use crate::storage::{Slab, ensure_exact_len, ensure_len, prefix_mut, sum, times};

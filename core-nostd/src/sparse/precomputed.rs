@@ -12,8 +12,6 @@
 //! the arrays ([`PrecomputedAnalysis::compute_checksum`]) catches generated data that was
 //! damaged or edited by hand.
 
-#![cfg_attr(not(test), deny(clippy::indexing_slicing))]
-
 use super::pattern::UpperCsc;
 use super::symbolic::SymbolicSize;
 use super::{NONE, ux};

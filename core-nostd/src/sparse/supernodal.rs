@@ -21,12 +21,19 @@
 //! target columns over [`KC`] source columns, the BLIS scheme) and computed by an
 //! [`MR`] × [`NR`] micro-kernel whose accumulators stay in registers; it is subtracted from the
 //! target through the rows' relative positions.
+//!
+//! **Bounds.** Every index the kernels follow comes from the [`Symbolic`] analysis, whose
+//! invariants keep it inside `L`, `D` and the workspaces; each is still looked up with `get`,
+//! once per slice where a loop follows. The factorization reports one that reaches outside as
+//! an error; the solves, which cannot fail, stop at it.
+
+use core::ops::Range;
 
 use super::symbolic::Symbolic;
 use super::{NONE, ux};
 use crate::error::{Error, Resource};
 use crate::real::Real;
-use crate::storage::{Slab, ensure_len, times};
+use crate::storage::{Slab, ensure_len, prefix_mut, times};
 
 /// Rows of the micro-kernel's accumulator tile.
 pub const MR: usize = 4;
@@ -50,6 +57,18 @@ pub const fn index_work_len(n: usize) -> usize {
     times(5, n)
 }
 
+/// The error for `index`, met at column (or supernode) `at` of the permuted order, that lies
+/// outside `resource` of `bound` entries. A [`Symbolic`] built or loaded by this crate, with
+/// storage of its sizes, never gives one.
+const fn outside(resource: Resource, at: usize, index: usize, bound: usize) -> Error {
+    Error::IndexOutOfRange {
+        resource,
+        position: at,
+        index,
+        bound,
+    }
+}
+
 /// The supernodal structure of a [`Symbolic`] analysis.
 #[derive(Clone, Copy)]
 struct Panels<'s> {
@@ -67,26 +86,67 @@ impl<'s> Panels<'s> {
         }
     }
     fn count(&self) -> usize {
-        self.sn_ptr.len() - 1
+        self.sn_ptr.len().saturating_sub(1)
     }
-    fn first(&self, s: usize) -> usize {
-        ux(self.sn_ptr[s])
+    /// First column `f` and width `w` of supernode `s`.
+    fn span(&self, s: usize) -> Result<(usize, usize), Error> {
+        match (self.sn_ptr.get(s), self.sn_ptr.get(s + 1)) {
+            (Some(&f), Some(&e)) if f <= e => Ok((ux(f), ux(e - f))),
+            _ => Err(outside(
+                Resource::ColumnPointers,
+                s,
+                s + 1,
+                self.sn_ptr.len(),
+            )),
+        }
     }
-    fn width(&self, s: usize) -> usize {
-        ux(self.sn_ptr[s + 1] - self.sn_ptr[s])
+    /// Offsets of column `j`'s values (strictly lower) in `L`.
+    fn range(&self, j: usize) -> Result<Range<usize>, Error> {
+        match (self.l_ptr.get(j), self.l_ptr.get(j + 1)) {
+            (Some(&s), Some(&e)) => Ok(ux(s)..ux(e)),
+            _ => Err(outside(
+                Resource::ColumnPointers,
+                j,
+                j + 1,
+                self.l_ptr.len(),
+            )),
+        }
     }
-    /// The rows at positions `1..m` of the row list (position 0 is the first column).
-    fn below_first(&self, s: usize) -> &'s [u32] {
-        let f = self.first(s);
-        &self.l_row[ux(self.l_ptr[f])..ux(self.l_ptr[f + 1])]
+    /// The rows at positions `1..m` of the row list of the supernode whose first column is `f`
+    /// (position 0 is `f`).
+    fn below_first(&self, f: usize) -> Result<&'s [u32], Error> {
+        let r = self.range(f)?;
+        let bound = self.l_row.len();
+        self.l_row
+            .get(r.clone())
+            .ok_or_else(|| outside(Resource::FactorEntries, f, r.end, bound))
     }
-    /// The values of column `j` of `L` (strictly lower).
-    fn column(&self, j: usize) -> core::ops::Range<usize> {
-        ux(self.l_ptr[j])..ux(self.l_ptr[j + 1])
+    /// The values of column `j` of `L` (strictly lower) in `l`.
+    fn column<'l, T>(&self, l: &'l [T], j: usize) -> Result<&'l [T], Error> {
+        let r = self.range(j)?;
+        l.get(r.clone())
+            .ok_or_else(|| outside(Resource::FactorEntries, j, r.end, l.len()))
     }
-    /// Offset of `L(R[i], f + c)` for `i > c` in a supernode whose first column is `f`.
-    fn at(&self, f: usize, c: usize, i: usize) -> usize {
-        ux(self.l_ptr[f + c]) + i - c - 1
+    /// `L(R[i..i + len], f + c)` (`i > c`) in a supernode whose first column is `f`: the `len`
+    /// values of column `f + c` from `l_ptr[f + c] + i − c − 1`.
+    #[inline]
+    fn run<'l, T>(
+        &self,
+        l: &'l [T],
+        f: usize,
+        c: usize,
+        i: usize,
+        len: usize,
+    ) -> Result<&'l [T], Error> {
+        let j = f + c;
+        let Some(&p) = self.l_ptr.get(j) else {
+            return Err(outside(Resource::ColumnPointers, j, j, self.l_ptr.len()));
+        };
+        let at = ux(p) + i - c - 1;
+        match l.get(at..at + len) {
+            Some(vals) => Ok(vals),
+            None => Err(outside(Resource::FactorEntries, j, at + len, l.len())),
+        }
     }
 }
 
@@ -117,17 +177,36 @@ fn micro<T: Real>(a: &[T], b: &[T]) -> [[T; MR]; NR] {
     let (b, _) = b.as_chunks::<NR>();
     let mut acc = [[T::zero(); MR]; NR];
     for (ak, bk) in a.iter().zip(b) {
-        for j in 0..NR {
-            for i in 0..MR {
-                acc[j][i] += ak[i] * bk[j];
+        for (accj, &bkj) in acc.iter_mut().zip(bk) {
+            for (x, &aki) in accj.iter_mut().zip(ak) {
+                *x += aki * bkj;
             }
         }
     }
     acc
 }
 
+/// Row `k` (of `W` scalars) of a packed sliver.
+///
+/// # Errors
+/// [`Error::IndexOutOfRange`] naming [`Resource::Workspace`] past its end (the packing loops
+/// size every sliver for the rows they write).
+#[inline(always)]
+fn packed_row<T, const W: usize>(sliver: &mut [T], k: usize) -> Result<&mut [T; W], Error> {
+    let rows = sliver.len() / W;
+    sliver
+        .as_chunks_mut::<W>()
+        .0
+        .get_mut(k)
+        .ok_or(outside(Resource::Workspace, k, k, rows))
+}
+
 /// Subtracts the update `u` from the target (see [`Update`]); `apack` and `bpack` hold
 /// `KC · MC` and `KC · NC` scalars.
+///
+/// # Errors
+/// [`Error::IndexOutOfRange`] if the analysis places a source entry outside `l` or `d`;
+/// [`Error::Capacity`] if a packing buffer is short.
 fn apply_update<T: Real>(
     l: &mut [T],
     d: &mut [T],
@@ -135,7 +214,7 @@ fn apply_update<T: Real>(
     u: &Update<'_>,
     apack: &mut [T],
     bpack: &mut [T],
-) {
+) -> Result<(), Error> {
     let mrows = u.rows.len();
     let nt = u.targets;
     let mut kb = u.k0;
@@ -146,15 +225,20 @@ fn apply_update<T: Real>(
             let nc = NC.min(nt - tb);
             let ntiles = nc.div_ceil(NR);
             // Pack the targets' coefficients L(R[t], k) D(k), tile by tile, k-major in a tile.
-            let bp = &mut bpack[..ntiles * kc * NR];
+            let bp = prefix_mut(bpack, ntiles * kc * NR, Resource::Workspace)?;
             for k in 0..kc {
                 let col = kb + k;
-                let dk = d[u.src_f + col];
-                let base = pan.at(u.src_f, col, u.p0 + tb);
-                let vals = &l[base..base + nc];
-                for t in 0..ntiles * NR {
-                    let v = vals.get(t).map_or(T::zero(), |&v| v * dk);
-                    bp[((t / NR) * kc + k) * NR + t % NR] = v;
+                let j = u.src_f + col;
+                let Some(&dk) = d.get(j) else {
+                    return Err(outside(Resource::Unknowns, j, j, d.len()));
+                };
+                let mut vals = pan.run(l, u.src_f, col, u.p0 + tb, nc)?.iter();
+                // Every tile has row `k` (k < kc); the targets past `nc` pad with zeros.
+                for tile in bp.chunks_exact_mut(kc * NR) {
+                    let dst = packed_row::<T, NR>(tile, k)?;
+                    for x in dst.iter_mut() {
+                        *x = vals.next().map_or(T::zero(), |&v| v * dk);
+                    }
                 }
             }
             // Rows from the block's first target down (rows above it meet no target's lower
@@ -163,21 +247,21 @@ fn apply_update<T: Real>(
             while rb < mrows {
                 let mc = MC.min(mrows - rb);
                 let nchunks = mc.div_ceil(MR);
-                let ap = &mut apack[..nchunks * kc * MR];
+                let ap = prefix_mut(apack, nchunks * kc * MR, Resource::Workspace)?;
                 for k in 0..kc {
-                    let col = kb + k;
-                    let base = pan.at(u.src_f, col, u.p0 + rb);
-                    let vals = &l[base..base + mc];
+                    let vals = pan.run(l, u.src_f, kb + k, u.p0 + rb, mc)?;
                     let (full, rest) = vals.as_chunks::<MR>();
                     let mut slivers = ap.chunks_exact_mut(kc * MR);
-                    // `full` leads the zip, so a sliver is taken only for a full chunk.
+                    // `full` leads the zip, so a sliver is taken only for a full chunk. Every
+                    // sliver has row `k` (k < kc).
                     for (src, sliver) in full.iter().zip(&mut slivers) {
-                        sliver[k * MR..(k + 1) * MR].copy_from_slice(src);
+                        *packed_row::<T, MR>(sliver, k)? = *src;
                     }
                     if let Some(sliver) = slivers.next() {
-                        let dst = &mut sliver[k * MR..(k + 1) * MR];
-                        for (ii, x) in dst.iter_mut().enumerate() {
-                            *x = rest.get(ii).copied().unwrap_or(T::zero());
+                        let dst = packed_row::<T, MR>(sliver, k)?;
+                        let mut rest = rest.iter();
+                        for x in dst.iter_mut() {
+                            *x = rest.next().copied().unwrap_or(T::zero());
                         }
                     }
                 }
@@ -190,7 +274,7 @@ fn apply_update<T: Real>(
                             break;
                         }
                         let acc = micro(a, b);
-                        scatter(l, d, pan, u, &acc, i0, t0);
+                        scatter(l, d, pan, u, &acc, i0, t0)?;
                     }
                 }
                 rb += mc;
@@ -199,10 +283,16 @@ fn apply_update<T: Real>(
         }
         kb += kc;
     }
+    Ok(())
 }
 
 /// Subtracts an accumulator tile (rows `i0..`, targets `t0..`, local to the update) from the
 /// target, keeping only entries on or below each target's diagonal.
+///
+/// # Errors
+/// [`Error::IndexOutOfRange`] for an entry of the tile outside `l` or `d`, or a row outside the
+/// update's lists. The analysis keeps every one inside (the target's pattern holds the
+/// source's rows); an entry outside is reported, never skipped.
 #[inline(always)]
 fn scatter<T: Real>(
     l: &mut [T],
@@ -212,22 +302,48 @@ fn scatter<T: Real>(
     acc: &[[T; MR]; NR],
     i0: usize,
     t0: usize,
-) {
+) -> Result<(), Error> {
     let mrows = u.rows.len();
+    let (l_len, d_len) = (l.len(), d.len());
+    // Target column `f + c` is row `r` of the update, and column `f + c` of `L` starts at
+    // `l_ptr[r]`.
+    let column_start = |r: usize| -> Result<usize, Error> {
+        pan.l_ptr.get(r).map(|&p| ux(p)).ok_or(outside(
+            Resource::ColumnPointers,
+            u.tgt_f,
+            r,
+            pan.l_ptr.len(),
+        ))
+    };
     // Fast path: a tile wholly below the targets' diagonals whose rows lie consecutively in
     // the target (always so within a supernode, often across): four contiguous entries per
     // target column.
-    if i0 >= t0 + NR && i0 + MR <= mrows && t0 + NR <= u.targets {
-        let r0 = ux(u.rel[i0]);
-        if ux(u.rel[i0 + MR - 1]) == r0 + MR - 1 {
-            for (jj, accj) in acc.iter().enumerate() {
-                let c = ux(u.rows[t0 + jj]) - u.tgt_f;
-                let at = ux(pan.l_ptr[u.tgt_f + c]) + r0 - c - 1;
-                for (x, &v) in l[at..at + MR].iter_mut().zip(accj) {
+    if i0 >= t0 + NR
+        && i0 + MR <= mrows
+        && t0 + NR <= u.targets
+        && let (Some(&first), Some(&last), Some(tgt_rows)) = (
+            u.rel.get(i0),
+            u.rel.get(i0 + MR - 1),
+            u.rows.get(t0..t0 + NR),
+        )
+    {
+        let r0 = ux(first);
+        if ux(last) == r0 + MR - 1 {
+            for (accj, &r) in acc.iter().zip(tgt_rows) {
+                // L(R[r0], f + c) sits at l_ptr[f + c] + r0 − c − 1.
+                let c = ux(r) - u.tgt_f;
+                let at = column_start(ux(r))? + r0 - c - 1;
+                let dst = l.get_mut(at..at + MR).ok_or(outside(
+                    Resource::FactorEntries,
+                    u.tgt_f,
+                    at + MR,
+                    l_len,
+                ))?;
+                for (x, &v) in dst.iter_mut().zip(accj) {
                     *x -= v;
                 }
             }
-            return;
+            return Ok(());
         }
     }
     for (jj, accj) in acc.iter().enumerate() {
@@ -235,21 +351,33 @@ fn scatter<T: Real>(
         if t >= u.targets {
             break;
         }
-        let c = ux(u.rows[t]) - u.tgt_f;
-        // L(R[r], f + c) sits at l_ptr[f + c] + r − c − 1 (r > c).
-        let col0 = ux(pan.l_ptr[u.tgt_f + c]);
+        let &r = u
+            .rows
+            .get(t)
+            .ok_or(outside(Resource::FactorEntries, u.tgt_f, t, mrows))?;
+        let c = ux(r) - u.tgt_f;
+        // L(R[r], f + c) sits at l_ptr[f + c] + r − c − 1 (r > c); column f + c is row `r`.
+        let col0 = column_start(ux(r))?;
         for (ii, &v) in accj.iter().enumerate() {
             let i = i0 + ii;
             if i >= mrows {
                 break;
             }
             if i > t {
-                l[col0 + ux(u.rel[i]) - c - 1] -= v;
+                let &ri =
+                    u.rel
+                        .get(i)
+                        .ok_or(outside(Resource::Workspace, u.tgt_f, i, u.rel.len()))?;
+                let at = col0 + ux(ri) - c - 1;
+                *l.get_mut(at)
+                    .ok_or(outside(Resource::FactorEntries, u.tgt_f, at, l_len))? -= v;
             } else if i == t {
-                d[u.tgt_f + c] -= v;
+                *d.get_mut(ux(r))
+                    .ok_or(outside(Resource::Unknowns, u.tgt_f, ux(r), d_len))? -= v;
             }
         }
     }
+    Ok(())
 }
 
 /// `y −= Σ c_q x_q` over four columns at once.
@@ -271,6 +399,10 @@ fn axpy<T: Real>(y: &mut [T], x: &[T], c: T) {
 /// Factors columns `b0..b1` of the supernode with first column `f`, already updated by every
 /// column before `b0`: column by column, each updated by the block's earlier columns, then its
 /// pivot checked and its column divided by it.
+///
+/// # Errors
+/// [`Error::NotFinite`] or [`Error::NotPositiveDefinite`] naming the failing column;
+/// [`Error::IndexOutOfRange`] if the analysis places an entry outside `l` or `d`.
 fn factor_block<T: Real>(
     l: &mut [T],
     d: &mut [T],
@@ -279,34 +411,56 @@ fn factor_block<T: Real>(
     b0: usize,
     b1: usize,
 ) -> Result<(), Error> {
+    let d_len = d.len();
+    let Some(d_panel) = d.get_mut(f..f + b1) else {
+        return Err(outside(Resource::Unknowns, f, f + b1, d_len));
+    };
+    let l_len = l.len();
     for c in b0..b1 {
         let j = f + c;
-        let range = pan.column(j);
-        let (head, tail) = l.split_at_mut(range.start);
-        let col = &mut tail[..range.len()];
-        let mut dc = d[j];
+        let range = pan.range(j)?;
+        // The columns before `j` lie in `head`, column `j` at the start of `tail`.
+        let (Some((head, tail)), Some(len)) = (
+            l.split_at_mut_checked(range.start),
+            range.end.checked_sub(range.start),
+        ) else {
+            return Err(outside(Resource::FactorEntries, j, range.end, l_len));
+        };
+        let Some(col) = tail.get_mut(..len) else {
+            return Err(outside(Resource::FactorEntries, j, range.end, l_len));
+        };
+        // `d_before[k]` is D(f + k), `d_j` is D(j).
+        let Some((d_before, [d_j, ..])) = d_panel.split_at_mut_checked(c) else {
+            return Err(outside(Resource::Unknowns, j, j, d_len));
+        };
+        let mut dc = *d_j;
+        // Column `f + k` from `L(R[c], f + k)` down: `L(R[c], f + k)`, then the rows that
+        // update column `j`.
+        let from_row_c = |k: usize| -> Result<(T, &[T], T), Error> {
+            let src = pan.column(head, f + k)?;
+            match (src.split_at_checked(c - k - 1), d_before.get(k)) {
+                (Some((_, [lck, rest @ ..])), Some(&dk)) => Ok((*lck, rest, dk)),
+                _ => Err(outside(Resource::FactorEntries, f + k, c - k, src.len())),
+            }
+        };
         let mut k = b0;
         while k + 4 <= c {
             let mut coef = [T::zero(); 4];
             let mut x: [&[T]; 4] = [&[]; 4];
-            for q in 0..4 {
-                let lck = head[pan.at(f, k + q, c)];
-                coef[q] = lck * d[f + k + q];
-                dc -= coef[q] * lck;
-                x[q] = &head[pan.at(f, k + q, c + 1)..ux(pan.l_ptr[f + k + q + 1])];
+            for (q, (cq, xq)) in coef.iter_mut().zip(x.iter_mut()).enumerate() {
+                let (lck, rest, dk) = from_row_c(k + q)?;
+                *cq = lck * dk;
+                dc -= *cq * lck;
+                *xq = rest;
             }
             axpy4(col, x, coef);
             k += 4;
         }
         while k < c {
-            let lck = head[pan.at(f, k, c)];
-            let coef = lck * d[f + k];
+            let (lck, rest, dk) = from_row_c(k)?;
+            let coef = lck * dk;
             dc -= coef * lck;
-            axpy(
-                col,
-                &head[pan.at(f, k, c + 1)..ux(pan.l_ptr[f + k + 1])],
-                coef,
-            );
+            axpy(col, rest, coef);
             k += 1;
         }
         if !dc.finite() {
@@ -315,7 +469,7 @@ fn factor_block<T: Real>(
         if dc <= T::zero() {
             return Err(Error::NotPositiveDefinite { column: j });
         }
-        d[j] = dc;
+        *d_j = dc;
         let inv = T::one() / dc;
         for v in col.iter_mut() {
             *v *= inv;
@@ -324,13 +478,31 @@ fn factor_block<T: Real>(
     Ok(())
 }
 
+/// Links supernode `s` into the list of the supernode owning row `r`, the next one it updates.
+fn link(head: &mut [u32], next: &mut [u32], col_sn: &[u32], s: usize, r: u32) -> Result<(), Error> {
+    let Some(&owner) = col_sn.get(ux(r)) else {
+        return Err(outside(Resource::Unknowns, s, ux(r), col_sn.len()));
+    };
+    let bound = head.len();
+    match (head.get_mut(ux(owner)), next.get_mut(s)) {
+        (Some(h), Some(nx)) => {
+            *nx = *h;
+            *h = s as u32;
+            Ok(())
+        }
+        _ => Err(outside(Resource::Workspace, s, ux(owner), bound)),
+    }
+}
+
 /// Factorizes `C = P A Pᵀ` into `l` (`nnz(L)` scalars) and `d` (`n`), supernode by supernode.
 /// `work` needs [`REAL_WORK_LEN`] scalars and `iwork` [`index_work_len`]`(n)` indices; neither
 /// has meaning on return, nor have `l` and `d` on error.
 ///
 /// # Errors
 /// [`Error::NotPositiveDefinite`] or [`Error::NotFinite`] naming the first failing column;
-/// [`Error::Capacity`] for short workspaces.
+/// [`Error::Capacity`] for short workspaces, `l` or `d`; [`Error::IndexOutOfRange`] naming the
+/// column whose indices reach outside `a_values`, `l`, `d` or the workspaces, which an
+/// analysis built or loaded by [`Symbolic`] never does.
 pub(crate) fn factorize<T: Real, V: Real>(
     sym: &Symbolic<'_>,
     a_values: &[V],
@@ -342,7 +514,11 @@ pub(crate) fn factorize<T: Real, V: Real>(
     let n = sym.n();
     ensure_len(work, REAL_WORK_LEN, Resource::Workspace)?;
     ensure_len(iwork, index_work_len(n), Resource::Workspace)?;
-    let (apack, bpack) = work.split_at_mut(KC * MC);
+    ensure_len(l, sym.nnz_l(), Resource::FactorEntries)?;
+    ensure_len(d, n, Resource::Unknowns)?;
+    let mut rslab = Slab::new(work, Resource::Workspace);
+    let apack = rslab.take(KC * MC)?;
+    let bpack = rslab.take(KC * NC)?;
     let mut slab = Slab::new(iwork, Resource::Workspace);
     let map = slab.take(n)?;
     let head = slab.take(n)?;
@@ -354,57 +530,99 @@ pub(crate) fn factorize<T: Real, V: Real>(
     l.fill(T::zero());
     d.fill(T::zero());
     let (c_ptr, c_src, c_dst) = (sym.c_ptr(), sym.c_src(), sym.c_dst());
-    for k in 0..n {
-        for q in ux(c_ptr[k])..ux(c_ptr[k + 1]) {
+    let l_len = l.len();
+    for (k, (dk, (&start, &end))) in d
+        .iter_mut()
+        .zip(c_ptr.iter().zip(c_ptr.iter().skip(1)))
+        .enumerate()
+    {
+        let entries = ux(start)..ux(end);
+        let (Some(src), Some(dst)) = (c_src.get(entries.clone()), c_dst.get(entries.clone()))
+        else {
+            return Err(outside(
+                Resource::MatrixEntries,
+                k,
+                entries.end,
+                c_src.len(),
+            ));
+        };
+        for (&q, &p) in src.iter().zip(dst) {
+            let Some(&a) = a_values.get(ux(q)) else {
+                return Err(outside(Resource::MatrixEntries, k, ux(q), a_values.len()));
+            };
             // Rounded to the factor's scalar type (a no-op when it is the matrix's).
-            let v = T::of(a_values[ux(c_src[q])].to_f64());
-            match c_dst[q] {
-                NONE => d[k] += v,
-                p => l[ux(p)] += v,
+            let v = T::of(a.to_f64());
+            match p {
+                NONE => *dk += v,
+                p => match l.get_mut(ux(p)) {
+                    Some(x) => *x += v,
+                    None => return Err(outside(Resource::FactorEntries, k, ux(p), l_len)),
+                },
             }
         }
     }
 
     let pan = Panels::new(sym);
     let col_sn = sym.col_sn();
-    head[..pan.count()].fill(NONE);
+    prefix_mut(head, pan.count(), Resource::Workspace)?.fill(NONE);
     for s in 0..pan.count() {
-        let (f, w, below) = (pan.first(s), pan.width(s), pan.below_first(s));
-        let m = below.len() + 1;
-        map[f] = 0;
-        for (i, &r) in below.iter().enumerate() {
-            map[ux(r)] = (i + 1) as u32;
+        let (f, w) = pan.span(s)?;
+        let below = pan.below_first(f)?;
+        let n_map = map.len();
+        for (i, r) in core::iter::once(f)
+            .chain(below.iter().map(|&r| ux(r)))
+            .enumerate()
+        {
+            match map.get_mut(r) {
+                Some(slot) => *slot = i as u32,
+                None => return Err(outside(Resource::Workspace, f, r, n_map)),
+            }
         }
         let end = (f + w) as u32;
-        // Updates from the descendants listed for s.
-        let mut desc = head[s];
+        // Updates from the descendants listed for s (`head` holds an entry per supernode,
+        // checked above).
+        let mut desc = head.get(s).copied().unwrap_or(NONE);
         while desc != NONE {
             let dd = ux(desc);
-            let after = next[dd];
-            let d_below = pan.below_first(dd);
-            let p0 = ux(cursor[dd]);
-            let rows = &d_below[p0 - 1..];
+            let (Some(&after), Some(&p0)) = (next.get(dd), cursor.get(dd)) else {
+                return Err(outside(Resource::Workspace, f, dd, n));
+            };
+            let (src_f, src_w) = pan.span(dd)?;
+            let d_below = pan.below_first(src_f)?;
+            let p0 = ux(p0);
+            // The source's rows from position `p0` (its row list is `src_f` then `d_below`).
+            let Some(rows) = p0.checked_sub(1).and_then(|p| d_below.get(p..)) else {
+                return Err(outside(Resource::FactorEntries, src_f, p0, d_below.len()));
+            };
             let targets = rows.iter().take_while(|&&r| r < end).count();
+            let Some(rel) = rel.get_mut(..rows.len()) else {
+                return Err(outside(Resource::Workspace, f, rows.len(), n));
+            };
             for (ri, &r) in rel.iter_mut().zip(rows) {
-                *ri = map[ux(r)];
+                match map.get(ux(r)) {
+                    Some(&i) => *ri = i,
+                    None => return Err(outside(Resource::Workspace, f, ux(r), n_map)),
+                }
             }
             let u = Update {
-                src_f: pan.first(dd),
+                src_f,
                 k0: 0,
-                k1: pan.width(dd),
+                k1: src_w,
                 p0,
                 rows,
                 targets,
                 tgt_f: f,
-                rel: &rel[..rows.len()],
+                rel,
             };
-            apply_update(l, d, &pan, &u, apack, bpack);
-            let p1 = p0 + targets;
-            if p1 <= d_below.len() {
-                cursor[dd] = p1 as u32;
-                let owner = ux(col_sn[ux(d_below[p1 - 1])]);
-                next[dd] = head[owner];
-                head[owner] = dd as u32;
+            apply_update(l, d, &pan, &u, apack, bpack)?;
+            // Row `rows[targets]` (position `p0 + targets`, if the source has one) is the
+            // next the source updates.
+            if let Some(&r) = rows.get(targets) {
+                let cursors = cursor.len();
+                *cursor
+                    .get_mut(dd)
+                    .ok_or(outside(Resource::Workspace, f, dd, cursors))? = (p0 + targets) as u32;
+                link(head, next, col_sn, dd, r)?;
             }
             desc = after;
         }
@@ -413,8 +631,13 @@ pub(crate) fn factorize<T: Real, V: Real>(
         while b0 < w {
             let b1 = (b0 + NB).min(w);
             if b0 > 0 {
-                let rows = &below[b0 - 1..];
-                for (i, ri) in rel[..rows.len()].iter_mut().enumerate() {
+                let Some(rows) = below.get(b0 - 1..) else {
+                    return Err(outside(Resource::FactorEntries, f, b0, below.len()));
+                };
+                let Some(rel) = rel.get_mut(..rows.len()) else {
+                    return Err(outside(Resource::Workspace, f, rows.len(), n));
+                };
+                for (i, ri) in rel.iter_mut().enumerate() {
                     *ri = (b0 + i) as u32;
                 }
                 let u = Update {
@@ -425,18 +648,21 @@ pub(crate) fn factorize<T: Real, V: Real>(
                     rows,
                     targets: b1 - b0,
                     tgt_f: f,
-                    rel: &rel[..rows.len()],
+                    rel,
                 };
-                apply_update(l, d, &pan, &u, apack, bpack);
+                apply_update(l, d, &pan, &u, apack, bpack)?;
             }
             factor_block(l, d, &pan, f, b0, b1)?;
             b0 = b1;
         }
-        if m > w {
-            cursor[s] = w as u32;
-            let owner = ux(col_sn[ux(below[w - 1])]);
-            next[s] = head[owner];
-            head[owner] = s as u32;
+        // Row `R[w]` (position `w` of the row list), if the supernode has rows below its
+        // diagonal block, is the first it updates.
+        if let Some(&r) = w.checked_sub(1).and_then(|p| below.get(p)) {
+            let cursors = cursor.len();
+            *cursor
+                .get_mut(s)
+                .ok_or(outside(Resource::Workspace, f, s, cursors))? = w as u32;
+            link(head, next, col_sn, s, r)?;
         }
     }
     Ok(())
@@ -449,8 +675,8 @@ fn dot<T: Real>(x: &[T], y: &[T]) -> T {
     let (yc, yr) = y.as_chunks::<4>();
     let mut s = [T::zero(); 4];
     for (a, b) in xc.iter().zip(yc) {
-        for q in 0..4 {
-            s[q] += a[q] * b[q];
+        for ((sq, &aq), &bq) in s.iter_mut().zip(a).zip(b) {
+            *sq += aq * bq;
         }
     }
     let mut tail = T::zero();
@@ -484,35 +710,74 @@ fn dot4<T: Real>(x: [&[T]; 4], y: &[T]) -> [T; 4] {
 
 /// Solves `L D Lᵀ w = w` in place (permuted order) over the supernodal panels; `tmp` needs as
 /// many scalars as the tallest supernode has rows below its diagonal block (`n` always do).
-pub(crate) fn solve<T: Real>(sym: &Symbolic<'_>, l: &[T], d: &[T], w: &mut [T], tmp: &mut [T]) {
+///
+/// # Errors
+/// [`Error::IndexOutOfRange`] or [`Error::Capacity`] at the first index outside `l`, `d`, `w`
+/// or `tmp`, with `w` then partly solved. The callers pass `l`, `d` and `w` of the analysis'
+/// sizes and `n` scalars of `tmp`, and the analysis keeps every index inside them.
+pub(crate) fn solve<T: Real>(
+    sym: &Symbolic<'_>,
+    l: &[T],
+    d: &[T],
+    w: &mut [T],
+    tmp: &mut [T],
+) -> Result<(), Error> {
     let pan = Panels::new(sym);
+    let (w_len, tmp_len) = (w.len(), tmp.len());
+    // The rows below the diagonal block of the supernode with first column `f` and width `wd`
+    // (positions `wd..m` of its row list).
+    let rows_below = |f: usize, wd: usize| -> Result<&[u32], Error> {
+        let below = pan.below_first(f)?;
+        wd.checked_sub(1)
+            .and_then(|p| below.get(p..))
+            .ok_or_else(|| outside(Resource::FactorEntries, f, wd, below.len()))
+    };
     // Forward: L y = w.
     for s in 0..pan.count() {
-        let (f, wd, below) = (pan.first(s), pan.width(s), pan.below_first(s));
-        let nb = below.len() + 1 - wd;
-        let t = &mut tmp[..nb];
+        let (f, wd) = pan.span(s)?;
+        let below = rows_below(f, wd)?;
+        let Some(t) = tmp.get_mut(..below.len()) else {
+            return Err(outside(Resource::Workspace, f, below.len(), tmp_len));
+        };
         t.fill(T::zero());
+        let Some(wb) = w.get_mut(f..f + wd) else {
+            return Err(outside(Resource::Vector, f, f + wd, w_len));
+        };
         let mut c = 0;
         while c < wd {
-            // The diagonal block: column c updates the block's later unknowns.
+            // The diagonal block: column c updates the block's later unknowns, and the rows
+            // below it gather in `t`.
             let cols = if c + 4 <= wd { 4 } else { 1 };
-            for q in 0..cols {
-                let col = &l[pan.column(f + c + q)];
-                let xc = w[f + c + q];
-                axpy(&mut w[f + c + q + 1..f + wd], &col[..wd - c - q - 1], xc);
+            let mut x: [&[T]; 4] = [&[]; 4];
+            let mut xs = [T::zero(); 4];
+            for (q, (xq, xsq)) in x.iter_mut().zip(xs.iter_mut()).enumerate().take(cols) {
+                let cq = c + q;
+                let col = pan.column(l, f + cq)?;
+                let (Some((inner, outer)), Some(([.., xc], later))) = (
+                    col.split_at_checked(wd - cq - 1),
+                    wb.split_at_mut_checked(cq + 1),
+                ) else {
+                    return Err(outside(Resource::FactorEntries, f + cq, wd, col.len()));
+                };
+                let xc = *xc;
+                axpy(later, inner, xc);
+                *xq = outer;
+                *xsq = -xc;
             }
             if cols == 4 {
-                let x = [0, 1, 2, 3].map(|q| &l[pan.column(f + c + q)][wd - c - q - 1..]);
-                let xs = [0, 1, 2, 3].map(|q| -w[f + c + q]);
                 axpy4(t, x, xs);
             } else {
-                let x = &l[pan.column(f + c)][wd - c - 1..];
-                axpy(t, x, -w[f + c]);
+                let [x0, ..] = x;
+                let [xs0, ..] = xs;
+                axpy(t, x0, xs0);
             }
             c += cols;
         }
-        for (&r, &tv) in below[wd - 1..].iter().zip(t.iter()) {
-            w[ux(r)] -= tv;
+        for (&r, &tv) in below.iter().zip(t.iter()) {
+            match w.get_mut(ux(r)) {
+                Some(wr) => *wr -= tv,
+                None => return Err(outside(Resource::Vector, f, ux(r), w_len)),
+            }
         }
     }
     // Diagonal.
@@ -521,12 +786,26 @@ pub(crate) fn solve<T: Real>(sym: &Symbolic<'_>, l: &[T], d: &[T], w: &mut [T], 
     }
     // Backward: Lᵀ x = y.
     for s in (0..pan.count()).rev() {
-        let (f, wd, below) = (pan.first(s), pan.width(s), pan.below_first(s));
-        let nb = below.len() + 1 - wd;
-        let t = &mut tmp[..nb];
-        for (tv, &r) in t.iter_mut().zip(&below[wd - 1..]) {
-            *tv = w[ux(r)];
+        let (f, wd) = pan.span(s)?;
+        let below = rows_below(f, wd)?;
+        let Some(t) = tmp.get_mut(..below.len()) else {
+            return Err(outside(Resource::Workspace, f, below.len(), tmp_len));
+        };
+        for (tv, &r) in t.iter_mut().zip(below) {
+            match w.get(ux(r)) {
+                Some(&wr) => *tv = wr,
+                None => return Err(outside(Resource::Vector, f, ux(r), w_len)),
+            }
         }
+        let Some(wb) = w.get_mut(f..f + wd) else {
+            return Err(outside(Resource::Vector, f, f + wd, w_len));
+        };
+        // Column `f + c` from position `wd` of the row list: its rows below the diagonal block.
+        let outer_of = |c: usize| -> Result<&[T], Error> {
+            let col = pan.column(l, f + c)?;
+            col.get(wd - c - 1..)
+                .ok_or_else(|| outside(Resource::FactorEntries, f + c, wd, col.len()))
+        };
         let mut c_end = wd;
         while c_end > 0 {
             // Columns c0..c_end: their products with the rows below the diagonal block first
@@ -534,18 +813,27 @@ pub(crate) fn solve<T: Real>(sym: &Symbolic<'_>, l: &[T], d: &[T], w: &mut [T], 
             let c0 = c_end.saturating_sub(4);
             let mut outer = [T::zero(); 4];
             if c_end - c0 == 4 {
-                let x = [0, 1, 2, 3].map(|q| &l[pan.column(f + c0 + q)][wd - c0 - q - 1..]);
+                let mut x: [&[T]; 4] = [&[]; 4];
+                for (q, xq) in x.iter_mut().enumerate() {
+                    *xq = outer_of(c0 + q)?;
+                }
                 outer = dot4(x, t);
             } else {
                 for (q, o) in outer.iter_mut().enumerate().take(c_end - c0) {
-                    *o = dot(&l[pan.column(f + c0 + q)][wd - c0 - q - 1..], t);
+                    *o = dot(outer_of(c0 + q)?, t);
                 }
             }
-            for c in (c0..c_end).rev() {
-                let inner = &l[pan.column(f + c)][..wd - c - 1];
-                w[f + c] -= outer[c - c0] + dot(inner, &w[f + c + 1..f + wd]);
+            for (c, &oc) in (c0..c_end).zip(outer.iter().take(c_end - c0)).rev() {
+                let col = pan.column(l, f + c)?;
+                let (Some(inner), Some(([.., wc], later))) =
+                    (col.get(..wd - c - 1), wb.split_at_mut_checked(c + 1))
+                else {
+                    return Err(outside(Resource::FactorEntries, f + c, wd, col.len()));
+                };
+                *wc -= oc + dot(inner, later);
             }
             c_end = c0;
         }
     }
+    Ok(())
 }

@@ -1,6 +1,5 @@
 //! The symbolic phase: permuted pattern, elimination tree, column counts and the row and column
 //! patterns of the factor `L`, computed once per pattern.
-#![cfg_attr(not(test), deny(clippy::indexing_slicing))]
 
 use super::pattern::{MAX_INDEX, UpperCsc};
 use super::precomputed::{PrecomputedAnalysis, check_work_len};
