@@ -53,6 +53,7 @@ fn with_model<R>(s: &Scene, f: impl FnOnce(&mut Model<'_, f64>) -> R) -> R {
         material: Material {
             young: s.file.model.young,
             poisson: s.file.model.poisson,
+            inversion_barrier: s.file.model.inversion_barrier,
         },
         camera: s.file.camera(&toml).expect("camera"),
         solver: s.file.solver(&toml).expect("solver"),

@@ -100,6 +100,7 @@ fn config(cam: incise_core::Camera<f64>, strategy: Strategy) -> ModelConfig<f64>
         material: Material {
             young: 3.0e4,
             poisson: 0.3,
+            inversion_barrier: true,
         },
         camera: cam,
         solver: SolverConfig {

@@ -96,6 +96,7 @@ impl Bench {
             material: Material {
                 young: 3.0e4,
                 poisson: 0.4,
+                inversion_barrier: true,
             },
             camera: self.camera,
             solver: SolverConfig {

@@ -272,6 +272,7 @@ fn run(c: &Case) -> Result<Outcome, TestCaseError> {
         material: Material {
             young: 3.0e4,
             poisson: 0.4,
+            inversion_barrier: true,
         },
         camera: s.camera,
         solver: SolverConfig {

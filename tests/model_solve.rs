@@ -24,6 +24,7 @@ fn config(
         material: Material {
             young: YOUNG,
             poisson: POISSON,
+            inversion_barrier: true,
         },
         camera: cam,
         solver: SolverConfig {
@@ -573,6 +574,7 @@ fn the_model_runs_in_f32() {
         material: Material {
             young: YOUNG as f32,
             poisson: POISSON as f32,
+            inversion_barrier: true,
         },
         camera: cam32,
         solver: SolverConfig {

@@ -64,6 +64,9 @@ fn quick_report_on_every_committed_scene_is_written_and_well_formed() {
     let reported = json["scenes"].as_array().unwrap();
     assert_eq!(reported.len(), scenes.len());
     let counting = Command::new("valgrind").arg("--version").output().is_ok();
+    // Tetrahedra left inside out after the mirrored frames, over the scenes: with the
+    // inversion barrier, with SVK alone.
+    let mut inverted_left = [0u64; 2];
     for scene in reported {
         let name = scene["name"].as_str().unwrap();
         let settings = scene["settings"].as_array().unwrap();
@@ -105,21 +108,31 @@ fn quick_report_on_every_committed_scene_is_written_and_well_formed() {
         // The stability grid (`--quick`): the scene's own material with springs at 10⁻³, 1
         // and 10³ times its own coupling; at 10³ in f64, f32 and mixed precision (8 Newton
         // steps of `Refactor`); its tracks with 3 px of noise and 20 % outliers; its tracks with
-        // the first frames after frame 0 mirrored (the model pulled inside out), and on
-        // block-extreme the block generated squeezed to 60 % of its length, in f32.
+        // the first frames after frame 0 mirrored (the model pulled inside out), with the
+        // inversion barrier and with SVK alone, and on block-extreme the block generated
+        // squeezed to 60 % of its length, in f32.
         // Nothing non-finite and no panic anywhere; at the scene's own k and its own tracks
         // the targets end nearer the truth than the rest model's; on the intact scenes no cell
         // places them more than 1.2 times farther than the rest model's; mixed precision
         // settles within 10× of f64's residual.
         let cells = scene["stability"].as_array().unwrap();
         let compression = name == "block-extreme";
-        assert_eq!(cells.len(), 8 + usize::from(compression), "{name}");
-        assert!(
+        assert_eq!(cells.len(), 9 + usize::from(compression), "{name}");
+        let mirrored = |barrier: bool| {
             cells
                 .iter()
-                .any(|c| c["block"] == "deformation" && c["mirrored_frames"].as_u64() == Some(3)),
-            "{name}"
+                .find(|c| c["mirrored_frames"].as_u64() == Some(3) && c["barrier"] == barrier)
+                .unwrap_or_else(|| panic!("{name}: no mirrored cell with barrier {barrier}"))
+        };
+        // The barrier turns elements back out: never more are left inside out with it than
+        // with SVK alone.
+        let (with, without) = (mirrored(true), mirrored(false));
+        assert!(
+            with["inverted_final"].as_u64() <= without["inverted_final"].as_u64(),
+            "{name}: {with} against {without}"
         );
+        inverted_left[0] += with["inverted_final"].as_u64().unwrap();
+        inverted_left[1] += without["inverted_final"].as_u64().unwrap();
         if compression {
             // Squeezed to 60 %: registered nearer than the rest model, nothing left inside out.
             let cell = cells
@@ -169,6 +182,13 @@ fn quick_report_on_every_committed_scene_is_written_and_well_formed() {
         }
     }
 
+    assert!(
+        inverted_left[0] < inverted_left[1],
+        "the barrier left {} inside out, SVK alone {}",
+        inverted_left[0],
+        inverted_left[1]
+    );
+
     let rows = csv_rows(&out.path().join("error_vs_cost.csv"));
     assert_eq!(rows.len(), 4 * scenes.len());
     assert!(csv_rows(&out.path().join("worst_case.csv")).len() >= 13 * scenes.len());
@@ -188,7 +208,7 @@ fn quick_report_on_every_committed_scene_is_written_and_well_formed() {
     let html = std::fs::read_to_string(out.path().join("index.html")).unwrap();
     assert_eq!(
         csv_rows(&out.path().join("stability.csv")).len(),
-        8 * scenes.len() + 1
+        9 * scenes.len() + 1
     );
     for section in [
         "id=\"error\"",

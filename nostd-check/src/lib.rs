@@ -79,6 +79,7 @@ fn step() -> Result<bool, incise_core::Error> {
         material: Material {
             young: 3.0e4,
             poisson: 0.3,
+            inversion_barrier: true,
         },
         camera,
         solver: SolverConfig {
@@ -261,6 +262,7 @@ fn cut() -> Result<bool, incise_core::Error> {
         material: Material {
             young: 3.0e4,
             poisson: 0.3,
+            inversion_barrier: true,
         },
         camera,
         solver: SolverConfig {

@@ -16,6 +16,9 @@
 //!    ([`TangentProjection`]) so that the assembled stiffness can be handed to a Cholesky /
 //!    LDLᵀ factorization; the projection's small dense kernel, a fixed-cost 3 × 3 Jacobi
 //!    eigen-solve, is `eigen3`.
+//! 4. **Inversion barrier** (`barrier`: [`InversionBarrier`]): an energy on `det F`, zero
+//!    unless an element is compressed below a floor, that SVK lacks; the assembly adds it to
+//!    the element quantities above when the model's material asks for it.
 //!
 //! Units: positions in metres, Lamé parameters and stresses in pascals, energy density in J/m³,
 //! element energy in joules, gradient (force) in newtons, tangent in N/m.
@@ -25,6 +28,7 @@
 //! a quantity of the current configuration. The one place that divides, the Jacobi rotation of
 //! the positive semidefinite projection, guards its divisor.
 
+mod barrier;
 mod eigen3;
 mod element;
 mod law;
@@ -35,6 +39,7 @@ use crate::real::Real;
 use eigen3::symmetric_eigen3;
 use law::{energy_density_of_strain, green_strain_of_displacement, stress_from_strain};
 
+pub use barrier::InversionBarrier;
 pub use element::{ElementRest, deformation_gradient, displacement_gradient};
 pub use law::{Lame, energy_density, first_piola_kirchhoff, green_strain, second_piola_kirchhoff};
 
@@ -83,8 +88,13 @@ pub fn element_energy<T: Real>(
     g: &[Vector3<T>; 4],
     u: &[[T; 3]; 4],
 ) -> T {
-    let e = green_strain_of_displacement(&displacement_gradient(u, g));
-    rest.volume * energy_density_of_strain(lame, &e)
+    element_energy_of_h(lame, rest.volume, &displacement_gradient(u, g))
+}
+
+/// [`element_energy`] from the displacement gradient `h` (the assembly computes it once per
+/// element and hands it to the inversion barrier too).
+pub(crate) fn element_energy_of_h<T: Real>(lame: &Lame<T>, volume: T, h: &Matrix3<T>) -> T {
+    volume * energy_density_of_strain(lame, &green_strain_of_displacement(h))
 }
 
 /// Element gradient `∂W/∂x_a = V P g_a` (N), `a = 0..3`, without the tangent.
@@ -97,9 +107,18 @@ pub fn element_gradient<T: Real>(
     g: &[Vector3<T>; 4],
     u: &[[T; 3]; 4],
 ) -> [Vector3<T>; 4] {
-    let h = displacement_gradient(u, g);
-    let s = stress_from_strain(lame, &green_strain_of_displacement(&h));
-    gradient_from_stress(rest.volume, &((Matrix3::identity() + h) * s), g)
+    element_gradient_of_h(lame, rest.volume, g, &displacement_gradient(u, g))
+}
+
+/// [`element_gradient`] from the displacement gradient `h`, as [`element_energy_of_h`].
+pub(crate) fn element_gradient_of_h<T: Real>(
+    lame: &Lame<T>,
+    volume: T,
+    g: &[Vector3<T>; 4],
+    h: &Matrix3<T>,
+) -> [Vector3<T>; 4] {
+    let s = stress_from_strain(lame, &green_strain_of_displacement(h));
+    gradient_from_stress(volume, &((Matrix3::identity() + h) * s), g)
 }
 
 fn gradient_from_stress<T: Real>(
@@ -127,10 +146,26 @@ pub fn element_energy_gradient_tangent<T: Real>(
     u: &[[T; 3]; 4],
     projection: TangentProjection,
 ) -> ElementEval<T> {
-    let v = rest.volume;
-    let h = displacement_gradient(u, g);
+    element_eval_of_h(
+        lame,
+        rest.volume,
+        g,
+        &displacement_gradient(u, g),
+        projection,
+    )
+}
+
+/// [`element_energy_gradient_tangent`] from the displacement gradient `h`, as
+/// [`element_energy_of_h`].
+pub(crate) fn element_eval_of_h<T: Real>(
+    lame: &Lame<T>,
+    v: T,
+    g: &[Vector3<T>; 4],
+    h: &Matrix3<T>,
+    projection: TangentProjection,
+) -> ElementEval<T> {
     let f = Matrix3::identity() + h;
-    let e = green_strain_of_displacement(&h);
+    let e = green_strain_of_displacement(h);
     let energy = v * energy_density_of_strain(lame, &e);
     let s = stress_from_strain(lame, &e);
     let gradient = gradient_from_stress(v, &(f * s), g);
@@ -446,6 +481,162 @@ mod tests {
             assert_eq!(eval.gradient, element_gradient(l, rest, g, x));
             assert_eq!(k, k.transpose());
         });
+    }
+
+    /// SVK with the barrier: energy, gradient and tangent as the assembly forms them.
+    fn with_barrier(
+        b: &InversionBarrier<f64>,
+        l: &Lame<f64>,
+        rest: &ElementRest<f64>,
+        g: &[Vector3<f64>; 4],
+        x: &[[f64; 3]; 4],
+        projection: TangentProjection,
+    ) -> ElementEval<f64> {
+        let mut eval = element_energy_gradient_tangent(l, rest, g, x, projection);
+        let h = displacement_gradient(x, g);
+        b.add_element_tangent(rest.volume, g, &h, projection, &mut eval);
+        eval
+    }
+
+    fn barrier_energy(
+        b: &InversionBarrier<f64>,
+        l: &Lame<f64>,
+        rest: &ElementRest<f64>,
+        g: &[Vector3<f64>; 4],
+        x: &[[f64; 3]; 4],
+    ) -> f64 {
+        element_energy(l, rest, g, x) + b.element_energy(rest.volume, &displacement_gradient(x, g))
+    }
+
+    fn barrier_gradient(
+        b: &InversionBarrier<f64>,
+        l: &Lame<f64>,
+        rest: &ElementRest<f64>,
+        g: &[Vector3<f64>; 4],
+        x: &[[f64; 3]; 4],
+    ) -> [f64; 12] {
+        let mut e = 0.0;
+        let mut grad = element_gradient(l, rest, g, x);
+        let h = displacement_gradient(x, g);
+        b.add_element_gradient(rest.volume, g, &h, &mut e, &mut grad);
+        flat(&grad)
+    }
+
+    #[test]
+    fn barrier_density_is_c2_at_the_floor_and_zero_above() {
+        let b = InversionBarrier::for_material(&lame(0.3));
+        assert!((b.floor - 1.0 / 3f64.sqrt()).abs() < 1e-15);
+        assert_eq!(b.density(b.floor), None);
+        assert_eq!(b.density(1.0), None);
+        assert_eq!(b.density(f64::NAN), None);
+        let (psi, dpsi, d2psi) = b.density(b.floor - 1e-9).unwrap();
+        assert!(psi.abs() < 1e-20 && dpsi.abs() < 1e-10 && d2psi.abs() < 1e-4 * b.stiffness);
+        // A flat element is pushed with the barrier's stiffness.
+        let (_, dpsi, _) = b.density(0.0).unwrap();
+        assert!((dpsi + b.stiffness).abs() <= 1e-12 * b.stiffness);
+        // Derivatives against finite differences, through inversion.
+        for j in [0.5, 0.2, 0.0, -0.3, -1.0] {
+            let h = 1e-6;
+            let (psi, dpsi, d2psi) = b.density(j).unwrap();
+            let (pp, dp, _) = b.density(j + h).unwrap();
+            let (pm, dm, _) = b.density(j - h).unwrap();
+            assert!(psi > 0.0);
+            assert!(((pp - pm) / (2.0 * h) - dpsi).abs() <= 1e-6 * dpsi.abs());
+            assert!(((dp - dm) / (2.0 * h) - d2psi).abs() <= 1e-6 * d2psi.abs());
+        }
+    }
+
+    #[test]
+    fn barrier_gradient_and_exact_tangent_match_finite_differences() {
+        let mut active = 0;
+        for_cases(|kind, nu, l, rest, g, x, h| {
+            // Stiffer than the default so that the barrier dominates where it acts.
+            let b = InversionBarrier {
+                floor: 0.9,
+                stiffness: 10.0 * (l.lambda + 2.0 * l.mu),
+            };
+            let f = Matrix3::identity() + displacement_gradient(x, g);
+            if f.determinant() < b.floor {
+                active += 1;
+            }
+            let step = 1e-6 * h;
+            let grad = barrier_gradient(&b, l, rest, g, x);
+            let fd: [f64; 12] = core::array::from_fn(|i| {
+                let ep = barrier_energy(&b, l, rest, g, &perturbed(x, i, step));
+                let em = barrier_energy(&b, l, rest, g, &perturbed(x, i, -step));
+                (ep - em) / (2.0 * step)
+            });
+            let err = max_abs((0..12).map(|i| grad[i] - fd[i])) / max_abs(grad);
+            assert!(err <= 1e-6, "{kind:?} nu={nu}: gradient error {err:e}");
+
+            let eval = with_barrier(&b, l, rest, g, x, TangentProjection::Exact);
+            assert_eq!(eval.energy, barrier_energy(&b, l, rest, g, x));
+            assert_eq!(flat(&eval.gradient), grad);
+            let k = assemble(&eval.tangent);
+            let mut fd = K12::zeros();
+            for j in 0..12 {
+                let gp = barrier_gradient(&b, l, rest, g, &perturbed(x, j, step));
+                let gm = barrier_gradient(&b, l, rest, g, &perturbed(x, j, -step));
+                for i in 0..12 {
+                    fd[(i, j)] = (gp[i] - gm[i]) / (2.0 * step);
+                }
+            }
+            let err = (k - fd).amax() / k.amax();
+            assert!(err <= 1e-6, "{kind:?} nu={nu}: tangent error {err:e}");
+            assert!((k - k.transpose()).amax() <= 1e-12 * k.amax());
+
+            // The projected tangent stays positive semidefinite with the barrier's term.
+            let p = with_barrier(&b, l, rest, g, x, TangentProjection::PositiveDefinite);
+            let kp = assemble(&p.tangent);
+            assert!(
+                min_eig_ratio(&kp) >= -1e-10,
+                "{kind:?} nu={nu}: projected tangent not PSD"
+            );
+        });
+        // The compressed and inverted cases put the barrier to work.
+        assert!(active >= 48, "the barrier acted in {active} cases only");
+    }
+
+    #[test]
+    fn barrier_pushes_an_inverted_element_back_out() {
+        let l = lame(0.3);
+        let b = InversionBarrier::for_material(&l);
+        let xr = [
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [0.0, 0.0, 1.0],
+        ];
+        let rest = ElementRest::new(&xr, 0).unwrap();
+        let g = rest.shape_gradients();
+        // Node 3 pushed through the opposite face to z = −0.5: SVK's force on it points
+        // further down (towards the mirror image, which SVK finds stress-free); the barrier's
+        // points up, and wins.
+        let mut x = [[0.0; 3]; 4];
+        x[3][2] = -1.5;
+        let svk = element_gradient(&l, &rest, &g, &x);
+        let mut e = 0.0;
+        let mut total = svk;
+        b.add_element_gradient(
+            rest.volume,
+            &g,
+            &displacement_gradient(&x, &g),
+            &mut e,
+            &mut total,
+        );
+        // The force is minus the gradient.
+        assert!(-svk[3].z < 0.0, "SVK pulls node 3 further through");
+        assert!(-total[3].z > 0.0, "with the barrier node 3 is pushed back");
+        assert!(e > 0.0);
+        // At rest and under mild compression, nothing changes.
+        let mut mild = [[0.0; 3]; 4];
+        mild[3][2] = -0.3;
+        let mut none = element_gradient(&l, &rest, &g, &mild);
+        let before = none;
+        let mut e0 = 0.0;
+        let h = displacement_gradient(&mild, &g);
+        b.add_element_gradient(rest.volume, &g, &h, &mut e0, &mut none);
+        assert_eq!((e0, none), (0.0, before));
     }
 
     fn min_eig_ratio(k: &K12) -> f64 {

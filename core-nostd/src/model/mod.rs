@@ -39,7 +39,7 @@ use crate::detect::{DetectionReport, DetectionWork, Detector};
 use crate::embed::{Embedding, locate_at_rest};
 use crate::error::{Error, Resource};
 use crate::features::{EmbedReport, Features, Observation, image_bounds, spacing_px};
-use crate::material::Lame;
+use crate::material::{InversionBarrier, Lame};
 use crate::mesh::{Mesh, MeshInput};
 use crate::real::Real;
 use crate::solve::{Coupling, Energies, MIXED_REFINEMENT_STEPS, SolverConfig, Strategy, WorkCount};
@@ -57,6 +57,10 @@ pub struct Material<T> {
     pub young: T,
     /// Poisson ratio, dimensionless, in `(-1, 0.5)`.
     pub poisson: T,
+    /// Adds [`InversionBarrier::for_material`] to the SVK energy: elements compressed below
+    /// `det F = 1/√3` are pushed back, and inverted ones out again (SVK alone lets strong
+    /// springs turn elements inside out for good). Off, the energy is SVK's alone, bit for bit.
+    pub inversion_barrier: bool,
 }
 
 /// Everything a model needs besides its mesh.
@@ -83,6 +87,7 @@ impl<T: Real> ModelConfig<T> {
             material: Material {
                 young: U::of(self.material.young.to_f64()),
                 poisson: U::of(self.material.poisson.to_f64()),
+                inversion_barrier: self.material.inversion_barrier,
             },
             camera: self.camera.cast()?,
             solver: self.solver.cast(),
@@ -180,6 +185,8 @@ pub(crate) struct SolveVectors<'a, T, F = T> {
 pub struct Model<'a, T: Real, F: Real = T> {
     pub(crate) config: ModelConfig<T>,
     pub(crate) lame: Lame<T>,
+    /// The inversion barrier of the material, if it asks for one.
+    pub(crate) barrier: Option<InversionBarrier<T>>,
     /// The mesh and everything built on it, in service.
     pub(crate) live: Discretization<'a, T>,
     /// Room to build the next topology in (no meaning between cuts).
@@ -355,6 +362,10 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
         Ok(Model {
             config: *config,
             lame,
+            barrier: config
+                .material
+                .inversion_barrier
+                .then(|| InversionBarrier::for_material(&lame)),
             live,
             #[cfg(feature = "cut")]
             spare,

@@ -10,8 +10,8 @@ use crate::embed::Embedding;
 use crate::error::{Error, Resource};
 use crate::features::Features;
 use crate::material::{
-    ElementRest, Lame, TangentProjection, element_energy, element_energy_gradient_tangent,
-    element_gradient,
+    ElementRest, InversionBarrier, Lame, TangentProjection, displacement_gradient,
+    element_energy_of_h, element_eval_of_h, element_gradient_of_h,
 };
 use crate::mesh::Mesh;
 use crate::real::Real;
@@ -22,6 +22,8 @@ use crate::storage::ensure_len;
 pub(crate) struct Problem<'p, 'a, T: Real> {
     pub mesh: &'p Mesh<'a, T>,
     pub lame: Lame<T>,
+    /// The inversion barrier added to the elastic energy, if the material has one.
+    pub barrier: Option<InversionBarrier<T>>,
     pub camera: &'p Camera<T>,
     /// The features' observations (targets, observed in this frame).
     pub features: &'p Features<'a, T>,
@@ -129,7 +131,11 @@ impl<T: Real> Problem<'_, '_, T> {
         for (t, tet) in self.mesh.tets().iter().enumerate() {
             let rest = self.element_rest(t)?;
             let g = rest.shape_gradients();
-            e.elastic += element_energy(&self.lame, &rest, &g, &self.element_u(t, tet, x)?);
+            let h = displacement_gradient(&self.element_u(t, tet, x)?, &g);
+            e.elastic += element_energy_of_h(&self.lame, rest.volume, &h);
+            if let Some(barrier) = &self.barrier {
+                e.elastic += barrier.element_energy(rest.volume, &h);
+            }
         }
         work.element_evaluations += self.mesh.n_tets() as u64;
         e.spring = self.spring_energy(x, work)?;
@@ -232,17 +238,26 @@ impl<T: Real> Problem<'_, '_, T> {
         for (t, tet) in self.mesh.tets().iter().enumerate() {
             let rest = self.element_rest(t)?;
             let g = rest.shape_gradients();
-            let xe = self.element_u(t, tet, x)?;
+            let du = displacement_gradient(&self.element_u(t, tet, x)?, &g);
             let ft = free_of(free, tet);
             let gradient = match hessian.as_deref_mut() {
                 Some(h) => {
-                    let eval = element_energy_gradient_tangent(
+                    let mut eval = element_eval_of_h(
                         &self.lame,
-                        &rest,
+                        rest.volume,
                         &g,
-                        &xe,
+                        &du,
                         TangentProjection::PositiveDefinite,
                     );
+                    if let Some(barrier) = &self.barrier {
+                        barrier.add_element_tangent(
+                            rest.volume,
+                            &g,
+                            &du,
+                            TangentProjection::PositiveDefinite,
+                            &mut eval,
+                        );
+                    }
                     e.elastic += eval.energy;
                     let scatter = self.scatter.get(t).ok_or(Error::SymbolicMismatch)?;
                     for (&(a, b), starts) in PAIRS.iter().zip(scatter.as_chunks::<3>().0) {
@@ -255,8 +270,18 @@ impl<T: Real> Problem<'_, '_, T> {
                     eval.gradient
                 }
                 None => {
-                    e.elastic += element_energy(&self.lame, &rest, &g, &xe);
-                    element_gradient(&self.lame, &rest, &g, &xe)
+                    e.elastic += element_energy_of_h(&self.lame, rest.volume, &du);
+                    let mut gradient = element_gradient_of_h(&self.lame, rest.volume, &g, &du);
+                    if let Some(barrier) = &self.barrier {
+                        barrier.add_element_gradient(
+                            rest.volume,
+                            &g,
+                            &du,
+                            &mut e.elastic,
+                            &mut gradient,
+                        );
+                    }
+                    gradient
                 }
             };
             for (ga, &f) in gradient.iter().zip(&ft) {

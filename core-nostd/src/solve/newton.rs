@@ -16,7 +16,7 @@ use crate::cutline::CutLineReport;
 use crate::detect::DetectionReport;
 use crate::error::{Error, Parameter, Resource};
 use crate::features::Features;
-use crate::material::Lame;
+use crate::material::{InversionBarrier, Lame};
 use crate::model::discretization::Discretization;
 use crate::model::{FactoredMatrix, Model, ModelConfig, SolveVectors, StepReport};
 use crate::real::Real;
@@ -340,6 +340,8 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Coefficients<T> {
     pub(crate) lame: Lame<T>,
+    /// The inversion barrier, if the material has one.
+    pub(crate) barrier: Option<InversionBarrier<T>>,
     /// `k`, J/px² ([`crate::Model::spring_stiffness`]).
     pub(crate) spring_stiffness: T,
     /// `δ`, pixels ([`crate::Model::spring_threshold_px`]).
@@ -351,6 +353,7 @@ impl<T: Real, F: Real> Model<'_, T, F> {
     pub(crate) fn coefficients(&self) -> Coefficients<T> {
         Coefficients {
             lame: self.lame,
+            barrier: self.barrier,
             spring_stiffness: self.spring_stiffness,
             spring_threshold_px: self.spring_threshold_px,
         }
@@ -371,12 +374,14 @@ fn problem_of<'p, 'a, T: Real>(
     let n = d.mesh.n_nodes();
     let Coefficients {
         lame,
+        barrier,
         spring_stiffness,
         spring_threshold_px,
     } = coefficients;
     Ok(Problem {
         mesh: &d.mesh,
         lame,
+        barrier,
         camera: &config.camera,
         features,
         embedding: &d.features,

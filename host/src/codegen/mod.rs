@@ -363,7 +363,7 @@ fn emit(s: &mut String, e: &Emit<'_>) {
          let camera = Camera::with_projection(\n        Projection::{projection:?},\n        Intrinsics {{\n            fx: {},\n            fy: {},\n            \
          cx: {},\n            cy: {},\n            width: {},\n            height: {},\n        }},\n        \
          Matrix3::new({}, {}, {}, {}, {}, {}, {}, {}, {}),\n        Vector3::new({}, {}, {}),\n        {},\n    )?;\n    \
-         Ok(ModelConfig {{\n        material: Material {{\n            young: {},\n            poisson: {},\n        }},\n        \
+         Ok(ModelConfig {{\n        material: Material {{\n            young: {},\n            poisson: {},\n            inversion_barrier: {},\n        }},\n        \
          camera,\n        solver: SolverConfig {{\n            strategy: {strategy},\n            \
          newton_iterations: {},\n            line_search_steps: {},\n            coupling: {},\n            \
          spring_threshold: {},\n            damping: {},\n            depth_prior: {},\n            image_margin: {},\n        }},\n        \
@@ -389,6 +389,7 @@ fn emit(s: &mut String, e: &Emit<'_>) {
         real(cam.near()),
         real(cfg.material.young),
         real(cfg.material.poisson),
+        cfg.material.inversion_barrier,
         sv.newton_iterations,
         sv.line_search_steps,
         match sv.coupling {

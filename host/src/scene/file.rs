@@ -52,6 +52,20 @@ pub struct ModelSection {
     pub young: f64,
     /// Poisson ratio of the model.
     pub poisson: f64,
+    /// Whether the model's energy has the inversion barrier
+    /// ([`incise_core::material::InversionBarrier`]); on unless a scene turns it off.
+    #[serde(default = "yes", skip_serializing_if = "is_yes")]
+    pub inversion_barrier: bool,
+}
+
+fn yes() -> bool {
+    true
+}
+
+// serde hands the field by reference.
+#[allow(clippy::trivially_copy_pass_by_ref)]
+fn is_yes(b: &bool) -> bool {
+    *b
 }
 
 fn one() -> f64 {

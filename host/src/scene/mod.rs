@@ -131,6 +131,7 @@ impl Scene {
             material: Material {
                 young: self.file.model.young,
                 poisson: self.file.model.poisson,
+                inversion_barrier: self.file.model.inversion_barrier,
             },
             camera: self.file.camera(&toml)?,
             solver: self.file.solver(&toml)?,

@@ -223,6 +223,7 @@ pub fn write_scene(
             fixed: model_fixed,
             young: s.model.young,
             poisson: s.model.poisson,
+            inversion_barrier: true,
         },
         camera: CameraSection {
             fx: camera.intrinsics().fx,

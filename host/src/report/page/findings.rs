@@ -353,7 +353,9 @@ fn tracking(s: &mut String, report: &Report) {
 /// The deformation block: mirrored frames (elements pulled inside out) and compression.
 fn deformation(s: &mut String, report: &Report) {
     let label = |c: &Cell| {
-        if c.compression.is_nan() {
+        if !c.barrier {
+            format!("mirrored, springs × {}, SVK alone", scale_label(c.k_scale))
+        } else if c.compression.is_nan() {
             format!("mirrored, springs × {}", scale_label(c.k_scale))
         } else {
             format!("squeezed to {:.0} %", 100.0 * c.compression)
@@ -384,9 +386,9 @@ fn deformation(s: &mut String, report: &Report) {
         "- **Deformation** (the scene's own material and solver; *mirrored*: the observations \
          of the {mirrored} frames after frame 0 mirrored left to right, so that the springs pull \
          the model through itself, then the true tracks again; *squeezed*: variants of `{}` \
-         generated with the block pushed to a fraction of its length): target error over the \
-         rest model's, and the most tetrahedra inside out after any frame → after the last, \
-         `f64` / `f32`.\n\n| scene |",
+         generated with the block pushed to a fraction of its length; every column with the \
+         inversion barrier but *SVK alone*): target error over the rest model's, and the most \
+         tetrahedra inside out after any frame → after the last, `f64` / `f32`.\n\n| scene |",
         super::stability::COMPRESSION_BASE
     );
     for c in &columns {

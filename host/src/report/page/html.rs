@@ -166,13 +166,13 @@ pub(super) fn summary_markdown(report: &Report) -> String {
 
 fn stability_csv(report: &Report) -> String {
     let mut s = String::from(
-        "scene,block,young_pa,poisson,k_scale,precision,noise_px,outliers,compression,mirrored_frames,spring_stiffness,status,frames_rejected,first_error,converged_frames,relative_gradient,min_pivot,pivot_ratio,inverted_max,inverted_final,dice_final,tre_mm_final,tre_mm_rest\n",
+        "scene,block,young_pa,poisson,k_scale,precision,noise_px,outliers,compression,mirrored_frames,barrier,spring_stiffness,status,frames_rejected,first_error,converged_frames,relative_gradient,min_pivot,pivot_ratio,inverted_max,inverted_final,dice_final,tre_mm_final,tre_mm_rest\n",
     );
     for scene in &report.scenes {
         for c in &scene.stability {
             let _ = writeln!(
                 s,
-                "{},{},{:e},{},{:e},{},{},{},{},{},{:e},{},{},\"{}\",{:.3},{:e},{:e},{:e},{},{},{:.5},{:.4},{:.4}",
+                "{},{},{:e},{},{:e},{},{},{},{},{},{},{:e},{},{},\"{}\",{:.3},{:e},{:e},{:e},{},{},{:.5},{:.4},{:.4}",
                 scene.name,
                 c.block.label(),
                 c.young,
@@ -183,6 +183,7 @@ fn stability_csv(report: &Report) -> String {
                 c.outliers,
                 c.compression,
                 c.mirrored_frames,
+                c.barrier,
                 c.spring_stiffness,
                 c.status.label(),
                 c.frames_rejected,
@@ -238,7 +239,12 @@ fn stability_table(h: &mut String, scene: &SceneReport, block: Block) {
             "scalar type \\ deformation",
             |c| c.precision.name().to_string(),
             |c| {
-                if c.compression.is_nan() {
+                if !c.barrier {
+                    format!(
+                        "{} frames mirrored, k × {:e}, SVK alone",
+                        c.mirrored_frames, c.k_scale
+                    )
+                } else if c.compression.is_nan() {
                     format!("{} frames mirrored, k × {:e}", c.mirrored_frames, c.k_scale)
                 } else {
                     format!("squeezed to {:.0} %", 100.0 * c.compression)

@@ -111,6 +111,9 @@ pub(super) struct CellSetting {
     pub compression: Option<f64>,
     /// Frames after frame 0 whose observations are mirrored left to right.
     pub mirrored: usize,
+    /// Whether the model has the inversion barrier (every cell but one deformation column:
+    /// the same mirrored frames with SVK alone, to show what the barrier does).
+    pub barrier: bool,
 }
 
 /// Newton steps per frame of the precision block, each with its own factorization
@@ -143,6 +146,8 @@ pub struct Cell {
     pub compression: f64,
     /// Frames after frame 0 whose observations were mirrored left to right.
     pub mirrored_frames: usize,
+    /// Whether the model had the inversion barrier.
+    pub barrier: bool,
     /// Most tetrahedra inside out (or flat) after any frame.
     pub inverted_max: usize,
     /// Tetrahedra inside out after the last solved frame.
@@ -200,12 +205,14 @@ const MIRRORED_SCALES: [f64; 2] = [1.0, 1e3];
 /// - precision: the scene's own `E`, ν its own and 0.499, [`SCALES`], in `f64`, `f32` and
 ///   mixed, each frame solved by [`PRECISION_NEWTON`] steps of `Refactor` (30 cells);
 /// - tracking: [`NOISE_PX`] × [`OUTLIERS`] in `f64` and `f32` (18 cells);
-/// - deformation: [`MIRRORED_FRAMES`] mirrored frames at [`MIRRORED_SCALES`], and on
-///   [`COMPRESSION_BASE`] [`COMPRESSIONS`], in `f64` and `f32` (4 cells, 10 on the base).
+/// - deformation: [`MIRRORED_FRAMES`] mirrored frames at [`MIRRORED_SCALES`], and at the
+///   scene's own springs without the inversion barrier, and on [`COMPRESSION_BASE`]
+///   [`COMPRESSIONS`], in `f64` and `f32` (6 cells, 12 on the base).
 ///
 /// `--quick`: the scene's own `E` and ν with the springs at 10⁻³, 1 and 10³ (material); the
 /// springs at 10³ in `f64`, `f32` and mixed (precision); 3 px of noise and 20 % outliers
-/// (tracking); mirrored frames at the scene's own springs in `f64`, and on the base the
+/// (tracking); mirrored frames at the scene's own springs in `f64`, with and without the
+/// inversion barrier, and on the base the
 /// block at 60 % in `f32` (deformation).
 pub(super) fn grid(scene: &Scene, quick: bool) -> Vec<CellSetting> {
     let own = (scene.file.model.young, scene.file.model.poisson);
@@ -220,6 +227,7 @@ pub(super) fn grid(scene: &Scene, quick: bool) -> Vec<CellSetting> {
         refactor_newton: None,
         compression: None,
         mirrored: 0,
+        barrier: true,
     };
     let deformed = CellSetting {
         block: Block::Deformation,
@@ -249,10 +257,13 @@ pub(super) fn grid(scene: &Scene, quick: bool) -> Vec<CellSetting> {
             outliers: 0.2,
             ..base
         });
-        cells.push(CellSetting {
-            mirrored: MIRRORED_FRAMES,
-            ..deformed
-        });
+        for barrier in [true, false] {
+            cells.push(CellSetting {
+                mirrored: MIRRORED_FRAMES,
+                barrier,
+                ..deformed
+            });
+        }
         if compressible {
             cells.push(CellSetting {
                 compression: Some(0.6),
@@ -308,6 +319,13 @@ pub(super) fn grid(scene: &Scene, quick: bool) -> Vec<CellSetting> {
                 ..deformed
             });
         }
+        // What the barrier does: the first column again with SVK alone.
+        cells.push(CellSetting {
+            precision,
+            mirrored: MIRRORED_FRAMES,
+            barrier: false,
+            ..deformed
+        });
         if compressible {
             for keep in COMPRESSIONS {
                 cells.push(CellSetting {
@@ -457,11 +475,13 @@ pub(super) fn run_cell(scene: &Scene, setting: CellSetting) -> Cell {
         refactor_newton,
         compression,
         mirrored,
+        barrier,
     } = setting;
     let own = &scene.file;
     let mut s = scene.clone();
     s.file.model.young = young;
     s.file.model.poisson = poisson;
+    s.file.model.inversion_barrier = barrier;
     s.precision = precision;
     if let Some(newton) = refactor_newton {
         s.file.solver.strategy = "refactor".into();
@@ -494,6 +514,7 @@ pub(super) fn run_cell(scene: &Scene, setting: CellSetting) -> Cell {
         outliers,
         compression: compression.unwrap_or(f64::NAN),
         mirrored_frames: mirrored,
+        barrier,
         inverted_max: 0,
         inverted_final: 0,
         spring_stiffness: f64::NAN,
