@@ -1,11 +1,11 @@
 #!/bin/sh
-# Puts the Markdown an `incise report` run wrote (DIR/summary.md, DIR/resolution.md,
-# DIR/stability.md) into README.md, each between its markers (<!-- report:summary --> … <!-- /report:summary -->),
+# Puts the Markdown an `incise report` run wrote (DIR/summary.md, DIR/growth.md,
+# DIR/resolution.md, DIR/stability.md) into README.md, each between its markers (<!-- report:summary --> … <!-- /report:summary -->),
 # so that the README's report figures are never typed by hand. Run from the repository root:
 #   incise report $(dirname fixtures/*/scene.toml) --out report && sh docs/readme-report.sh report
 set -eu
 dir=${1:?usage: sh docs/readme-report.sh REPORT_DIR}
-for part in summary resolution stability; do
+for part in summary growth resolution stability; do
     file="$dir/$part.md"
     [ -f "$file" ] || { echo "$file: missing (run incise report --out $dir first)" >&2; exit 1; }
     grep -qx "<!-- report:$part -->" README.md \

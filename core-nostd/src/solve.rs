@@ -5,7 +5,8 @@
 //!
 //! The energy minimised over the free nodes is
 //! `W(x) = W_I(x) + W_S(x) + W_D(x)`:
-//! - `W_I`, the Saint Venant–Kirchhoff elastic energy of the mesh ([`crate::material`]);
+//! - `W_I`, the Saint Venant–Kirchhoff elastic energy of the mesh, with the inversion barrier
+//!   on `det F` if the material asks for it ([`crate::material`]);
 //! - `W_S = Σ k ρ(‖f_i − P(f_iᵛ)‖)`, the springs between each observed feature `f_i` and the
 //!   projection of its virtual feature `f_iᵛ = Σ_a w_a x_a`. `ρ` is Huber's loss: `½ r²` up to
 //!   a threshold `δ` ([`SolverConfig::spring_threshold`] feature spacings), `δ r − ½ δ²` beyond,

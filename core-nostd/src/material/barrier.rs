@@ -47,33 +47,37 @@ impl<T: Real> InversionBarrier<T> {
         }
     }
 
-    /// `(ψ(J), ψ'(J), ψ''(J))` at `J = j`, or `None` at or above the floor (where all three
-    /// are zero).
-    pub fn density(&self, j: T) -> Option<(T, T, T)> {
-        // Written so that a NaN `j` gives `None`: the SVK part carries the NaN on.
-        if !(j < self.floor) {
-            return None;
-        }
-        let gap = self.floor - j;
+    /// `(ψ(J), ψ'(J), ψ''(J))` at `J = j`: all three zero at or above the floor (and for a NaN
+    /// `j`, whose NaN the SVK part carries on).
+    pub fn density(&self, j: T) -> (T, T, T) {
+        let gap = if j < self.floor {
+            self.floor - j
+        } else {
+            T::zero()
+        };
         let scale = self.stiffness / (self.floor * self.floor);
-        Some((
+        (
             scale * gap * gap * gap / T::of(3.0),
             -scale * gap * gap,
             T::of(2.0) * scale * gap,
-        ))
+        )
     }
+
+    // The element functions below do the same work whatever `J` is (above the floor they add
+    // exact zeros), so that a frame's cost does not depend on how its elements are strained:
+    // every frame of one topology costs the same, as the rest of the assembly does.
 
     /// The element's barrier energy `V ψ(J)` (J), zero at or above the floor, from its rest
     /// `volume` and its displacement gradient `h` ([`super::displacement_gradient`], which the
     /// SVK part computes anyway: `F = I + h`).
     pub fn element_energy(&self, volume: T, h: &Matrix3<T>) -> T {
         let f = Matrix3::identity() + h;
-        self.density(f.determinant())
-            .map_or(T::zero(), |(psi, _, _)| volume * psi)
+        let (psi, _, _) = self.density(f.determinant());
+        volume * psi
     }
 
-    /// Adds the element's barrier energy and gradient to `energy` and `gradient` (nothing at
-    /// or above the floor); `g` are the element's shape gradients, `h` as in
+    /// Adds the element's barrier energy and gradient to `energy` and `gradient` (zeros at or
+    /// above the floor); `g` are the element's shape gradients, `h` as in
     /// [`InversionBarrier::element_energy`].
     pub fn add_element_gradient(
         &self,
@@ -84,10 +88,10 @@ impl<T: Real> InversionBarrier<T> {
         gradient: &mut [Vector3<T>; 4],
     ) {
         let f = Matrix3::identity() + h;
-        let Some((psi, dpsi, _)) = self.density(f.determinant()) else {
-            return;
-        };
+        let (psi, dpsi, _) = self.density(f.determinant());
         *energy += volume * psi;
+        // The same operations in the same order as `add_element_tangent`: both give the same
+        // gradient, bit for bit.
         let c = cofactor(&f);
         for (ga, out) in g.iter().zip(gradient.iter_mut()) {
             *out += c * ga * (volume * dpsi);
@@ -95,7 +99,7 @@ impl<T: Real> InversionBarrier<T> {
     }
 
     /// Adds the element's barrier energy, gradient and tangent (see the module documentation
-    /// for what `projection` leaves out) to `eval` (nothing at or above the floor).
+    /// for what `projection` leaves out) to `eval` (zeros at or above the floor).
     pub fn add_element_tangent(
         &self,
         volume: T,
@@ -105,24 +109,35 @@ impl<T: Real> InversionBarrier<T> {
         eval: &mut ElementEval<T>,
     ) {
         let f = Matrix3::identity() + h;
-        let Some((psi, dpsi, d2psi)) = self.density(f.determinant()) else {
-            return;
-        };
+        let (psi, dpsi, d2psi) = self.density(f.determinant());
         eval.energy += volume * psi;
         let c = cofactor(&f);
         let cg = g.map(|ga| c * ga);
         for (cga, out) in cg.iter().zip(eval.gradient.iter_mut()) {
             *out += cga * (volume * dpsi);
         }
-        for (a, (ga, row)) in g.iter().zip(eval.tangent.iter_mut()).enumerate() {
-            for (b, (gb, k_ab)) in g.iter().zip(row.iter_mut()).enumerate() {
-                let (Some(cga), Some(cgb)) = (cg.get(a), cg.get(b)) else {
+        let exact = projection == TangentProjection::Exact;
+        // `V ψ'' C g_a`, so that each block is one outer product.
+        let scaled = cg.map(|v| v * (volume * d2psi));
+        // The blocks `b ≥ a`, and their transposes below the diagonal.
+        for a in 0..4 {
+            for b in a..4 {
+                let (Some(sa), Some(cgb), Some(ga), Some(gb)) =
+                    (scaled.get(a), cg.get(b), g.get(a), g.get(b))
+                else {
                     continue;
                 };
-                *k_ab += cga * cgb.transpose() * (volume * d2psi);
-                if projection == TangentProjection::Exact {
-                    let w = f * ga.cross(gb);
-                    *k_ab += w.cross_matrix().transpose() * (volume * dpsi);
+                let mut block = sa * cgb.transpose();
+                if exact {
+                    block += (f * ga.cross(gb)).cross_matrix().transpose() * (volume * dpsi);
+                }
+                if let Some(k_ab) = eval.tangent.get_mut(a).and_then(|row| row.get_mut(b)) {
+                    *k_ab += block;
+                }
+                if b != a
+                    && let Some(k_ba) = eval.tangent.get_mut(b).and_then(|row| row.get_mut(a))
+                {
+                    *k_ba += block.transpose();
                 }
             }
         }

@@ -116,7 +116,9 @@ impl<'a, T: Real> LdlFactor<'a, T> {
     /// [`Error::NotPositiveDefinite`] or [`Error::NotFinite`] naming the first failing column
     /// of the permuted matrix; [`Error::Capacity`] naming [`Resource::FactorEntries`] or
     /// [`Resource::Unknowns`] if `sym` is larger than this factor's capacity;
-    /// [`Error::Length`] / [`Error::Capacity`] for wrong buffer lengths. On any error the
+    /// [`Error::Length`] / [`Error::Capacity`] for wrong buffer lengths;
+    /// [`Error::IndexOutOfRange`] if the analysis held an index outside its sizes (its
+    /// invariants rule this out). On any error the
     /// factor in service (if any) stays in service, unchanged; inside a
     /// [`LdlFactor::checkpoint`], the checkpoint's factor is in service again.
     pub fn factorize<V: Real>(
@@ -423,7 +425,8 @@ fn up_looking<T: Real, V: Real>(
 /// `y = A x` for a symmetric `A` stored as its upper triangle.
 ///
 /// # Errors
-/// [`Error::Length`] if a slice does not match the pattern.
+/// [`Error::Length`] if a slice does not match the pattern; [`Error::IndexOutOfRange`] for an
+/// index outside it (the pattern's invariants rule this out), with `y` then partly computed.
 // Kept out of line (it is called a few times per frame at most) so that profilers can tell
 // the PCG products from the rest of the Newton loop.
 #[inline(never)]
@@ -437,8 +440,8 @@ pub fn sym_matvec<T: Real>(
     ensure_exact_len(x, a.n(), Resource::Vector)?;
     ensure_exact_len(y, a.n(), Resource::Vector)?;
     y.fill(T::zero());
-    // The pattern's invariants keep every column inside `row_idx` (as long as `values`): no
-    // error for an index out of range is returned.
+    // The pattern's invariants keep every column inside `row_idx` (as long as `values`); were
+    // an index outside, the error below names it.
     for (j, &xj) in x.iter().enumerate() {
         let (_, rows) = column(a.col_ptr(), a.row_idx(), j)?;
         let (_, vals) = column(a.col_ptr(), values, j)?;

@@ -24,8 +24,8 @@
 //!
 //! **Bounds.** Every index the kernels follow comes from the [`Symbolic`] analysis, whose
 //! invariants keep it inside `L`, `D` and the workspaces; each is still looked up with `get`,
-//! once per slice where a loop follows. The factorization reports one that reaches outside as
-//! an error; the solves, which cannot fail, stop at it.
+//! once per slice where a loop follows. The factorization and the solves report one that
+//! reaches outside as an error (the solves with `w` then partly solved), never skip it.
 
 use core::ops::Range;
 
@@ -78,12 +78,29 @@ struct Panels<'s> {
 }
 
 impl<'s> Panels<'s> {
-    fn new(sym: &'s Symbolic<'_>) -> Self {
-        Panels {
+    /// The panels of `sym`.
+    ///
+    /// # Errors
+    /// [`Error::IndexOutOfRange`] naming [`Resource::ColumnPointers`] unless the supernode
+    /// pointers run from column 0 to `n` and the column pointers of `L` and `C` have `n + 1`
+    /// entries (the analysis's invariants): a short array would otherwise make the loops over
+    /// the supernodes end early without a word.
+    fn new(sym: &'s Symbolic<'_>) -> Result<Self, Error> {
+        let (n, sn_ptr) = (sym.n(), sym.sn_ptr());
+        let spans_all = sn_ptr.first() == Some(&0) && sn_ptr.last().map(|&e| ux(e)) == Some(n);
+        if !spans_all && n > 0 {
+            return Err(outside(Resource::ColumnPointers, 0, n, sn_ptr.len()));
+        }
+        for ptr in [sym.l_ptr(), sym.c_ptr()] {
+            if ptr.len() != n + 1 {
+                return Err(outside(Resource::ColumnPointers, n, n, ptr.len()));
+            }
+        }
+        Ok(Panels {
             l_ptr: sym.l_ptr(),
             l_row: sym.l_row(),
-            sn_ptr: sym.sn_ptr(),
-        }
+            sn_ptr,
+        })
     }
     fn count(&self) -> usize {
         self.sn_ptr.len().saturating_sub(1)
@@ -562,7 +579,7 @@ pub(crate) fn factorize<T: Real, V: Real>(
         }
     }
 
-    let pan = Panels::new(sym);
+    let pan = Panels::new(sym)?;
     let col_sn = sym.col_sn();
     prefix_mut(head, pan.count(), Resource::Workspace)?.fill(NONE);
     for s in 0..pan.count() {
@@ -722,7 +739,7 @@ pub(crate) fn solve<T: Real>(
     w: &mut [T],
     tmp: &mut [T],
 ) -> Result<(), Error> {
-    let pan = Panels::new(sym);
+    let pan = Panels::new(sym)?;
     let (w_len, tmp_len) = (w.len(), tmp.len());
     // The rows below the diagonal block of the supernode with first column `f` and width `wd`
     // (positions `wd..m` of its row list).

@@ -101,9 +101,10 @@ fn outcomes(s: &mut String, cells: &[(&str, &Cell)]) {
     for (scene, c) in failures.iter().chain(&typed).take(LISTED_ERRORS) {
         let _ = writeln!(
             s,
-            "  - `{scene}`, {} block, E {:e} Pa, ν {}, springs × {}, {}, noise {} px, outliers \
-             {:.0} %: {} ({} frames refused{})",
+            "  - `{scene}`, {} block{}, E {:e} Pa, ν {}, springs × {}, {}, noise {} px, \
+             outliers {:.0} %: {} ({} frames refused{})",
             c.block.label(),
+            if c.barrier { "" } else { " (SVK alone)" },
             c.young,
             c.poisson,
             scale_label(c.k_scale),

@@ -39,7 +39,8 @@ pub(super) fn write(report: &Report, out: &Path) -> Result<(), String> {
         }
         None => None,
     };
-    let files: [(&str, String); 9] = [
+    let files: [(&str, String); 10] = [
+        ("growth.md", growth_markdown(report)),
         ("resolution.md", resolution_markdown(report)),
         ("stability.csv", stability_csv(report)),
         ("stability.md", findings::stability_markdown(report)),
@@ -557,7 +558,8 @@ fn page(
          <code>f32</code>: the observations of the first {} frames after frame 0 mirrored left \
          to right, so that the springs pull the model through itself before the true tracks \
          return (each cell shows the most elements inside out after any frame → after the \
-         last), and on <code>{}</code> variants generated with the block squeezed to 90, 75 \
+         last; the <i>SVK alone</i> column is the same run without the inversion barrier), and \
+         on <code>{}</code> variants generated with the block squeezed to 90, 75 \
          and 60 % of its length. A cell is <b>converged</b> when every position \
          stays finite, no frame is refused and the gradient falls to {} of its start in at \
          least {:.0} % of the frames; <b>not converged</b> otherwise; <b>typed error</b> when \
@@ -737,6 +739,81 @@ fn html_table(rows: &[Vec<String>]) -> String {
     }
     h.push_str("</table>");
     h
+}
+
+/// `growth.md`: how the cost grows with the model's nodes and the features, in two sentences
+/// (a note without the axis).
+fn growth_markdown(report: &Report) -> String {
+    let Some(scaling) = &report.scaling else {
+        return "(no cost-growth axis in this report: made with `--quick`, or without \
+                `band-no-cut`)\n"
+            .into();
+    };
+    fn millions(p: Option<&super::scaling::Point>) -> Option<(&super::scaling::Point, f64)> {
+        p.and_then(|p| p.instructions.map(|v| (p, v / 1e6)))
+    }
+    let mut s = String::new();
+    if let (Some(b), Some((first, c0)), Some((last, c1))) = (
+        scaling.nodes_exponent,
+        millions(scaling.nodes.first()),
+        millions(scaling.nodes.last()),
+    ) {
+        let _ = write!(
+            s,
+            "Cost ∝ nodes^{b:.2} ({c0:.1} to {c1:.0} million {} from {} to {} nodes).",
+            scaling.cost, first.nodes, last.nodes
+        );
+    }
+    if let (Some((first, c0)), Some((last, c1))) = (
+        millions(scaling.features.first()),
+        millions(scaling.features.last()),
+    ) && last.features > first.features
+    {
+        // Affine in the features: the slope between the ends, per feature.
+        let per_feature = (c1 - c0) * 1e6 / (last.features - first.features) as f64;
+        let _ = write!(
+            s,
+            " Against features the cost is affine rather than a power law: a fixed part plus \
+             about {:.0} {} per feature ({c0:.1} million at {} features, {c1:.1} at {}; the \
+             fitted exponent, {}, says little).",
+            per_feature,
+            scaling.cost,
+            first.features,
+            last.features,
+            scaling
+                .features_exponent
+                .map_or("–".into(), |b| format!("{b:.2}"))
+        );
+    }
+    // The largest model of the mesh-resolution axis (SOFA's fine liver) carries the node axis
+    // past the band variants, whose largest costs a minute per frame under callgrind already:
+    // another shape and feature count, so it is given beside the fit rather than in it.
+    let largest = report
+        .resolution
+        .iter()
+        .flat_map(|r| r.models.iter().map(move |m| (r, m)))
+        .filter_map(|(r, m)| m.instructions.map(|v| (r, m, v)))
+        .max_by_key(|(_, m, _)| m.nodes);
+    if let Some((r, m, v)) = largest
+        && scaling.nodes.iter().all(|p| p.nodes < m.nodes)
+    {
+        let _ = write!(
+            s,
+            " Beyond the band variants, the largest model of the mesh-resolution table, `{}` \
+             modelled by {} mesh ({} nodes): {:.0} million instructions per steady frame.",
+            r.scene,
+            m.mesh,
+            m.nodes,
+            v / 1e6
+        );
+    }
+    if s.is_empty() {
+        s.push_str(
+            "(no instruction counts: valgrind was not installed; the page has the wall times)",
+        );
+    }
+    s.push('\n');
+    s
 }
 
 /// `resolution.md`: the mesh-resolution axis as a Markdown table (empty without it).

@@ -227,7 +227,7 @@ pub(super) fn grid(scene: &Scene, quick: bool) -> Vec<CellSetting> {
         refactor_newton: None,
         compression: None,
         mirrored: 0,
-        barrier: true,
+        barrier: scene.file.model.inversion_barrier,
     };
     let deformed = CellSetting {
         block: Block::Deformation,
@@ -257,7 +257,11 @@ pub(super) fn grid(scene: &Scene, quick: bool) -> Vec<CellSetting> {
             outliers: 0.2,
             ..base
         });
-        for barrier in [true, false] {
+        // With the scene's barrier, and (if it has one) with SVK alone.
+        for barrier in [base.barrier, false]
+            .into_iter()
+            .take(1 + usize::from(base.barrier))
+        {
             cells.push(CellSetting {
                 mirrored: MIRRORED_FRAMES,
                 barrier,
@@ -319,13 +323,16 @@ pub(super) fn grid(scene: &Scene, quick: bool) -> Vec<CellSetting> {
                 ..deformed
             });
         }
-        // What the barrier does: the first column again with SVK alone.
-        cells.push(CellSetting {
-            precision,
-            mirrored: MIRRORED_FRAMES,
-            barrier: false,
-            ..deformed
-        });
+        // What the barrier does: the first column again with SVK alone (if the scene has
+        // the barrier).
+        if base.barrier {
+            cells.push(CellSetting {
+                precision,
+                mirrored: MIRRORED_FRAMES,
+                barrier: false,
+                ..deformed
+            });
+        }
         if compressible {
             for keep in COMPRESSIONS {
                 cells.push(CellSetting {
