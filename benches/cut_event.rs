@@ -268,7 +268,7 @@ fn instructions() {
 const STAGES: [(&str, &str); 7] = [
     ("assembly", "assembly::Problem<T>::assemble"),
     ("factorization", "LdlFactor<T>::factorize_supernodal"),
-    ("solves", "LdlFactor<T>::solve_in_place"),
+    ("solves", "LdlFactor<T>::solve_converting"),
     ("PCG products", "sym_matvec"),
     ("line search", "assembly::Problem<T>::energy"),
     ("detection", "Detector<T>::update"),

@@ -156,6 +156,9 @@ impl<'a, T: Real> LdlFactor<'a, T> {
     /// As [`LdlFactor::factorize`]; on any error the factor in service (if any) stays in
     /// service, unchanged; inside a [`LdlFactor::checkpoint`], the checkpoint's factor is in
     /// service again.
+    // Out of line (a few calls per frame) so that profilers and the stage split of
+    // `benches/cut_event.rs` can tell it from the Newton loop around it.
+    #[inline(never)]
     pub fn factorize_supernodal<V: Real>(
         &mut self,
         sym: &Symbolic<'_>,
@@ -303,6 +306,9 @@ impl<'a, T: Real> LdlFactor<'a, T> {
     ///
     /// # Errors
     /// As [`LdlFactor::solve_lower_in_place`], and [`Error::Capacity`] for a short `work`.
+    // Out of line (a few calls per frame) so that profilers and the stage split of
+    // `benches/cut_event.rs` can tell it from the Newton loop around it.
+    #[inline(never)]
     pub fn solve_in_place(
         &self,
         sym: &Symbolic<'_>,
@@ -327,6 +333,9 @@ impl<'a, T: Real> LdlFactor<'a, T> {
     /// # Errors
     /// As [`LdlFactor::solve_in_place`], and [`Error::Capacity`] for a `work` shorter than
     /// `2 n`.
+    // Out of line (a few calls per frame) so that profilers and the stage split of
+    // `benches/cut_event.rs` can tell it from the Newton loop around it.
+    #[inline(never)]
     pub fn solve_converting<V: Real>(
         &self,
         sym: &Symbolic<'_>,
