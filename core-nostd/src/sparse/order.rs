@@ -172,25 +172,39 @@ fn internal() -> Error {
     }
 }
 
-/// `x[i]`, or the [`internal`] error.
+/// `x[i]`, or [`Error::IndexOutOfRange`] naming the workspace, `i` and the array's length
+/// (a contradiction of the bookkeeping, like [`internal`]).
 fn at(x: &[u32], i: usize) -> Result<u32, Error> {
-    x.get(i).copied().ok_or_else(internal)
+    x.get(i).copied().ok_or_else(|| outside(i, i, x.len()))
 }
 
-/// `&mut x[i]`, or the [`internal`] error.
+/// `&mut x[i]`, or the error of [`at`].
 fn at_mut(x: &mut [u32], i: usize) -> Result<&mut u32, Error> {
-    x.get_mut(i).ok_or_else(internal)
+    let bound = x.len();
+    x.get_mut(i).ok_or_else(|| outside(i, i, bound))
 }
 
-/// The list of object `v`, `iw[pe[v]..pe[v] + len[v]]`, or the [`internal`] error if it is not
-/// inside `iw`. An empty list is empty whatever its start, which compaction leaves stale.
+/// [`Error::IndexOutOfRange`] naming [`Resource::Workspace`]: `index` at `position` of a
+/// workspace array of `bound` entries.
+#[cold]
+fn outside(position: usize, index: usize, bound: usize) -> Error {
+    Error::IndexOutOfRange {
+        resource: Resource::Workspace,
+        position,
+        index,
+        bound,
+    }
+}
+
+/// The list of object `v`, `iw[pe[v]..pe[v] + len[v]]`, or the error of [`at`] (naming `v`
+/// and the list's end) if it is not inside `iw`. An empty list is empty whatever its start, which compaction leaves stale.
 fn list<'a>(iw: &'a [u32], pe: &[u32], len: &[u32], v: usize) -> Result<&'a [u32], Error> {
     let l = ux(at(len, v)?);
     if l == 0 {
         return Ok(&[]);
     }
     let s = ux(at(pe, v)?);
-    iw.get(s..s + l).ok_or_else(internal)
+    iw.get(s..s + l).ok_or_else(|| outside(v, s + l, iw.len()))
 }
 
 /// [`list`], mutable.
@@ -205,7 +219,8 @@ fn list_mut<'a>(
         return Ok(&mut []);
     }
     let s = ux(at(pe, v)?);
-    iw.get_mut(s..s + l).ok_or_else(internal)
+    let bound = iw.len();
+    iw.get_mut(s..s + l).ok_or_else(|| outside(v, s + l, bound))
 }
 
 impl Quotient<'_> {
