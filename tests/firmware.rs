@@ -7,9 +7,11 @@
 //!   detector is linked exactly with `detect` (or `cut`);
 //! - that the firmware's node positions after the scene's frames are the host's, bit for bit,
 //!   with the same settings (the host's model built with `Model::new`, detection off for a
-//!   build that does not cut: detection alone moves no node); in `f32`, within a micrometre;
+//!   build that does not cut: detection alone moves no node), in mixed precision too (the
+//!   host's model an `f64` one with an `f32` factor); in `f32`, within a micrometre;
 //! - that its static RAM is the storage the capacities give, that leaving cutting out, then
-//!   detection, shrinks code and RAM, and that `f32` saves 4 bytes of RAM per scalar.
+//!   detection, shrinks code and RAM, that `f32` saves 4 bytes of RAM per scalar, and mixed
+//!   precision 4 bytes per scalar of the factor's part.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -37,8 +39,24 @@ fn host_positions(scene: &Scene, frames: usize, set: &FeatureSet) -> Vec<[u64; 3
         config.detection.temporal_sigmas = f64::INFINITY;
     }
     let caps = codegen::firmware_capacities(scene).unwrap();
-    let mut storage = ModelStorage::<f64>::new(&input, &caps).unwrap();
-    let mut model = storage.model(&input, &config).unwrap();
+    if set.features.contains(&"mixed") {
+        let mut storage = ModelStorage::<f64, f32>::with_factor_in(&input, &caps).unwrap();
+        let model = storage.model(&input, &config).unwrap();
+        run_frames(model, scene, frames)
+    } else {
+        let mut storage = ModelStorage::<f64>::new(&input, &caps).unwrap();
+        let model = storage.model(&input, &config).unwrap();
+        run_frames(model, scene, frames)
+    }
+}
+
+/// Places the features at frame 0, steps through frames `1..frames` as the firmware does, and
+/// returns the node positions as bits.
+fn run_frames<F: incise_core::Real>(
+    mut model: incise_core::Model<'_, f64, F>,
+    scene: &Scene,
+    frames: usize,
+) -> Vec<[u64; 3]> {
     model.embed_features(&scene.frames[0]).unwrap();
     for frame in &scene.frames[1..frames] {
         let known: Vec<_> = frame
@@ -143,7 +161,11 @@ fn check_scene(dir: &Path, name: &str, set: &FeatureSet) -> Firmware {
     if cut && !f32 {
         // The host's core has the `cut` feature: its storage is the firmware's.
         let size = incise_core::ModelSize::new(&generated.capacities).unwrap();
-        let storage = size.bytes::<f64>() as u64;
+        let storage = if set.features.contains(&"mixed") {
+            size.bytes_mixed::<f64, f32>()
+        } else {
+            size.bytes::<f64>()
+        } as u64;
         let ram = firmware.footprint.ram();
         assert!(
             ram >= storage && ram <= storage + 64 * 1024,
@@ -194,6 +216,20 @@ fn each_feature_set_runs_as_the_host_does_and_leaving_stages_out_shrinks_the_bui
         assert!(
             saved.abs_diff(4 * scalars) < 64 * 1024,
             "{name}: f32 {f32} against f64 {f64}: {saved} B saved for {scalars} scalars"
+        );
+        // Mixed precision saves 4 bytes per scalar of the factor's part only.
+        let size = incise_core::ModelSize::new(
+            &codegen::generate(&scene, &CodegenOptions::default())
+                .unwrap()
+                .capacities,
+        )
+        .unwrap();
+        let factor_scalars = size.factor_real_len() as u64;
+        let mixed = footprint("cut, mixed");
+        let saved = f64.ram() - mixed.ram();
+        assert!(
+            saved.abs_diff(4 * factor_scalars) < 64 * 1024,
+            "{name}: mixed {mixed} against f64 {f64}: {saved} B saved for {factor_scalars} factor scalars"
         );
     }
     an_orthographic_scene_runs_as_the_host_does();

@@ -13,7 +13,10 @@ use core::sync::atomic::{AtomicBool, Ordering};
 
 use incise_core::{Error, Model, ModelBuffers, Observation, Real};
 
-use scene::Scalar;
+use scene::{FactorScalar, Scalar};
+
+#[cfg(all(feature = "mixed", feature = "f32"))]
+compile_error!("`mixed` computes the model in f64 and its factor in f32: leave `f32` out");
 
 /// The scene, as generated.
 #[allow(dead_code, clippy::all)]
@@ -26,9 +29,11 @@ fn panic(_: &core::panic::PanicInfo<'_>) -> ! {
     loop {}
 }
 
-/// The model's storage: `static`, of the lengths the scene's capacities give at compile time.
+/// The model's storage: `static`, of the lengths the scene's capacities give at compile time;
+/// the factor's part apart, in its own scalar (`f32` with the `mixed` feature).
 struct Storage {
-    reals: UnsafeCell<[Scalar; scene::REAL_LEN]>,
+    reals: UnsafeCell<[Scalar; scene::MODEL_REAL_LEN]>,
+    factor_reals: UnsafeCell<[FactorScalar; scene::FACTOR_REAL_LEN]>,
     indices: UnsafeCell<[u32; scene::INDEX_LEN]>,
 }
 
@@ -36,19 +41,33 @@ struct Storage {
 unsafe impl Sync for Storage {}
 
 static STORAGE: Storage = Storage {
-    reals: UnsafeCell::new([0.0; scene::REAL_LEN]),
+    reals: UnsafeCell::new([0.0; scene::MODEL_REAL_LEN]),
+    factor_reals: UnsafeCell::new([0.0; scene::FACTOR_REAL_LEN]),
     indices: UnsafeCell::new([0; scene::INDEX_LEN]),
 };
 static TAKEN: AtomicBool = AtomicBool::new(false);
 
+/// The static buffers (the model's scalars, the factor's, the indices), the first time only.
+type Buffers = (
+    &'static mut [Scalar],
+    &'static mut [FactorScalar],
+    &'static mut [u32],
+);
+
 /// The static buffers, the first time only.
-fn take_storage() -> Option<(&'static mut [Scalar], &'static mut [u32])> {
+fn take_storage() -> Option<Buffers> {
     if TAKEN.swap(true, Ordering::AcqRel) {
         return None;
     }
     // SAFETY: `TAKEN` lets this run once, so these are the only references ever made.
-    let (reals, indices) = unsafe { (&mut *STORAGE.reals.get(), &mut *STORAGE.indices.get()) };
-    Some((&mut reals[..], &mut indices[..]))
+    let (reals, factor_reals, indices) = unsafe {
+        (
+            &mut *STORAGE.reals.get(),
+            &mut *STORAGE.factor_reals.get(),
+            &mut *STORAGE.indices.get(),
+        )
+    };
+    Some((&mut reals[..], &mut factor_reals[..], &mut indices[..]))
 }
 
 /// Where things stopped, as [`incise_firmware_run`] returns it.
@@ -61,12 +80,12 @@ const STORAGE_TAKEN: i32 = 3;
 /// node's position. Returns 0, or where it stopped (1 build, 2 features, 3 called twice).
 #[unsafe(no_mangle)]
 pub extern "C" fn incise_firmware_run(emit: extern "C" fn(u32, f64, f64, f64)) -> i32 {
-    let Some((reals, indices)) = take_storage() else {
+    let Some((reals, factor_reals, indices)) = take_storage() else {
         return STORAGE_TAKEN;
     };
     let built = scene::config().and_then(|config| {
-        let buffers = ModelBuffers::new(&scene::SIZE, reals, indices)?;
-        Model::from_precomputed(
+        let buffers = ModelBuffers::new_mixed(&scene::SIZE, reals, factor_reals, indices)?;
+        Model::<Scalar, FactorScalar>::from_precomputed(
             &scene::MESH,
             &config,
             &scene::SIZE,
@@ -99,7 +118,7 @@ pub extern "C" fn incise_firmware_run(emit: extern "C" fn(u32, f64, f64, f64)) -
 /// Copies the observations of features the model carries (those placed at frame 0) into
 /// `known`; returns how many.
 fn observed(
-    model: &Model<'_, Scalar>,
+    model: &Model<'_, Scalar, FactorScalar>,
     frame: &[Observation<Scalar>],
     known: &mut [Observation<Scalar>],
 ) -> usize {

@@ -63,6 +63,13 @@ pub const CUT_F32: FeatureSet = FeatureSet {
     leaves_out: "f64: computes in f32, 4 bytes less per scalar of the storage",
 };
 
+/// Everything, in mixed precision: the model in `f64`, its factor and solves in `f32`.
+pub const CUT_MIXED: FeatureSet = FeatureSet {
+    name: "cut, mixed",
+    features: &["cut", "strategies", "temporal-filter", "cameras", "mixed"],
+    leaves_out: "f64 in the factor: an f32 factor refined on f64 residuals, 4 bytes less per scalar of the factor's storage",
+};
+
 /// Everything but the detection's temporal filter.
 pub const CUT_NO_TEMPORAL_FILTER: FeatureSet = FeatureSet {
     name: "cut, no temporal filter",
@@ -70,9 +77,9 @@ pub const CUT_NO_TEMPORAL_FILTER: FeatureSet = FeatureSet {
     leaves_out: "the detection's temporal filter (no feature is taken out as a tracking failure)",
 };
 
-/// [`FEATURE_SETS`] with [`CUT_F32`] and [`CUT_NO_TEMPORAL_FILTER`] after the first, and,
-/// last, registration with only the scene's linear strategy and camera projection.
-pub fn feature_sets(strategy: Strategy, projection: Projection) -> [FeatureSet; 6] {
+/// [`FEATURE_SETS`] with [`CUT_F32`], [`CUT_MIXED`] and [`CUT_NO_TEMPORAL_FILTER`] after the
+/// first, and, last, registration with only the scene's linear strategy and camera projection.
+pub fn feature_sets(strategy: Strategy, projection: Projection) -> [FeatureSet; 7] {
     let [cut, detect, register] = FEATURE_SETS;
     // Every pair, so that each name and feature list is a `'static` constant.
     let one = |name, features| FeatureSet {
@@ -110,6 +117,7 @@ pub fn feature_sets(strategy: Strategy, projection: Projection) -> [FeatureSet; 
     [
         cut,
         CUT_F32,
+        CUT_MIXED,
         CUT_NO_TEMPORAL_FILTER,
         detect,
         register,

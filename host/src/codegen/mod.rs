@@ -279,7 +279,12 @@ fn emit(s: &mut String, e: &Emit<'_>) {
          /// so an `f32` build rounds each once.\n\
          #[cfg(not(feature = \"f32\"))]\npub type Scalar = f64;\n\
          /// The scalar the model computes in.\n\
-         #[cfg(feature = \"f32\")]\npub type Scalar = f32;\n\n",
+         #[cfg(feature = \"f32\")]\npub type Scalar = f32;\n\
+         /// The scalar of the factor and its triangular solves: `f32` in a build with the\n\
+         /// `mixed` feature (mixed precision, refined on `Scalar` residuals), else `Scalar`.\n\
+         #[cfg(feature = \"mixed\")]\npub type FactorScalar = f32;\n\
+         /// The scalar of the factor and its triangular solves.\n\
+         #[cfg(not(feature = \"mixed\"))]\npub type FactorScalar = Scalar;\n\n",
     );
     emit_capacities(
         s,
@@ -309,6 +314,10 @@ fn emit(s: &mut String, e: &Emit<'_>) {
          Ok(size) => size,\n    Err(_) => panic!(\"the scene's capacities are too large for the core\"),\n};\n\
          /// Scalars of the model's storage.\n\
          pub const REAL_LEN: usize = SIZE.real_len();\n\
+         /// The part of `REAL_LEN` in `Scalar` (all but the factor's).\n\
+         pub const MODEL_REAL_LEN: usize = SIZE.model_real_len();\n\
+         /// The part of `REAL_LEN` in `FactorScalar`: the factor's values and workspace.\n\
+         pub const FACTOR_REAL_LEN: usize = SIZE.factor_real_len();\n\
          /// Indices of the model's storage.\n\
          pub const INDEX_LEN: usize = SIZE.index_len();\n\n",
     );
