@@ -760,7 +760,8 @@ fn growth_markdown(report: &Report) -> String {
     ) {
         let _ = write!(
             s,
-            "Cost ∝ nodes^{b:.2} ({c0:.1} to {c1:.0} million {} from {} to {} nodes).",
+            "The cost ({}) grows as nodes^{b:.2}: {c0:.1} to {c1:.0} million instructions \
+             from {} to {} nodes.",
             scaling.cost, first.nodes, last.nodes
         );
     }
@@ -773,11 +774,10 @@ fn growth_markdown(report: &Report) -> String {
         let per_feature = (c1 - c0) * 1e6 / (last.features - first.features) as f64;
         let _ = write!(
             s,
-            " Against features the cost is affine rather than a power law: a fixed part plus \
-             about {:.0} {} per feature ({c0:.1} million at {} features, {c1:.1} at {}; the \
-             fitted exponent, {}, says little).",
+            " Against features it is affine rather than a power law: a fixed part plus about \
+             {:.0} instructions per feature ({c0:.1} million at {} features, {c1:.1} at {}; \
+             the fitted exponent, {}, says little).",
             per_feature,
-            scaling.cost,
             first.features,
             last.features,
             scaling
