@@ -63,6 +63,20 @@ impl<T: Real> InversionBarrier<T> {
         )
     }
 
+    /// What the gradient and the tangent share: `F = I + h`, the density and its derivatives
+    /// at `det F`, and the cofactor of `F` (the derivative of `det F`).
+    fn strained(&self, h: &Matrix3<T>) -> Strained<T> {
+        let f = Matrix3::identity() + h;
+        let (psi, dpsi, d2psi) = self.density(f.determinant());
+        Strained {
+            f,
+            psi,
+            dpsi,
+            d2psi,
+            c: cofactor(&f),
+        }
+    }
+
     // The element functions below do the same work whatever `J` is (above the floor they add
     // exact zeros), so that a frame's cost does not depend on how its elements are strained:
     // every frame of one topology costs the same, as the rest of the assembly does.
@@ -87,12 +101,10 @@ impl<T: Real> InversionBarrier<T> {
         energy: &mut T,
         gradient: &mut [Vector3<T>; 4],
     ) {
-        let f = Matrix3::identity() + h;
-        let (psi, dpsi, _) = self.density(f.determinant());
+        let Strained { psi, dpsi, c, .. } = self.strained(h);
         *energy += volume * psi;
         // The same operations in the same order as `add_element_tangent`: both give the same
         // gradient, bit for bit.
-        let c = cofactor(&f);
         for (ga, out) in g.iter().zip(gradient.iter_mut()) {
             *out += c * ga * (volume * dpsi);
         }
@@ -108,10 +120,14 @@ impl<T: Real> InversionBarrier<T> {
         projection: TangentProjection,
         eval: &mut ElementEval<T>,
     ) {
-        let f = Matrix3::identity() + h;
-        let (psi, dpsi, d2psi) = self.density(f.determinant());
+        let Strained {
+            f,
+            psi,
+            dpsi,
+            d2psi,
+            c,
+        } = self.strained(h);
         eval.energy += volume * psi;
-        let c = cofactor(&f);
         let cg = g.map(|ga| c * ga);
         for (cga, out) in cg.iter().zip(eval.gradient.iter_mut()) {
             *out += cga * (volume * dpsi);
@@ -142,6 +158,16 @@ impl<T: Real> InversionBarrier<T> {
             }
         }
     }
+}
+
+/// An element's deformation as the barrier reads it ([`InversionBarrier::strained`]).
+struct Strained<T: Real> {
+    f: Matrix3<T>,
+    psi: T,
+    dpsi: T,
+    d2psi: T,
+    /// The cofactor of `f`.
+    c: Matrix3<T>,
 }
 
 /// The cofactor matrix of `f`, `det(f) f⁻ᵀ` without the division: its columns are the cross

@@ -164,11 +164,16 @@ impl<T: Real> Problem<'_, '_, T> {
         let mut sum = T::zero();
         let observations = self.features.active().iter().zip(self.features.targets());
         for (slot, (&active, target)) in observations.enumerate() {
-            let p = self
-                .embedding
-                .position(slot, self.mesh, x)
-                .ok_or(Error::NoFeatures)?;
-            let uv = match self.camera.project(&Vector3::from(p), slot) {
+            let (Some(&t), Some(w)) = (
+                self.embedding.tets().get(slot),
+                self.embedding.weights().get(slot),
+            ) else {
+                return Err(Error::NoFeatures);
+            };
+            let tet = self.mesh.tets().get(ux(t)).ok_or(Error::NoFeatures)?;
+            let (p, _) =
+                seen_point(self.camera, self.previous, tet, w, x).ok_or(Error::NoFeatures)?;
+            let uv = match self.camera.project(&p, slot) {
                 Ok(uv) => uv,
                 // Not observed: nothing pulls it, wherever it is.
                 Err(_) if active == 0 => continue,
@@ -309,11 +314,9 @@ impl<T: Real> Problem<'_, '_, T> {
             let t = ux(t);
             let tet = self.mesh.tets().get(t).ok_or(Error::NoFeatures)?;
             let ft = free_of(free, tet);
-            let p = self
-                .embedding
-                .position(slot, self.mesh, x)
-                .ok_or(Error::NoFeatures)?;
-            let (uv, j) = match self.camera.project_with_jacobian(&Vector3::from(p), slot) {
+            let (p, rays) =
+                seen_point(self.camera, self.previous, tet, w, x).ok_or(Error::NoFeatures)?;
+            let (uv, j) = match self.camera.project_with_jacobian(&p, slot) {
                 Ok(projected) => projected,
                 // Not observed: nothing pulls it, wherever it is.
                 Err(_) if active == 0 => continue,
@@ -325,18 +328,27 @@ impl<T: Real> Problem<'_, '_, T> {
             let k = k_spring * weight;
             let jr = j.transpose() * r * k;
             force_sum += jr.abs().sum();
-            for (&f, &wa) in ft.iter().zip(w) {
-                add_gradient(grad, f, &(-jr * wa));
+            for ((&f, &wa), e_a) in ft.iter().zip(w).zip(&rays) {
+                add_gradient(grad, f, &across(e_a, &(-jr * wa)));
             }
             if let Some(h) = hessian.as_deref_mut() {
                 let jtj = j.transpose() * j * k;
                 let scatter = self.scatter.get(t).ok_or(Error::SymbolicMismatch)?;
                 for (&(a, b), starts) in PAIRS.iter().zip(scatter.as_chunks::<3>().0) {
                     // `a`, `b` < 4 (the pairs of a tetrahedron's nodes).
-                    if let (Some(&wa), Some(&wb), Some(&fa), Some(&fb)) =
-                        (w.get(a), w.get(b), ft.get(a), ft.get(b))
-                    {
-                        add_block(h, starts, a == b, fa >= fb, &(jtj * (wa * wb)));
+                    if let (Some(&wa), Some(&wb), Some(&fa), Some(&fb), Some(ea), Some(eb)) = (
+                        w.get(a),
+                        w.get(b),
+                        ft.get(a),
+                        ft.get(b),
+                        rays.get(a),
+                        rays.get(b),
+                    ) {
+                        let m = jtj * (wa * wb);
+                        // `(I − e_a e_aᵀ) m (I − e_b e_bᵀ)`.
+                        let m = m - (m * eb) * eb.transpose();
+                        let m = m - ea * (ea.transpose() * m);
+                        add_block(h, starts, a == b, fa >= fb, &m);
                     }
                 }
             }
@@ -397,6 +409,33 @@ impl<T: Real> Problem<'_, '_, T> {
         work.assemblies += 1;
         Ok(e)
     }
+}
+
+/// The point of a virtual feature that its spring sees, `Σ_a w_a y_a`, and the unit rays
+/// `e_a` through the element's nodes at the previous frame: each node as it is, less its
+/// motion along its own ray since the previous frame, `y_a = x_a − e_a (e_a · (x_a − x_a⁻))`.
+fn seen_point<T: Real>(
+    camera: &Camera<T>,
+    previous: &[[T; 3]],
+    tet: &[u32; 4],
+    w: &[T; 4],
+    x: &[[T; 3]],
+) -> Option<(Vector3<T>, [Vector3<T>; 4])> {
+    let mut p = Vector3::zeros();
+    let mut rays = [Vector3::zeros(); 4];
+    for ((&v, &wa), ray) in tet.iter().zip(w).zip(rays.iter_mut()) {
+        let now = vec3(x.get(ux(v))?);
+        let before = vec3(previous.get(ux(v))?);
+        *ray = camera.ray_direction_through(&before);
+        let d = now - before;
+        p += (now - *ray * ray.dot(&d)) * wa;
+    }
+    Some((p, rays))
+}
+
+/// `g` without its component along the unit vector `e`.
+fn across<T: Real>(e: &Vector3<T>, g: &Vector3<T>) -> Vector3<T> {
+    g - e * e.dot(g)
 }
 
 /// Adds `g` to the three unknowns of free node `f` (nothing for a fixed node, [`NONE`]). `grad`

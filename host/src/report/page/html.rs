@@ -786,26 +786,26 @@ fn growth_markdown(report: &Report) -> String {
         );
     }
     // The largest model of the mesh-resolution axis (SOFA's fine liver) carries the node axis
-    // past the band variants, whose largest costs a minute per frame under callgrind already:
-    // another shape and feature count, so it is given beside the fit rather than in it.
-    let largest = report
-        .resolution
-        .iter()
-        .flat_map(|r| r.models.iter().map(move |m| (r, m)))
-        .filter_map(|(r, m)| m.instructions.map(|v| (r, m, v)))
-        .max_by_key(|(_, m, _)| m.nodes);
-    if let Some((r, m, v)) = largest
-        && scaling.nodes.iter().all(|p| p.nodes < m.nodes)
-    {
+    // past the band variants, whose largest costs a minute per frame under callgrind already.
+    if let Some((scene, mesh, nodes, v)) = &scaling.largest {
         let _ = write!(
             s,
-            " Beyond the band variants, the largest model of the mesh-resolution table, `{}` \
-             modelled by {} mesh ({} nodes): {:.0} million instructions per steady frame.",
-            r.scene,
-            m.mesh,
-            m.nodes,
+            " Beyond the band variants, the largest model of the mesh-resolution table, `{scene}` \
+             modelled by {mesh} mesh ({nodes} nodes): {:.0} million instructions per steady frame",
             v / 1e6
         );
+        match scaling.nodes_exponent_with_largest {
+            Some(b) => {
+                let _ = write!(
+                    s,
+                    "; fitted together with the band variants, the cost grows as nodes^{b:.2} \
+                     (another shape, with its own features: at the rate per feature above they \
+                     are a small part of its cost, so the two exponents differ by the shape and \
+                     its finer elements)."
+                );
+            }
+            None => s.push('.'),
+        }
     }
     if s.is_empty() {
         s.push_str(

@@ -300,6 +300,16 @@ pub fn write_report(
             .push(resolution::measure(base, counting, || bar.inc(1))?);
     }
     bar.finish_and_clear();
+    let largest = report
+        .resolution
+        .iter()
+        .flat_map(|r| r.models.iter().map(move |m| (r, m)))
+        .filter_map(|(r, m)| m.instructions.map(|v| (r, m, v)))
+        .max_by_key(|(_, m, _)| m.nodes)
+        .map(|(r, m, v)| (r.scene.clone(), m.mesh.to_string(), m.nodes, v));
+    if let Some(scaling) = &mut report.scaling {
+        scaling.include_largest(largest);
+    }
     html::write(&report, out)?;
     Ok(report)
 }

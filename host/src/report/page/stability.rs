@@ -258,14 +258,15 @@ pub(super) fn grid(scene: &Scene, quick: bool) -> Vec<CellSetting> {
             ..base
         });
         // With the scene's barrier, and (if it has one) with SVK alone.
-        for barrier in [base.barrier, false]
-            .into_iter()
-            .take(1 + usize::from(base.barrier))
-        {
+        let mirrored = CellSetting {
+            mirrored: MIRRORED_FRAMES,
+            ..deformed
+        };
+        cells.push(mirrored);
+        if base.barrier {
             cells.push(CellSetting {
-                mirrored: MIRRORED_FRAMES,
-                barrier,
-                ..deformed
+                barrier: false,
+                ..mirrored
             });
         }
         if compressible {
