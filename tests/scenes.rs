@@ -200,14 +200,24 @@ fn malformed_scene_files_name_the_file_and_line() {
     assert!(err.message.contains("100000"), "{err}");
 }
 
-/// However stiff the springs, the intact scenes' targets end nearer the truth than the rest
-/// model's: the springs act across the camera rays only (`core-nostd/src/solve.rs`, `W_S`), so
-/// they cannot fit the tracker's noise with depth. Through the full projection they did:
-/// `band-stiff` at 10⁶ times its coupling put its targets 176 mm from the truth (the rest
-/// model: 3.7 mm), `block-extreme` 75 mm (7.0 mm).
+/// However stiff the springs, the targets end nearer the truth than the rest model's (the
+/// stability envelope's standard, `incise report`). The springs act across the
+/// camera rays only (`core-nostd/src/solve.rs`, `W_S`), so they cannot fit the tracker's noise
+/// with depth, and the depth prior keeps its ratio to them (`W_R`), so what the model cannot
+/// match is not shed along the rays. Before the first, `band-stiff` at 10⁶ times its coupling
+/// put its targets 176 mm from the truth (the rest model: 3.7 mm) and `block-extreme` 75 mm
+/// (7.0 mm); before the second, `band-side-cut` 36 mm (21.2 mm).
 #[test]
-fn stiff_springs_do_not_move_the_intact_scenes_in_depth() {
-    for name in ["band-no-cut", "band-stiff", "block-extreme"] {
+fn stiff_springs_do_not_move_the_model_in_depth() {
+    let scenes = [
+        "band-no-cut",
+        "band-stiff",
+        "block-extreme",
+        "band-side-cut",
+        "band-live-cut",
+        "band-middle-cut",
+    ];
+    for name in scenes {
         let mut scene = Scene::load(&fixtures().join(name)).unwrap_or_else(|e| panic!("{e}"));
         let own = incise_core::solve::DEFAULT_COUPLING;
         assert_eq!(
@@ -226,11 +236,5 @@ fn stiff_springs_do_not_move_the_intact_scenes_in_depth() {
         );
         assert_eq!(s.frames_rejected, 0, "{name}: {s:?}");
         assert!(s.tre_mm_final < rest, "{name}: {s:?}");
-        assert!(
-            s.tre_mm_final < at_default.tre_mm_final + 0.5,
-            "{name}: {:.2} mm against {:.2} mm at the default coupling",
-            s.tre_mm_final,
-            at_default.tre_mm_final
-        );
     }
 }

@@ -66,7 +66,11 @@ impl<T: Real, F: Real> Model<'_, T, F> {
         self.saved.features.copy_from(&self.features);
         self.saved.embedding.copy_from(&self.live.features);
         let factored = self.factored;
-        let springs = (self.spring_stiffness, self.spring_threshold_px);
+        let springs = (
+            self.spring_stiffness,
+            self.spring_threshold_px,
+            self.depth_scale,
+        );
         self.factor.checkpoint();
         match self.embed_features_uncommitted(frame0) {
             Ok(report) => {
@@ -77,7 +81,11 @@ impl<T: Real, F: Real> Model<'_, T, F> {
                 self.features.copy_from(&self.saved.features);
                 self.live.features.copy_from(&self.saved.embedding);
                 self.factored = factored;
-                (self.spring_stiffness, self.spring_threshold_px) = springs;
+                (
+                    self.spring_stiffness,
+                    self.spring_threshold_px,
+                    self.depth_scale,
+                ) = springs;
                 self.factor.rollback();
                 Err(e)
             }
@@ -102,7 +110,11 @@ impl<T: Real, F: Real> Model<'_, T, F> {
         if report.embedded == 0 {
             return Err(Error::NoFeatures);
         }
-        (self.spring_stiffness, self.spring_threshold_px) = self.coupled_springs()?;
+        (
+            self.spring_stiffness,
+            self.spring_threshold_px,
+            self.depth_scale,
+        ) = self.coupled_springs()?;
         #[cfg(feature = "detect")]
         {
             // Scratch: the projections and residuals at frame 0.
@@ -158,21 +170,58 @@ impl<T: Real, F: Real> Model<'_, T, F> {
         Ok(report)
     }
 
-    /// The springs' stiffness `k` ([`crate::Coupling`]) and robust threshold (pixels) for the
-    /// embedded features: the feature spacing from the bounding box of their frame-0 pixels,
-    /// the image scale from the projection's Jacobian at their virtual points.
+    /// The springs' stiffness `k` ([`crate::Coupling`]), robust threshold (pixels) and the depth
+    /// prior's scale ([`Model::depth_scale`](crate::Model)) for the embedded features: the
+    /// feature spacing from the bounding box of their frame-0 pixels, the image scale from the
+    /// projection's Jacobian at their virtual points.
     ///
     /// Cost: one projection with its Jacobian per embedded feature, once.
-    fn coupled_springs(&self) -> Result<(T, T), Error> {
+    fn coupled_springs(&self) -> Result<(T, T, T), Error> {
         let n = self.features.len();
         let (lo, hi) = image_bounds(self.features.targets()).ok_or(Error::NoFeatures)?;
         // The detector's spacing (`Detector::spacing`), so both speak of the same length.
         let spacing = spacing_px(hi[0] - lo[0], hi[1] - lo[1], n);
         let threshold = self.config.solver.spring_threshold * spacing;
-        let coupling = self.config.solver.coupling;
-        if let Coupling::Stiffness(k) = coupling {
-            return Ok((coupling.stiffness(k, T::one(), T::one())?, threshold));
+        let default = T::of(crate::solve::DEFAULT_COUPLING);
+        match self.config.solver.coupling {
+            Coupling::Relative(beta) => {
+                let k = Coupling::Relative(beta).stiffness(
+                    self.config.material.young,
+                    spacing,
+                    self.image_scale()?,
+                )?;
+                // Exactly 1 at the default coupling.
+                Ok((k, threshold, (beta / default).max(T::one())))
+            }
+            Coupling::Stiffness(k) => {
+                let k = Coupling::Stiffness(k).stiffness(k, T::one(), T::one())?;
+                // A given `k` against the default coupling's for this scene; a scene whose
+                // features cannot all be projected keeps the prior as it is.
+                let depth_scale = self
+                    .image_scale()
+                    .and_then(|scale| {
+                        Coupling::Relative(default).stiffness(
+                            self.config.material.young,
+                            spacing,
+                            scale,
+                        )
+                    })
+                    .map_or(T::one(), |k0| {
+                        if k0 > T::zero() {
+                            (k / k0).max(T::one())
+                        } else {
+                            T::one()
+                        }
+                    });
+                Ok((k, threshold, depth_scale))
+            }
         }
+    }
+
+    /// The image scale at the features, pixels per metre: the mean over the virtual features of
+    /// the smaller singular value of `∂P/∂x`.
+    fn image_scale(&self) -> Result<T, Error> {
+        let n = self.features.len();
         let x = self.live.positions();
         let mut scale_sum = T::zero();
         for slot in 0..n {
@@ -194,8 +243,6 @@ impl<T: Real, F: Real> Model<'_, T, F> {
             let disc = (tr * tr - T::of(4.0) * det).max(T::zero()).sqrt();
             scale_sum += (T::of(0.5) * (tr - disc)).max(T::zero()).sqrt();
         }
-        let scale = scale_sum / T::of(n as f64);
-        let k = coupling.stiffness(self.config.material.young, spacing, scale)?;
-        Ok((k, threshold))
+        Ok(scale_sum / T::of(n as f64))
     }
 }

@@ -108,7 +108,14 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
         h.reals(self.features.targets().iter().flatten());
         h.words(self.features.active());
         h.words(core::iter::once(&self.frame));
-        h.reals([self.spring_stiffness, self.spring_threshold_px].iter());
+        h.reals(
+            [
+                self.spring_stiffness,
+                self.spring_threshold_px,
+                self.depth_scale,
+            ]
+            .iter(),
+        );
         let strategy = match self.config.solver.strategy {
             Strategy::Refactor => [0, 0],
             Strategy::Frozen { pcg_iterations } => [1, pcg_iterations],

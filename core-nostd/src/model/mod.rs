@@ -202,6 +202,10 @@ pub struct Model<'a, T: Real, F: Real = T> {
     /// Where the springs turn linear, pixels ([`SolverConfig::spring_threshold`] feature
     /// spacings, set when the features are embedded; `∞` before).
     pub(crate) spring_threshold_px: T,
+    /// What the depth prior's weights are multiplied by: the springs' stiffness over the
+    /// default coupling's, at least 1 ([`crate::solve::DEFAULT_DEPTH_PRIOR`]); set when the
+    /// features are embedded, 1 before.
+    pub(crate) depth_scale: T,
     pub(crate) vectors: SolveVectors<'a, T, F>,
     /// Workspace of rebuilds and cuts (no meaning between calls).
     #[cfg(feature = "cut")]
@@ -378,6 +382,7 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
                 Coupling::Relative(_) => T::zero(),
             },
             spring_threshold_px: T::of(f64::INFINITY),
+            depth_scale: T::one(),
             vectors,
             #[cfg(feature = "cut")]
             work,

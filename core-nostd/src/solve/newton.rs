@@ -346,6 +346,8 @@ pub(crate) struct Coefficients<T> {
     pub(crate) spring_stiffness: T,
     /// `δ`, pixels ([`crate::Model::spring_threshold_px`]).
     pub(crate) spring_threshold_px: T,
+    /// What the depth prior's weights are multiplied by.
+    pub(crate) depth_scale: T,
 }
 
 impl<T: Real, F: Real> Model<'_, T, F> {
@@ -356,6 +358,7 @@ impl<T: Real, F: Real> Model<'_, T, F> {
             barrier: self.barrier,
             spring_stiffness: self.spring_stiffness,
             spring_threshold_px: self.spring_threshold_px,
+            depth_scale: self.depth_scale,
         }
     }
 }
@@ -377,6 +380,7 @@ fn problem_of<'p, 'a, T: Real>(
         barrier,
         spring_stiffness,
         spring_threshold_px,
+        depth_scale,
     } = coefficients;
     Ok(Problem {
         mesh: &d.mesh,
@@ -387,6 +391,7 @@ fn problem_of<'p, 'a, T: Real>(
         embedding: &d.features,
         spring_stiffness,
         spring_threshold_px,
+        depth_scale,
         damping: prefix(d.damping, n, Resource::Nodes)?,
         depth_weight: prefix(d.depth_weight, n, Resource::Nodes)?,
         previous: prefix(d.previous, n, Resource::Nodes)?,
