@@ -167,13 +167,7 @@ impl<T: Real> Problem<'_, '_, T> {
         let mut sum = T::zero();
         let observations = self.features.active().iter().zip(self.features.targets());
         for (slot, (&active, target)) in observations.enumerate() {
-            let (Some(&t), Some(w)) = (
-                self.embedding.tets().get(slot),
-                self.embedding.weights().get(slot),
-            ) else {
-                return Err(Error::NoFeatures);
-            };
-            let tet = self.mesh.tets().get(ux(t)).ok_or(Error::NoFeatures)?;
+            let (_, tet, w) = self.feature_element(slot)?;
             let (p, _) =
                 seen_point(self.camera, self.previous, tet, w, x).ok_or(Error::NoFeatures)?;
             let uv = match self.camera.project(&p, slot) {
@@ -188,6 +182,19 @@ impl<T: Real> Problem<'_, '_, T> {
             work.feature_evaluations += 1;
         }
         Ok(sum)
+    }
+
+    /// The tetrahedron (index and nodes) and the barycentric weights of the feature in `slot`;
+    /// [`Error::NoFeatures`] where [`Embedding::position`] would fail.
+    fn feature_element(&self, slot: usize) -> Result<(usize, &[u32; 4], &[T; 4]), Error> {
+        let (Some(&t), Some(w)) = (
+            self.embedding.tets().get(slot),
+            self.embedding.weights().get(slot),
+        ) else {
+            return Err(Error::NoFeatures);
+        };
+        let tet = self.mesh.tets().get(ux(t)).ok_or(Error::NoFeatures)?;
+        Ok((ux(t), tet, w))
     }
 
     /// Unit direction of the camera ray through a node's rest position `q`.
@@ -308,15 +315,7 @@ impl<T: Real> Problem<'_, '_, T> {
         let observations = self.features.active().iter().zip(self.features.targets());
         for (slot, (&active, target)) in observations.enumerate() {
             let k_spring = self.spring_weight(active);
-            // As in [`Embedding::position`], which fails the same way.
-            let (Some(&t), Some(w)) = (
-                self.embedding.tets().get(slot),
-                self.embedding.weights().get(slot),
-            ) else {
-                return Err(Error::NoFeatures);
-            };
-            let t = ux(t);
-            let tet = self.mesh.tets().get(t).ok_or(Error::NoFeatures)?;
+            let (t, tet, w) = self.feature_element(slot)?;
             let ft = free_of(free, tet);
             let (p, rays) =
                 seen_point(self.camera, self.previous, tet, w, x).ok_or(Error::NoFeatures)?;
