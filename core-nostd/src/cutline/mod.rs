@@ -15,7 +15,7 @@
 use nalgebra::Vector3;
 
 use crate::camera::Camera;
-use crate::detect::DetectionConfig;
+use crate::detect::{DetectionConfig, SplitPairs};
 use crate::error::Error;
 use crate::features::first_hit;
 use crate::mesh::Mesh;
@@ -62,7 +62,8 @@ impl LineWork {
     /// - growing: each vertex follows its evidence (`points` visits) and each front
     ///   looks ahead (`points`), with one anchoring per vertex and per front.
     ///
-    /// An anchoring scans the slots at most three times (each side, then both), each scan
+    /// An anchoring scans the pairs once (for the split ones near the point; `points` is the
+    /// pair capacity) and the slots at most three times (each side, then both), each scan
     /// `features + 20` visits.
     pub const fn bound(vertices: u64, points: u64, features: u64) -> LineWork {
         let f = if points < FIT_POINTS as u64 {
@@ -72,7 +73,7 @@ impl LineWork {
         };
         let start_fit = f * f.saturating_sub(1) / 2 * f + 3 * f;
         let grow_points = (vertices + 2) * points;
-        let anchor = ANCHOR_COST * (features + 20);
+        let anchor = ANCHOR_COST * (features + 20) + points;
         let start_anchor = 2 * anchor;
         let grow_anchor = (vertices + 2) * anchor;
         LineWork {
@@ -94,6 +95,14 @@ impl LineWork {
     }
 }
 
+/// What the line anchors its vertices to: the features' latest image positions (one per
+/// slot), which slots may anchor a vertex, and the pairs the detector found split.
+struct Tracked<'s, T> {
+    features: &'s [[T; 2]],
+    usable: &'s [u32],
+    split: SplitPairs<'s>,
+}
+
 /// The line's rules in pixels: the configuration's lengths (in feature spacings) times the
 /// spacing measured at frame 0.
 #[derive(Clone, Copy, Debug)]
@@ -105,6 +114,8 @@ struct Rules<T> {
     min_support: u32,
     init_points: usize,
     max_line_spread: T,
+    /// How far from a point the split pairs whose lips anchor it lie: two maximum steps.
+    lip_reach: T,
 }
 
 impl<T: Real> Rules<T> {
@@ -119,6 +130,7 @@ impl<T: Real> Rules<T> {
             min_support: config.min_support,
             init_points: config.init_points as usize,
             max_line_spread: config.max_line_spread,
+            lip_reach: T::of(2.0) * config.max_step * spacing,
         }
     }
 }
@@ -403,6 +415,7 @@ impl<'a, T: Real> CutLine<'a, T> {
         frame: u32,
         points: &[[T; 2]],
         since: &[u32],
+        split: SplitPairs<'_>,
         features: &[[T; 2]],
         usable: &[u32],
         config: &DetectionConfig<T>,
@@ -410,18 +423,23 @@ impl<'a, T: Real> CutLine<'a, T> {
         scratch: &mut [[T; 2]],
     ) -> CutLineReport {
         let rules = Rules::new(config, spacing);
+        let tracked = Tracked {
+            features,
+            usable,
+            split,
+        };
         let mut work = LineWork::default();
         let mut added = 0;
         if self.n == 0 {
             if points.len() >= rules.init_points && self.anchors.len() >= 2 {
-                added = self.start(frame, points, features, usable, &rules, &mut work);
+                added = self.start(frame, points, &tracked, &rules, &mut work);
             }
         } else {
             // `project` writes at most `scratch.len()` vertices.
             let m = self.project(features, scratch);
             if m == self.n {
                 let projected = scratch.get(..m).unwrap_or_default();
-                self.follow_points(points, features, usable, &rules, projected, &mut work);
+                self.follow_points(points, &tracked, &rules, projected, &mut work);
                 let m = self.project(features, scratch);
                 let projected = scratch.get(..m).unwrap_or_default();
                 for end in 0..2 {
@@ -443,8 +461,10 @@ impl<'a, T: Real> CutLine<'a, T> {
                             self.capped = true;
                             continue;
                         }
-                        work.anchor_visits += ANCHOR_COST * (features.len() as u64 + 20);
-                        if let Some((anchor, w)) = anchor_across(p, dir, features, usable) {
+                        work.anchor_visits += anchor_cost(features.len(), split.scanned());
+                        if let Some((anchor, w)) =
+                            anchor_across(p, dir, features, usable, &split, rules.lip_reach)
+                        {
                             self.insert(end, anchor, w);
                             if let (Some(d), Some(m)) =
                                 (self.direction.get_mut(end), self.moved.get_mut(end))
@@ -473,6 +493,14 @@ const REACH_STEPS: f64 = 5.0;
 
 /// Scans of the feature slots per anchoring ([`anchor_across`]: each side, then both).
 const ANCHOR_COST: u64 = 3;
+
+/// The visits of one anchoring with `features` slots and `pairs` neighbour pairs: a scan of
+/// the pairs for the split ones near the point, then [`ANCHOR_COST`] scans of the slots, each
+/// with the 20 triangles of the six nearest (a slot's lip is looked up among at most
+/// `2 LIP_PAIRS` features, part of its visit).
+const fn anchor_cost(features: usize, pairs: usize) -> u64 {
+    ANCHOR_COST * (features as u64 + 20) + pairs as u64
+}
 
 /// Features a vertex is anchored to: three on each side of the line.
 const ANCHORS: usize = 6;

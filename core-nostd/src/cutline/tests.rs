@@ -1,6 +1,6 @@
 //! Unit tests of the cut line on synthetic separation points.
 
-use super::grow::anchor_at;
+use super::grow::{anchor_across, anchor_at};
 use super::*;
 
 #[test]
@@ -57,6 +57,7 @@ fn the_line_starts_on_collinear_points_and_grows_toward_new_ones() {
         3,
         &points[..11],
         &[4; 11],
+        SplitPairs::default(),
         &features,
         &usable,
         &config,
@@ -79,6 +80,7 @@ fn the_line_starts_on_collinear_points_and_grows_toward_new_ones() {
         4,
         &points[..8],
         &[4; 8],
+        SplitPairs::default(),
         &features,
         &usable,
         &config,
@@ -110,6 +112,7 @@ fn a_full_line_reports_its_cap_instead_of_growing() {
         1,
         &points,
         &[1; 8],
+        SplitPairs::default(),
         &features,
         &usable,
         &config,
@@ -124,6 +127,7 @@ fn a_full_line_reports_its_cap_instead_of_growing() {
         2,
         &points,
         &[2; 8],
+        SplitPairs::default(),
         &features,
         &usable,
         &config,
@@ -131,4 +135,49 @@ fn a_full_line_reports_its_cap_instead_of_growing() {
         &mut scratch,
     );
     assert_eq!((r.vertices, r.added, r.capped), (2, 0, true));
+}
+
+/// The pixel of a vertex anchored by `anchor_across`, with the features at `f`.
+fn placed(anchor: &([u32; ANCHORS], [f64; ANCHORS]), f: &[[f64; 2]]) -> [f64; 2] {
+    let mut p = [0.0; 2];
+    for (slot, w) in anchor.0.iter().zip(anchor.1) {
+        p[0] += w * f[*slot as usize][0];
+        p[1] += w * f[*slot as usize][1];
+    }
+    p
+}
+
+#[test]
+fn a_vertex_off_the_cut_is_held_by_both_lips_the_split_pairs_name() {
+    // The grid cut between x = 50 and x = 60; the line runs along x = 44, a little to the
+    // left of it, as a line fitted on few points can.
+    let features = grid();
+    let usable = [1u32; 121];
+    let p = [44.0, 50.0];
+    let up = [0.0, 1.0];
+    // The pairs across the cut, (5, y) to (6, y) in grid steps, all split.
+    let pairs: [[u32; 2]; 11] = core::array::from_fn(|r| [11 * r as u32 + 5, 11 * r as u32 + 6]);
+    let state = [u32::MAX; 11];
+    let split = SplitPairs::for_test(&pairs, &state);
+    // The lips part: the left one moves 30 px left, the right one 30 px right.
+    let opened = features.map(|f| {
+        [
+            if f[0] <= 50.0 {
+                f[0] - 30.0
+            } else {
+                f[0] + 30.0
+            },
+            f[1],
+        ]
+    });
+    let on_lips = anchor_across(p, up, &features, &usable, &split, 25.0).unwrap();
+    assert!((placed(&on_lips, &features)[0] - 44.0).abs() < 1e-9);
+    // Between the lips, it stays where it was: each half moved with its own lip.
+    let x = placed(&on_lips, &opened)[0];
+    assert!((x - 44.0).abs() < 1e-9, "{x}");
+    // Split by the side of the line alone, the features at x = 50 count for the right lip:
+    // both halves then follow the left lip, and the vertex leaves with it.
+    let by_side = anchor_across(p, up, &features, &usable, &SplitPairs::default(), 25.0).unwrap();
+    let x = placed(&by_side, &opened)[0];
+    assert!(x < 44.0 - 10.0, "{x}");
 }

@@ -272,7 +272,7 @@ impl DetectionWork {
 }
 
 #[cfg(feature = "detect")]
-pub use detector::{Detector, GRID_CELLS};
+pub use detector::{Detector, GRID_CELLS, SplitPairs};
 
 #[cfg(feature = "detect")]
 mod detector;

@@ -60,6 +60,7 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
             self.frame,
             self.cut.detector.points(),
             self.cut.detector.point_since(),
+            self.cut.detector.split_pairs(),
             self.features.targets(),
             self.features.active(),
             &self.config.detection,

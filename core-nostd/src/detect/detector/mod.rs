@@ -59,6 +59,38 @@ pub struct Detector<'a, T> {
     features_filtered: usize,
 }
 
+/// The pairs a detector has counted as split ([`Detector::split_pairs`]), read in place: the
+/// two features of each lie on opposite lips of a cut. A split pair stays split, so the lips
+/// stay known where the mesh has been cut and the model follows them again.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct SplitPairs<'d> {
+    pairs: &'d [[u32; 2]],
+    state: &'d [u32],
+}
+
+impl<'d> SplitPairs<'d> {
+    /// The split pairs (feature slots).
+    pub fn iter(&self) -> impl Iterator<Item = [u32; 2]> + 'd {
+        self.pairs
+            .iter()
+            .zip(self.state)
+            .filter(|(_, s)| **s & SPLIT != 0)
+            .map(|(p, _)| *p)
+    }
+
+    /// `pairs` with their states as the detector keeps them (a state with the split bit set,
+    /// such as `u32::MAX`, marks a split pair), for unit tests of the cut line.
+    #[cfg(test)]
+    pub(crate) fn for_test(pairs: &'d [[u32; 2]], state: &'d [u32]) -> Self {
+        SplitPairs { pairs, state }
+    }
+
+    /// The pairs a pass over [`SplitPairs::iter`] visits, split or not.
+    pub fn scanned(&self) -> usize {
+        self.pairs.len()
+    }
+}
+
 /// Whether feature `f` is observed this frame (`observed`, the features' own flags: the
 /// detector keeps no copy of them) and not filtered out (`state`, one word per slot).
 fn usable(state: &[u32], observed: &[u32], f: u32) -> bool {
@@ -187,6 +219,14 @@ impl<'a, T: Real> Detector<'a, T> {
     /// draws the split pairs.
     pub fn is_split(&self, k: usize) -> bool {
         self.pair_state.get(k).is_some_and(|s| s & SPLIT != 0)
+    }
+
+    /// The pairs counted as split so far, for the cut line to tell the lips apart.
+    pub fn split_pairs(&self) -> SplitPairs<'_> {
+        SplitPairs {
+            pairs: self.pairs(),
+            state: self.pair_state.get(..self.n_pairs).unwrap_or_default(),
+        }
     }
 
     /// The neighbour radius in use, pixels.
