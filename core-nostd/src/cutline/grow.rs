@@ -365,24 +365,10 @@ impl Lips {
             };
             let mid = [(a[0] + b[0]) * T::of(0.5), (a[1] + b[1]) * T::of(0.5)];
             let d = length(sub(mid, p));
-            if !(d < near[LIP_PAIRS - 1].0) {
-                continue;
+            // The list starts full of `reach`: a pair at or beyond it never enters.
+            if d < near[LIP_PAIRS - 1].0 {
+                found = keep_nearest(&mut near, found, d, [i, j]);
             }
-            // Into the last place, then down to its rank.
-            let mut k = LIP_PAIRS - 1;
-            if let Some(slot) = near.get_mut(k) {
-                *slot = (d, [i, j]);
-            }
-            while k > 0 {
-                match (near.get(k - 1), near.get(k)) {
-                    (Some(lower), Some(this)) if this.0 < lower.0 => {
-                        near.swap(k, k - 1);
-                        k -= 1;
-                    }
-                    _ => break,
-                }
-            }
-            found = (found + 1).min(LIP_PAIRS);
         }
         let mut lips = Lips {
             slots: [(u32::MAX, false); 2 * LIP_PAIRS],
@@ -444,21 +430,7 @@ pub(super) fn anchor_where<T: Real>(
         }
         let d = length(sub(*f, p));
         if found < K || d < near[K - 1].0 {
-            // Into the last place in use (or the first free one), then down to its rank.
-            let mut k = found.min(K - 1);
-            if let Some(slot) = near.get_mut(k) {
-                *slot = (d, i as u32);
-            }
-            while k > 0 {
-                match (near.get(k - 1), near.get(k)) {
-                    (Some(lower), Some(this)) if this.0 < lower.0 => {
-                        near.swap(k, k - 1);
-                        k -= 1;
-                    }
-                    _ => break,
-                }
-            }
-            found = (found + 1).min(K);
+            found = keep_nearest(&mut near, found, d, i as u32);
         }
     }
     let near = near.get(..found).unwrap_or_default();
@@ -494,4 +466,28 @@ pub(super) fn anchor_where<T: Real>(
         }
     }
     best.map(|(_, idx, w)| (idx, w))
+}
+
+/// Puts `item` at distance `d` into `near`, a list sorted by distance whose first `found`
+/// places are in use, in the last place in use (or the first free one) and then down to its
+/// rank; returns the places now in use. The caller checks that `d` beats the last place when
+/// the list is full.
+fn keep_nearest<T: Real, I: Copy>(near: &mut [(T, I)], found: usize, d: T, item: I) -> usize {
+    let Some(last) = near.len().checked_sub(1) else {
+        return 0;
+    };
+    let mut k = found.min(last);
+    if let Some(slot) = near.get_mut(k) {
+        *slot = (d, item);
+    }
+    while k > 0 {
+        match (near.get(k - 1), near.get(k)) {
+            (Some(lower), Some(this)) if this.0 < lower.0 => {
+                near.swap(k, k - 1);
+                k -= 1;
+            }
+            _ => break,
+        }
+    }
+    (found + 1).min(near.len())
 }
