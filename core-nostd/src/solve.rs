@@ -47,9 +47,7 @@
 //!   nodes along the rays, where nothing else resists (a band's targets went 3.3 → 12 mm from
 //!   the truth at 10³ times the coupling, a liver's 2.3 → 34 mm at 10⁶). Keeping the prior's
 //!   ratio to the springs keeps those frames as well posed as at the default; at or below it
-//!   nothing changes. The inversion barrier of `W_I` is scaled by the same factor, for the same
-//!   reason: it must stop the springs from pulling elements through themselves, however stiff
-//!   they are ([`crate::material::InversionBarrier`]).
+//!   nothing changes.
 //!
 //! Every loop runs a number of times fixed by the configuration and the scene's sizes, so a
 //! frame's cost does not depend on the data.

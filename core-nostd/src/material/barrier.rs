@@ -16,13 +16,7 @@
 //!
 //! [`InversionBarrier::for_material`] sets `J₀ = 1/√3`, the compression at which SVK's
 //! resistance peaks, and `κ = λ + 2μ` (the P-wave modulus, about five times that peak), so
-//! elements compressed less than that see exactly the SVK model. With springs stiffer than the
-//! default coupling, the model multiplies `κ` by how much stiffer they are (as it does the depth
-//! prior, see `crate::solve`): springs a million times the default then held the liver's
-//! features so much harder than its material that a solve run to convergence turned elements
-//! inside out through the barrier and flung their nodes out of the image (target error 51.9 mm,
-//! the rest model's 3.3); scaled with them, the barrier keeps those elements the right way out
-//! (5.0 mm).
+//! elements compressed less than that see exactly the SVK model.
 //!
 //! With `C = cof F` (so `∂J/∂F = C`, and `∂J/∂x_a = C g_a`), an element of rest volume `V`
 //! adds `V ψ` to the energy, `V ψ' C g_a` to the gradient at node `a`, and to the tangent block

@@ -69,7 +69,7 @@ impl<T: Real, F: Real> Model<'_, T, F> {
         let springs = (
             self.spring_stiffness,
             self.spring_threshold_px,
-            self.coupling_scale,
+            self.depth_scale,
         );
         self.factor.checkpoint();
         match self.embed_features_uncommitted(frame0) {
@@ -84,7 +84,7 @@ impl<T: Real, F: Real> Model<'_, T, F> {
                 (
                     self.spring_stiffness,
                     self.spring_threshold_px,
-                    self.coupling_scale,
+                    self.depth_scale,
                 ) = springs;
                 self.factor.rollback();
                 Err(e)
@@ -113,7 +113,7 @@ impl<T: Real, F: Real> Model<'_, T, F> {
         (
             self.spring_stiffness,
             self.spring_threshold_px,
-            self.coupling_scale,
+            self.depth_scale,
         ) = self.coupled_springs()?;
         #[cfg(feature = "detect")]
         {
@@ -171,7 +171,7 @@ impl<T: Real, F: Real> Model<'_, T, F> {
     }
 
     /// The springs' stiffness `k` ([`crate::Coupling`]), robust threshold (pixels) and the depth
-    /// prior's scale ([`Model::coupling_scale`](crate::Model)) for the embedded features: the
+    /// prior's scale ([`Model::depth_scale`](crate::Model)) for the embedded features: the
     /// feature spacing from the bounding box of their frame-0 pixels, the image scale from the
     /// projection's Jacobian at their virtual points.
     ///
@@ -197,7 +197,7 @@ impl<T: Real, F: Real> Model<'_, T, F> {
                 let k = Coupling::Stiffness(k).stiffness(k, T::one(), T::one())?;
                 // A given `k` against the default coupling's for this scene; a scene whose
                 // features cannot all be projected keeps the prior as it is.
-                let coupling_scale = self
+                let depth_scale = self
                     .image_scale()
                     .and_then(|scale| {
                         Coupling::Relative(default).stiffness(
@@ -213,7 +213,7 @@ impl<T: Real, F: Real> Model<'_, T, F> {
                             T::one()
                         }
                     });
-                Ok((k, threshold, coupling_scale))
+                Ok((k, threshold, depth_scale))
             }
         }
     }

@@ -112,7 +112,7 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
             [
                 self.spring_stiffness,
                 self.spring_threshold_px,
-                self.coupling_scale,
+                self.depth_scale,
             ]
             .iter(),
         );

@@ -202,11 +202,10 @@ pub struct Model<'a, T: Real, F: Real = T> {
     /// Where the springs turn linear, pixels ([`SolverConfig::spring_threshold`] feature
     /// spacings, set when the features are embedded; `∞` before).
     pub(crate) spring_threshold_px: T,
-    /// How much stiffer than the default coupling the springs are, at least 1: what the depth
-    /// prior's weights ([`crate::solve::DEFAULT_DEPTH_PRIOR`]) and the inversion barrier's
-    /// stiffness ([`crate::material::InversionBarrier`]) are multiplied by, so that both keep
-    /// their ratio to the springs; set when the features are embedded, 1 before.
-    pub(crate) coupling_scale: T,
+    /// What the depth prior's weights are multiplied by: the springs' stiffness over the
+    /// default coupling's, at least 1 ([`crate::solve::DEFAULT_DEPTH_PRIOR`]); set when the
+    /// features are embedded, 1 before.
+    pub(crate) depth_scale: T,
     pub(crate) vectors: SolveVectors<'a, T, F>,
     /// Workspace of rebuilds and cuts (no meaning between calls).
     #[cfg(feature = "cut")]
@@ -383,7 +382,7 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
                 Coupling::Relative(_) => T::zero(),
             },
             spring_threshold_px: T::of(f64::INFINITY),
-            coupling_scale: T::one(),
+            depth_scale: T::one(),
             vectors,
             #[cfg(feature = "cut")]
             work,

@@ -36,9 +36,9 @@ pub(crate) struct Problem<'p, 'a, T: Real> {
     pub damping: &'p [T],
     /// Depth-prior weight per node.
     pub depth_weight: &'p [T],
-    /// What the depth-prior weights are multiplied by ([`crate::Model`]'s `coupling_scale`: the
-    /// springs' stiffness over the default coupling's, at least 1).
-    pub coupling_scale: T,
+    /// What the depth-prior weights are multiplied by (the springs' stiffness over the default
+    /// coupling's, at least 1).
+    pub depth_scale: T,
     /// Positions of the previous frame, which the damping pulls toward.
     pub previous: &'p [[T; 3]],
     /// Per tetrahedron, per node pair ([`PAIRS`]) and column, the position in the pattern's
@@ -211,7 +211,7 @@ impl<T: Real> Problem<'_, '_, T> {
             if c == T::zero() {
                 continue;
             }
-            let c = c * self.coupling_scale;
+            let c = c * self.depth_scale;
             let s = (vec3(p) - vec3(q)).dot(&self.ray_at_rest(q));
             sum += T::of(0.5) * c * s * s;
         }
@@ -383,7 +383,7 @@ impl<T: Real> Problem<'_, '_, T> {
                 }
             }
             // The prior on depth: `r (d · e) e` and `r e eᵀ`.
-            let r = r * self.coupling_scale;
+            let r = r * self.depth_scale;
             if r > T::zero() {
                 let e_ray = self.ray_at_rest(p_rest);
                 let u = vec3(p) - vec3(p_rest);

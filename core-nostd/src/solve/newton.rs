@@ -346,23 +346,19 @@ pub(crate) struct Coefficients<T> {
     pub(crate) spring_stiffness: T,
     /// `δ`, pixels ([`crate::Model::spring_threshold_px`]).
     pub(crate) spring_threshold_px: T,
-    /// What the depth prior's weights are multiplied by (the barrier's stiffness is already).
-    pub(crate) coupling_scale: T,
+    /// What the depth prior's weights are multiplied by.
+    pub(crate) depth_scale: T,
 }
 
 impl<T: Real, F: Real> Model<'_, T, F> {
-    /// The constants of this model's energy: the inversion barrier, like the depth prior, as
-    /// much stiffer than the material's as the springs are than the default coupling.
+    /// The constants of this model's energy.
     pub(crate) fn coefficients(&self) -> Coefficients<T> {
         Coefficients {
             lame: self.lame,
-            barrier: self.barrier.map(|b| InversionBarrier {
-                stiffness: b.stiffness * self.coupling_scale,
-                ..b
-            }),
+            barrier: self.barrier,
             spring_stiffness: self.spring_stiffness,
             spring_threshold_px: self.spring_threshold_px,
-            coupling_scale: self.coupling_scale,
+            depth_scale: self.depth_scale,
         }
     }
 }
@@ -384,7 +380,7 @@ fn problem_of<'p, 'a, T: Real>(
         barrier,
         spring_stiffness,
         spring_threshold_px,
-        coupling_scale,
+        depth_scale,
     } = coefficients;
     Ok(Problem {
         mesh: &d.mesh,
@@ -395,7 +391,7 @@ fn problem_of<'p, 'a, T: Real>(
         embedding: &d.features,
         spring_stiffness,
         spring_threshold_px,
-        coupling_scale,
+        depth_scale,
         damping: prefix(d.damping, n, Resource::Nodes)?,
         depth_weight: prefix(d.depth_weight, n, Resource::Nodes)?,
         previous: prefix(d.previous, n, Resource::Nodes)?,
