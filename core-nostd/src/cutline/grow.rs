@@ -273,8 +273,14 @@ pub(super) fn anchor_across<T: Real>(
     split: &SplitPairs<'_>,
     reach: T,
 ) -> Option<([u32; ANCHORS], [T; ANCHORS])> {
-    anchor_halves(p, tangent, features, usable, split, reach, true)
-        .or_else(|| anchor_halves(p, tangent, features, usable, split, reach, false))
+    let normal = [-tangent[1], tangent[0]];
+    let across = |f: &[T; 2]| {
+        let d = sub(*f, p);
+        d[0] * normal[0] + d[1] * normal[1]
+    };
+    let lips = Lips::near(p, features, split, reach, &across);
+    anchor_halves(p, features, usable, &lips, &across, true)
+        .or_else(|| anchor_halves(p, features, usable, &lips, &across, false))
         .or_else(|| {
             anchor_at(p, features, usable).map(|(a, w)| {
                 (
@@ -285,30 +291,23 @@ pub(super) fn anchor_across<T: Real>(
         })
 }
 
-/// Half of `p` on three features of each lip ([`anchor_across`]): with `lips_only`, the lips
-/// are the features of the split pairs near `p` alone (`None` with fewer than
+/// Half of `p` on three features of each lip ([`anchor_across`]), `lips` the split pairs near
+/// it and `across` a feature's offset across the line: with `lips_only`, the lips are the
+/// features of those pairs alone (`None` with fewer than
 /// [`MIN_LIP_PAIRS`] of them); without, those features keep their pair's side and the others
 /// are split by the side of the line.
 fn anchor_halves<T: Real>(
     p: [T; 2],
-    tangent: [T; 2],
     features: &[[T; 2]],
     usable: &[u32],
-    split: &SplitPairs<'_>,
-    reach: T,
+    lips: &Lips,
+    across: &impl Fn(&[T; 2]) -> T,
     lips_only: bool,
 ) -> Option<([u32; ANCHORS], [T; ANCHORS])> {
-    let normal = [-tangent[1], tangent[0]];
-    let across = |f: &[T; 2]| {
-        let d = sub(*f, p);
-        d[0] * normal[0] + d[1] * normal[1]
-    };
-    let lips = Lips::near(p, features, split, reach, &across);
     if lips_only && lips.n < 2 * MIN_LIP_PAIRS {
         return None;
     }
     let side = |positive: bool| {
-        let (lips, across) = (&lips, &across);
         move |i: usize, f: &[T; 2]| match lips.side(i) {
             Some(s) => s == positive,
             None => !lips_only && (across(f) > T::zero()) == positive,
@@ -425,11 +424,12 @@ pub(super) fn anchor_where<T: Real>(
     let mut near: [(T, u32); K] = [(T::max_value().unwrap_or(T::one()), u32::MAX); K];
     let mut found = 0;
     for (i, f) in features.iter().enumerate() {
-        if usable.get(i).is_none_or(|&u| u == 0) || !keep(i, f) {
+        if usable.get(i).is_none_or(|&u| u == 0) {
             continue;
         }
         let d = length(sub(*f, p));
-        if found < K || d < near[K - 1].0 {
+        // `keep` (a lookup among the lips) only for a feature that would enter the list.
+        if (found < K || d < near[K - 1].0) && keep(i, f) {
             found = keep_nearest(&mut near, found, d, i as u32);
         }
     }

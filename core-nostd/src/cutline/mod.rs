@@ -63,7 +63,7 @@ impl LineWork {
     ///   looks ahead (`points`), with one anchoring per vertex and per front.
     ///
     /// An anchoring scans the pairs once (for the split ones near the point; `points` is the
-    /// pair capacity) and the slots at most three times (each side, then both), each scan
+    /// pair capacity) and the slots at most five times (each lip, each side, then all), each scan
     /// `features + 20` visits.
     pub const fn bound(vertices: u64, points: u64, features: u64) -> LineWork {
         let f = if points < FIT_POINTS as u64 {
@@ -491,8 +491,9 @@ impl<'a, T: Real> CutLine<'a, T> {
 /// How far ahead of a front (in maximum steps) separation points draw it.
 const REACH_STEPS: f64 = 5.0;
 
-/// Scans of the feature slots per anchoring ([`anchor_across`]: each side, then both).
-const ANCHOR_COST: u64 = 3;
+/// Scans of the feature slots per anchoring ([`anchor_across`]: each lip on the split pairs'
+/// features alone, each side again with the others split by the line, then all around).
+const ANCHOR_COST: u64 = 5;
 
 /// The visits of one anchoring with `features` slots and `pairs` neighbour pairs: a scan of
 /// the pairs for the split ones near the point, then [`ANCHOR_COST`] scans of the slots, each
