@@ -5,7 +5,9 @@
 use std::fmt::Write as _;
 
 use super::Report;
-use super::stability::{Block, CONVERGED_FRAMES, CONVERGED_REDUCTION, Cell, SCALES, Status};
+use super::stability::{
+    Block, CONVERGED_FRAMES, CONVERGED_REDUCTION, Cell, SCALES, Status, UNCUT_CHECK,
+};
 use crate::scene::Precision;
 
 /// Typed errors listed one by one; the rest are counted.
@@ -74,6 +76,7 @@ pub(super) fn stability_markdown(report: &Report) -> String {
         of(Block::Deformation).count()
     );
     outcomes(&mut s, &cells);
+    above_the_line(&mut s, &cells);
     material(&mut s, &cells);
     precision(&mut s, report);
     tracking(&mut s, report);
@@ -121,6 +124,69 @@ fn outcomes(s: &mut String, cells: &[(&str, &Cell)]) {
     let more = (failures.len() + typed.len()).saturating_sub(LISTED_ERRORS);
     if more > 0 {
         let _ = writeln!(s, "  - and {more} more (`stability.csv`).");
+    }
+}
+
+/// The cells whose targets end above [`UNCUT_CHECK`] times the rest model's error: where,
+/// and what the same runs reach with cutting off (the elastic solve alone).
+fn above_the_line(s: &mut String, cells: &[(&str, &Cell)]) {
+    let above: Vec<&(&str, &Cell)> = cells
+        .iter()
+        .filter(|(_, c)| c.tre_mm_final.is_nan() || ratio(c) > UNCUT_CHECK)
+        .collect();
+    let mut scenes: Vec<&str> = above.iter().map(|(n, _)| *n).collect();
+    scenes.dedup();
+    let _ = write!(
+        s,
+        "- **Above {UNCUT_CHECK} times the rest model's target error: {} of {} cells**",
+        above.len(),
+        cells.len()
+    );
+    if above.is_empty() {
+        s.push_str(
+            ".
+",
+        );
+        return;
+    }
+    let names: Vec<String> = scenes.iter().map(|n| format!("`{n}`")).collect();
+    let _ = write!(s, ", on {}", names.join(", "));
+    let cut: Vec<&&(&str, &Cell)> = above
+        .iter()
+        .filter(|(_, c)| c.cut_detected_frame.is_some())
+        .collect();
+    let _ = write!(
+        s,
+        " ({} of them cut their mesh: a cut detected at frame {}",
+        cut.len(),
+        range(
+            cut.iter()
+                .map(|(_, c)| f64::from(c.cut_detected_frame.unwrap_or(0)))
+        )
+        .map_or("–".to_string(), |(lo, hi)| if lo == hi {
+            format!("{lo}")
+        } else {
+            format!("{lo}–{hi}")
+        })
+    );
+    let uncut = range(
+        cut.iter()
+            .map(|(_, c)| c.tre_mm_final_uncut / c.tre_mm_rest),
+    );
+    match uncut {
+        Some((lo, hi)) => {
+            let _ = write!(
+                s,
+                "; the same runs with cutting off end at {lo:.2}–{hi:.2} times the rest model's \
+                 error"
+            );
+            s.push_str(if hi <= UNCUT_CHECK {
+                ", so what puts them above the line is where their mesh was cut).\n"
+            } else {
+                ").\n"
+            });
+        }
+        None => s.push_str(").\n"),
     }
 }
 

@@ -167,13 +167,13 @@ pub(super) fn summary_markdown(report: &Report) -> String {
 
 fn stability_csv(report: &Report) -> String {
     let mut s = String::from(
-        "scene,block,young_pa,poisson,k_scale,precision,noise_px,outliers,compression,mirrored_frames,barrier,spring_stiffness,status,frames_rejected,first_error,converged_frames,relative_gradient,min_pivot,pivot_ratio,inverted_max,inverted_final,dice_final,tre_mm_final,tre_mm_rest\n",
+        "scene,block,young_pa,poisson,k_scale,precision,noise_px,outliers,compression,mirrored_frames,barrier,spring_stiffness,status,frames_rejected,first_error,converged_frames,relative_gradient,min_pivot,pivot_ratio,inverted_max,inverted_final,dice_final,tre_mm_final,tre_mm_rest,cut_detected_frame,tre_mm_final_uncut\n",
     );
     for scene in &report.scenes {
         for c in &scene.stability {
             let _ = writeln!(
                 s,
-                "{},{},{:e},{},{:e},{},{},{},{},{},{},{:e},{},{},\"{}\",{:.3},{:e},{:e},{:e},{},{},{:.5},{:.4},{:.4}",
+                "{},{},{:e},{},{:e},{},{},{},{},{},{},{:e},{},{},\"{}\",{:.3},{:e},{:e},{:e},{},{},{:.5},{:.4},{:.4},{},{:.4}",
                 scene.name,
                 c.block.label(),
                 c.young,
@@ -197,7 +197,10 @@ fn stability_csv(report: &Report) -> String {
                 c.inverted_final,
                 c.dice_final,
                 c.tre_mm_final,
-                c.tre_mm_rest
+                c.tre_mm_rest,
+                c.cut_detected_frame
+                    .map_or(String::new(), |f| f.to_string()),
+                c.tre_mm_final_uncut
             );
         }
     }
@@ -291,7 +294,7 @@ fn stability_table(h: &mut String, scene: &SceneReport, block: Block) {
                 h,
                 "<td style=\"background:{colour}\" title=\"{}; converged frames {:.0} %; \
                  median gradient at the end over the start {:.1e}; smallest pivot {:.2e}; \
-                 pivot ratio {:.2e}; Dice {:.3}; target error {:.2} mm (rest {:.2} mm){}\">{}\
+                 pivot ratio {:.2e}; Dice {:.3}; target error {:.2} mm (rest {:.2} mm){}{}\">{}\
                  <br>{:.2}× rest{residual}</td>",
                 c.status.label(),
                 100.0 * c.converged_frames,
@@ -301,6 +304,11 @@ fn stability_table(h: &mut String, scene: &SceneReport, block: Block) {
                 c.dice_final,
                 c.tre_mm_final,
                 c.tre_mm_rest,
+                if c.tre_mm_final_uncut.is_nan() {
+                    String::new()
+                } else {
+                    format!("; cutting off: {:.2} mm", c.tre_mm_final_uncut)
+                },
                 c.first_error
                     .as_deref()
                     .map_or(String::new(), |e| format!("; {}", esc(e))),
