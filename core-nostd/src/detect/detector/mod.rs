@@ -79,8 +79,9 @@ impl<'d> SplitPairs<'d> {
     }
 
     /// `pairs` with their states as the detector keeps them (a state with the split bit set,
-    /// such as `u32::MAX`, marks a split pair), for unit tests of the cut line.
-    #[cfg(test)]
+    /// such as `u32::MAX`, marks a split pair), for the cut line's unit tests (which need
+    /// `f64`).
+    #[cfg(all(test, feature = "f64"))]
     pub(crate) fn for_test(pairs: &'d [[u32; 2]], state: &'d [u32]) -> Self {
         SplitPairs { pairs, state }
     }
