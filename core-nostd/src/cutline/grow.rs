@@ -159,9 +159,9 @@ impl<'a, T: Real> CutLine<'a, T> {
             let shift = offset / T::of(f64::from(count));
             let target = [v[0] + normal[0] * shift, v[1] + normal[1] * shift];
             work.anchor_visits += anchor_cost(features.len(), split.scanned());
-            let anchored = anchor_across(target, t, features, usable, split, rules.lip_reach);
             // `projected` holds one pixel per vertex (`k < n`).
-            if let Some((anchor, w)) = anchored
+            if let Some((anchor, w)) =
+                anchor_across(target, t, features, usable, split, rules.lip_reach)
                 && let (Some(sa), Some(sw)) = (self.anchors.get_mut(k), self.weights.get_mut(k))
             {
                 *sa = anchor;
@@ -334,7 +334,7 @@ fn anchor_halves<T: Real>(
 }
 
 /// Split pairs whose sides [`anchor_across`] reads near one point.
-pub(super) const LIP_PAIRS: usize = 8;
+const LIP_PAIRS: usize = 8;
 
 /// Split pairs near a point from which [`anchor_across`] anchors it to their features alone.
 const MIN_LIP_PAIRS: usize = 3;
