@@ -3,8 +3,8 @@
 
 use incise_core::sparse::{
     Graph, LdlFactor, NONE, Symbolic, SymbolicSize, UpperCsc, analyse_work_len, block_upper_len,
-    block_upper_pattern, expand_block_permutation, minimum_degree, minimum_degree_work_len,
-    tet_graph_work_len,
+    block_upper_pattern, elimination_fill, expand_block_permutation, fill_reducing_order,
+    fill_reducing_order_work_len, minimum_degree, nested_dissection, tet_graph_work_len,
 };
 use incise_core::{Error, Real};
 
@@ -21,7 +21,8 @@ pub struct StiffnessPattern {
     pub col_ptr: Vec<u32>,
     /// Row indices of the upper triangle.
     pub row_idx: Vec<u32>,
-    /// Minimum-degree ordering of the unknowns (expanded from the node ordering).
+    /// Fill-reducing ordering of the unknowns (`fill_reducing_order` on the node graph,
+    /// expanded).
     pub perm: Vec<u32>,
 }
 
@@ -45,8 +46,8 @@ impl StiffnessPattern {
         let (mut gp, mut ga) = (vec![0u32; n_free + 1], vec![0u32; nnz_g]);
         let graph = Graph::from_tets(&mesh.tets, &free, &mut gp, &mut ga, &mut work)?;
         let mut node_perm = vec![0u32; n_free];
-        let mut mwork = vec![0u32; minimum_degree_work_len(n_free, nnz_g)];
-        minimum_degree(&graph, &mut node_perm, &mut mwork)?;
+        let mut mwork = vec![0u32; fill_reducing_order_work_len(n_free, nnz_g)];
+        fill_reducing_order(&graph, &mut node_perm, &mut mwork)?;
         let mut perm = vec![0u32; 3 * n_free];
         expand_block_permutation(&node_perm, 3, &mut perm)?;
         let nnz = block_upper_len(&graph, 3);
@@ -58,6 +59,27 @@ impl StiffnessPattern {
             row_idx,
             perm,
         })
+    }
+
+    /// Entries of the strictly lower factor (scalars) under each of the two orderings
+    /// `fill_reducing_order` chooses between: `(minimum degree, nested dissection)`.
+    pub fn ordering_fills(&self, mesh: &TetMesh) -> Result<(usize, usize), Error> {
+        let n_free = self.n() / 3;
+        let mut work = vec![0u32; tet_graph_work_len(n_free, mesh.tets.len())];
+        let nnz_g = Graph::tets_nnz(&mesh.tets, &self.free, &mut work)?;
+        let (mut gp, mut ga) = (vec![0u32; n_free + 1], vec![0u32; nnz_g]);
+        let graph = Graph::from_tets(&mesh.tets, &self.free, &mut gp, &mut ga, &mut work)?;
+        let mut perm = vec![0u32; n_free];
+        let mut work = vec![0u32; fill_reducing_order_work_len(n_free, nnz_g)];
+        // A node-level entry is a 3 × 3 block; a diagonal block has 3 entries below its diagonal.
+        let scalars = |perm: &[u32], work: &mut [u32]| {
+            elimination_fill(&graph, perm, work).map(|f| 9 * f as usize + 3 * n_free)
+        };
+        minimum_degree(&graph, &mut perm, &mut work)?;
+        let md = scalars(&perm, &mut work)?;
+        nested_dissection(&graph, &mut perm, &mut work)?;
+        let nd = scalars(&perm, &mut work)?;
+        Ok((md, nd))
     }
 
     /// Dimension.
@@ -182,14 +204,15 @@ pub fn factor_and_solve_with<T: Real>(
     })
 }
 
-/// A minimum-degree ordering of any symmetric pattern, computed on its own graph.
+/// The fill-reducing ordering (`fill_reducing_order`) of any symmetric pattern, computed on its
+/// own graph.
 pub fn order_pattern(a: &UpperCsc<'_>) -> Result<Vec<u32>, Error> {
     let n = a.n();
     let off = a.nnz() - n;
     let (mut gp, mut ga, mut w) = (vec![0u32; n + 1], vec![0u32; 2 * off], vec![0u32; n]);
     let g = Graph::from_upper(a, &mut gp, &mut ga, &mut w)?;
     let mut perm = vec![0u32; n];
-    let mut work = vec![0u32; minimum_degree_work_len(n, g.nnz())];
-    minimum_degree(&g, &mut perm, &mut work)?;
+    let mut work = vec![0u32; fill_reducing_order_work_len(n, g.nnz())];
+    fill_reducing_order(&g, &mut perm, &mut work)?;
     Ok(perm)
 }

@@ -130,6 +130,7 @@ fn check_scene(dir: &Path, name: &str, set: &FeatureSet) -> Firmware {
     let detect = cut || set.features.contains(&"detect");
     for (needle, expected) in [
         ("sparse::order::minimum_degree", cut),
+        ("sparse::dissect::nested_dissection", cut),
         ("Symbolic::analyse", cut),
         ("incise_core::detect::detector", detect),
     ] {

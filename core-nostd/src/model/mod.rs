@@ -267,7 +267,7 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
     /// As [`Model::new`], with the ordering and symbolic analysis of the uncut mesh taken from
     /// `analysis` (generated ahead of time by `incise codegen`, or
     /// [`Symbolic::precomputed`] of a model built from the same mesh) instead of computed: a
-    /// firmware build that never cuts then links neither the minimum-degree ordering nor the
+    /// firmware build that never cuts then links neither the fill-reducing ordering nor the
     /// analysis. The analysis is checked against the mesh's stiffness pattern in time linear in
     /// the factor's entries ([`crate::sparse::precomputed`]); the model is the same, bit for
     /// bit, as [`Model::new`] builds. A cut (feature `cut`) still orders and analyses the cut

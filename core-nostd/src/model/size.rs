@@ -13,8 +13,8 @@ use crate::real::Real;
 use crate::sparse::pattern::MAX_INDEX;
 use crate::sparse::{
     Graph, LdlFactor, NONE, Symbolic, SymbolicSize, UpperCsc, analyse_work_len, block_upper_len,
-    block_upper_pattern, expand_block_permutation, minimum_degree, minimum_degree_work_len,
-    tet_graph_work_len,
+    block_upper_pattern, expand_block_permutation, fill_reducing_order,
+    fill_reducing_order_work_len, tet_graph_work_len,
 };
 use crate::storage::{Slab, ensure_len, sum, times};
 
@@ -387,7 +387,10 @@ impl ModelSize {
         let (n, t) = (c.mesh.nodes, c.mesh.tets);
         let graph = times(12, t);
         let phases = max(
-            max(tet_graph_work_len(n, t), minimum_degree_work_len(n, graph)),
+            max(
+                tet_graph_work_len(n, t),
+                fill_reducing_order_work_len(n, graph),
+            ),
             analyse_work_len(self.unknowns, self.nnz_a),
         );
         let rebuild = sum(&[n, 1, graph, n, self.unknowns, phases]);
@@ -538,7 +541,7 @@ pub const fn analyse_mesh_work_len(nodes: usize, tets: usize) -> usize {
     let phases = max(
         max(
             tet_graph_work_len(nodes, tets),
-            minimum_degree_work_len(nodes, graph),
+            fill_reducing_order_work_len(nodes, graph),
         ),
         analyse_work_len(unknowns, nnz_a),
     );
@@ -634,7 +637,7 @@ pub(crate) struct Ordered<'w> {
     pub scratch: &'w mut [u32],
 }
 
-/// Builds the node graph of the free nodes (numbered by `free`), its minimum-degree ordering,
+/// Builds the node graph of the free nodes (numbered by `free`), its fill-reducing ordering,
 /// and the block pattern of the stiffness matrix into `col_ptr` / `row_idx`.
 pub(crate) fn order_free_nodes<'w>(
     tets: &[[u32; 4]],
@@ -649,7 +652,7 @@ pub(crate) fn order_free_nodes<'w>(
     let node_perm = rest.take(n_free)?;
     let perm = rest.take(times(3, n_free))?;
     let scratch = rest.take(rest.remaining())?;
-    minimum_degree(&graph, node_perm, scratch)?;
+    fill_reducing_order(&graph, node_perm, scratch)?;
     expand_block_permutation(node_perm, 3, perm)?;
     Ok(Ordered {
         perm,

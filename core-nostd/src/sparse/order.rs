@@ -21,6 +21,7 @@
 //! unknowns are the natural supervariables, and the result is expanded with
 //! [`expand_block_permutation`].
 
+use super::dissect::{DISSECTION_LEAF, nested_dissection, nested_dissection_work_len};
 use super::pattern::Graph;
 use super::{NONE, ux};
 use crate::error::{Error, Resource};
@@ -164,7 +165,7 @@ pub fn minimum_degree(graph: &Graph<'_>, perm: &mut [u32], work: &mut [u32]) -> 
 /// The workspace bookkeeping contradicted itself; with correct code this cannot happen, and it
 /// is reported rather than panicking.
 #[cold]
-fn internal() -> Error {
+pub(super) fn internal() -> Error {
     Error::Capacity {
         resource: Resource::Workspace,
         needed: 0,
@@ -174,12 +175,12 @@ fn internal() -> Error {
 
 /// `x[i]`, or [`Error::IndexOutOfRange`] naming the workspace, `i` and the array's length
 /// (a contradiction of the bookkeeping, like [`internal`]).
-fn at(x: &[u32], i: usize) -> Result<u32, Error> {
+pub(super) fn at(x: &[u32], i: usize) -> Result<u32, Error> {
     x.get(i).copied().ok_or_else(|| outside(i, i, x.len()))
 }
 
 /// `&mut x[i]`, or the error of [`at`].
-fn at_mut(x: &mut [u32], i: usize) -> Result<&mut u32, Error> {
+pub(super) fn at_mut(x: &mut [u32], i: usize) -> Result<&mut u32, Error> {
     let bound = x.len();
     x.get_mut(i).ok_or_else(|| outside(i, i, bound))
 }
@@ -508,6 +509,100 @@ impl Quotient<'_> {
         self.pfree = to;
         Ok(())
     }
+}
+
+/// Length of the `u32` workspace [`fill_reducing_order`] needs for a graph of `n` vertices and
+/// `nnz` adjacency entries.
+pub const fn fill_reducing_order_work_len(n: usize, nnz: usize) -> usize {
+    sum(&[nested_dissection_work_len(n, nnz), n])
+}
+
+/// The ordering the model factors under: [`minimum_degree`], and, on graphs of more than
+/// [`DISSECTION_LEAF`] vertices, also [`nested_dissection`], keeping the one whose factor has
+/// fewer entries ([`elimination_fill`], minimum degree on a tie). Neither wins everywhere:
+/// minimum degree is the better on small or irregular meshes (the coarse and the fine liver),
+/// nested dissection on larger regular ones, where minimum degree's local choices cost it
+/// 5–10 % more fill than AMD. `perm` needs exactly `graph.n()` entries and `work`
+/// [`fill_reducing_order_work_len`]`(n, graph.nnz())`.
+///
+/// # Errors
+/// As [`minimum_degree`].
+pub fn fill_reducing_order(
+    graph: &Graph<'_>,
+    perm: &mut [u32],
+    work: &mut [u32],
+) -> Result<(), Error> {
+    let n = graph.n();
+    ensure_exact_len(perm, n, Resource::Permutation)?;
+    let mut slab = Slab::new(work, Resource::Workspace);
+    let other = slab.take(n)?;
+    let scratch = slab.take(nested_dissection_work_len(n, graph.nnz()))?;
+    minimum_degree(graph, perm, scratch)?;
+    if n <= DISSECTION_LEAF {
+        return Ok(());
+    }
+    nested_dissection(graph, other, scratch)?;
+    if elimination_fill(graph, other, scratch)? < elimination_fill(graph, perm, scratch)? {
+        perm.copy_from_slice(other);
+    }
+    Ok(())
+}
+
+/// Length of the `u32` workspace [`elimination_fill`] needs for `n` vertices.
+pub const fn elimination_fill_work_len(n: usize) -> usize {
+    times(3, n)
+}
+
+/// The entries of the strictly lower Cholesky factor of a matrix with the graph's pattern,
+/// eliminated in the order `perm` (`perm[k]` the `k`-th vertex): row by row, each row's entries
+/// are the elimination-tree paths from its earlier neighbours up to it (the row subtree), with
+/// the tree built as the rows are. Cost: proportional to the count. `work` needs
+/// [`elimination_fill_work_len`]`(n)` entries.
+///
+/// # Errors
+/// [`Error::Length`] if `perm` has not `graph.n()` entries, [`Error::Capacity`] if `work` is
+/// too short, [`Error::NotAPermutation`] (naming the position) if `perm` repeats a vertex, and
+/// [`Error::IndexOutOfRange`] if it names one beyond the graph.
+pub fn elimination_fill(graph: &Graph<'_>, perm: &[u32], work: &mut [u32]) -> Result<u64, Error> {
+    let n = graph.n();
+    ensure_exact_len(perm, n, Resource::Permutation)?;
+    let mut slab = Slab::new(work, Resource::Workspace);
+    let (position, parent, mark) = (slab.take(n)?, slab.take(n)?, slab.take(n)?);
+    position.fill(NONE);
+    for (k, &v) in perm.iter().enumerate() {
+        let p = position.get_mut(ux(v)).ok_or(Error::IndexOutOfRange {
+            resource: Resource::Permutation,
+            position: k,
+            index: ux(v),
+            bound: n,
+        })?;
+        if *p != NONE {
+            return Err(Error::NotAPermutation { position: k });
+        }
+        *p = k as u32;
+    }
+    let mut count = 0u64;
+    for (k, &v) in perm.iter().enumerate() {
+        *at_mut(parent, k)? = NONE;
+        *at_mut(mark, k)? = k as u32;
+        for &w in graph.neighbours(ux(v)) {
+            let mut j = ux(at(position, ux(w))?);
+            if j >= k {
+                continue;
+            }
+            // Up the tree from `j` until a column this row already reached.
+            while at(mark, j)? != k as u32 {
+                count += 1;
+                *at_mut(mark, j)? = k as u32;
+                let p = at_mut(parent, j)?;
+                if *p == NONE {
+                    *p = k as u32;
+                }
+                j = ux(*p);
+            }
+        }
+    }
+    Ok(count)
 }
 
 /// Expands an ordering of `n` vertices into one of `b·n` unknowns, vertex `v` owning unknowns
