@@ -401,7 +401,7 @@ mod tests {
     }
 
     fn is_permutation(perm: &[u32]) -> bool {
-        let mut seen = [false; 1024];
+        let mut seen = [false; 2048];
         perm.iter()
             .all(|&v| ux(v) < perm.len() && !core::mem::replace(&mut seen[ux(v)], true))
     }
@@ -483,22 +483,33 @@ mod tests {
 
     #[test]
     fn the_kept_ordering_has_the_lesser_fill_of_the_two() {
-        let grid = Grid::new();
-        let (g, nnz) = (grid.graph(), grid.nnz);
-        let mut work = [0u32; WORK];
-        let (mut md, mut nd, mut kept) = ([0u32; N], [0u32; N], [0u32; N]);
-        crate::sparse::minimum_degree(&g, &mut md, &mut work).unwrap();
-        nested_dissection(&g, &mut nd, &mut work).unwrap();
-        fill_reducing_order(
-            &g,
-            &mut kept,
-            &mut work[..fill_reducing_order_work_len(N, nnz)],
-        )
-        .unwrap();
-        let fill = |p: &[u32], w: &mut [u32]| elimination_fill(&g, p, w).unwrap();
-        let (f_md, f_nd) = (fill(&md, &mut work), fill(&nd, &mut work));
-        assert_eq!(fill(&kept, &mut work), f_md.min(f_nd));
-        assert!(is_permutation(&kept));
+        // Above `DISSECTION_FROM` both orderings are tried; at or below it, minimum degree's.
+        const BIG: usize = 12 * 12 * 8;
+        const BIG_WORK: usize = nested_dissection_work_len(BIG, 6 * BIG) + BIG;
+        let (mut ptr, mut adj) = ([0u32; BIG + 1], [0u32; 6 * BIG]);
+        let nnz = grid([12, 12, 8], &mut ptr, &mut adj);
+        let small = Grid::new();
+        for (g, n) in [
+            (Graph::new(BIG, &ptr, &adj[..nnz]).unwrap(), BIG),
+            (small.graph(), N),
+        ] {
+            let mut work = [0u32; BIG_WORK];
+            let (mut md, mut nd, mut kept) = ([0u32; BIG], [0u32; BIG], [0u32; BIG]);
+            let (md, nd, kept) = (&mut md[..n], &mut nd[..n], &mut kept[..n]);
+            crate::sparse::minimum_degree(&g, md, &mut work).unwrap();
+            nested_dissection(&g, nd, &mut work).unwrap();
+            let len = fill_reducing_order_work_len(n, g.nnz());
+            fill_reducing_order(&g, kept, &mut work[..len]).unwrap();
+            let fill = |p: &[u32], w: &mut [u32]| elimination_fill(&g, p, w).unwrap();
+            let (f_md, f_nd) = (fill(md, &mut work), fill(nd, &mut work));
+            let expected = if n > crate::sparse::DISSECTION_FROM {
+                f_md.min(f_nd)
+            } else {
+                f_md
+            };
+            assert_eq!(fill(kept, &mut work), expected);
+            assert!(is_permutation(kept));
+        }
     }
 
     #[test]
