@@ -14,11 +14,6 @@ impl<'a, T: Real> CutLine<'a, T> {
         rules: &Rules<T>,
         work: &mut LineWork,
     ) -> usize {
-        let Tracked {
-            features,
-            usable,
-            split,
-        } = tracked;
         // Of the lines through two separation points, the one with most points within the
         // tolerance: spurious clusters (a tracking failure, a region where the model is poor)
         // then do not tilt the line.
@@ -82,10 +77,10 @@ impl<'a, T: Real> CutLine<'a, T> {
         }
         let a = [c[0] + e[0] * lo, c[1] + e[1] * lo];
         let b = [c[0] + e[0] * hi, c[1] + e[1] * hi];
-        work.anchor_visits += 2 * anchor_cost(features.len(), split.scanned());
+        work.anchor_visits += 2 * tracked.anchor_cost();
         match (
-            anchor_across(a, e, features, usable, split, rules.lip_reach),
-            anchor_across(b, e, features, usable, split, rules.lip_reach),
+            anchor_across(a, e, tracked, rules.lip_reach),
+            anchor_across(b, e, tracked, rules.lip_reach),
         ) {
             (Some((aa, wa)), Some((ab, wb))) if hi > lo => {
                 // [`CutLine::update`] starts the line only with room for two vertices.
@@ -121,11 +116,6 @@ impl<'a, T: Real> CutLine<'a, T> {
         projected: &[[T; 2]],
         work: &mut LineWork,
     ) {
-        let Tracked {
-            features,
-            usable,
-            split,
-        } = tracked;
         let m = projected.len();
         if m < 2 {
             return;
@@ -158,10 +148,9 @@ impl<'a, T: Real> CutLine<'a, T> {
             }
             let shift = offset / T::of(f64::from(count));
             let target = [v[0] + normal[0] * shift, v[1] + normal[1] * shift];
-            work.anchor_visits += anchor_cost(features.len(), split.scanned());
+            work.anchor_visits += tracked.anchor_cost();
             // `projected` holds one pixel per vertex (`k < n`).
-            if let Some((anchor, w)) =
-                anchor_across(target, t, features, usable, split, rules.lip_reach)
+            if let Some((anchor, w)) = anchor_across(target, t, tracked, rules.lip_reach)
                 && let (Some(sa), Some(sw)) = (self.anchors.get_mut(k), self.weights.get_mut(k))
             {
                 *sa = anchor;
@@ -268,11 +257,14 @@ impl<'a, T: Real> CutLine<'a, T> {
 pub(super) fn anchor_across<T: Real>(
     p: [T; 2],
     tangent: [T; 2],
-    features: &[[T; 2]],
-    usable: &[u32],
-    split: &SplitPairs<'_>,
+    tracked: &Tracked<'_, T>,
     reach: T,
 ) -> Option<([u32; ANCHORS], [T; ANCHORS])> {
+    let Tracked {
+        features,
+        usable,
+        split,
+    } = tracked;
     let normal = [-tangent[1], tangent[0]];
     let across = |f: &[T; 2]| {
         let d = sub(*f, p);

@@ -103,6 +103,13 @@ struct Tracked<'s, T> {
     split: SplitPairs<'s>,
 }
 
+impl<T> Tracked<'_, T> {
+    /// The visits of one anchoring ([`anchor_cost`]) on these features and pairs.
+    fn anchor_cost(&self) -> u64 {
+        anchor_cost(self.features.len(), self.split.scanned())
+    }
+}
+
 /// The line's rules in pixels: the configuration's lengths (in feature spacings) times the
 /// spacing measured at frame 0.
 #[derive(Clone, Copy, Debug)]
@@ -461,9 +468,8 @@ impl<'a, T: Real> CutLine<'a, T> {
                             self.capped = true;
                             continue;
                         }
-                        work.anchor_visits += anchor_cost(features.len(), split.scanned());
-                        if let Some((anchor, w)) =
-                            anchor_across(p, dir, features, usable, &split, rules.lip_reach)
+                        work.anchor_visits += tracked.anchor_cost();
+                        if let Some((anchor, w)) = anchor_across(p, dir, &tracked, rules.lip_reach)
                         {
                             self.insert(end, anchor, w);
                             if let (Some(d), Some(m)) =

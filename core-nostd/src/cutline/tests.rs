@@ -170,14 +170,23 @@ fn a_vertex_off_the_cut_is_held_by_both_lips_the_split_pairs_name() {
             f[1],
         ]
     });
-    let on_lips = anchor_across(p, up, &features, &usable, &split, 25.0).unwrap();
+    let tracked = Tracked {
+        features: &features,
+        usable: &usable,
+        split,
+    };
+    let on_lips = anchor_across(p, up, &tracked, 25.0).unwrap();
     assert!((placed(&on_lips, &features)[0] - 44.0).abs() < 1e-9);
     // Between the lips, it stays where it was: each half moved with its own lip.
     let x = placed(&on_lips, &opened)[0];
     assert!((x - 44.0).abs() < 1e-9, "{x}");
     // Split by the side of the line alone, the features at x = 50 count for the right lip:
     // both halves then follow the left lip, and the vertex leaves with it.
-    let by_side = anchor_across(p, up, &features, &usable, &SplitPairs::default(), 25.0).unwrap();
+    let by_side_only = Tracked {
+        split: SplitPairs::default(),
+        ..tracked
+    };
+    let by_side = anchor_across(p, up, &by_side_only, 25.0).unwrap();
     let x = placed(&by_side, &opened)[0];
     assert!(x < 44.0 - 10.0, "{x}");
 }

@@ -795,12 +795,15 @@ fn growth_markdown(report: &Report) -> String {
     }
     // The largest model of the mesh-resolution axis (SOFA's fine liver) carries the node axis
     // past the band variants, whose largest costs a minute per frame under callgrind already.
-    if let Some((scene, mesh, nodes, v)) = &scaling.largest {
+    if let Some(largest) = &scaling.largest {
         let _ = write!(
             s,
-            " Beyond the band variants, the largest model of the mesh-resolution table, `{scene}` \
-             modelled by {mesh} mesh ({nodes} nodes): {:.0} million instructions per steady frame",
-            v / 1e6
+            " Beyond the band variants, the largest model of the mesh-resolution table, `{}` \
+             modelled by {} mesh ({} nodes): {:.0} million instructions per steady frame",
+            largest.scene,
+            largest.mesh,
+            largest.nodes,
+            largest.instructions / 1e6
         );
         match scaling.nodes_exponent_with_largest {
             Some(b) => {

@@ -306,7 +306,12 @@ pub fn write_report(
         .flat_map(|r| r.models.iter().map(move |m| (r, m)))
         .filter_map(|(r, m)| m.instructions.map(|v| (r, m, v)))
         .max_by_key(|(_, m, _)| m.nodes)
-        .map(|(r, m, v)| (r.scene.clone(), m.mesh.to_string(), m.nodes, v));
+        .map(|(r, m, v)| scaling::LargestModel {
+            scene: r.scene.clone(),
+            mesh: m.mesh.to_string(),
+            nodes: m.nodes,
+            instructions: v,
+        });
     if let Some(scaling) = &mut report.scaling {
         scaling.include_largest(largest);
     }

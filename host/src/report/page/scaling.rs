@@ -39,6 +39,19 @@ pub struct Point {
     pub ms_median: f64,
 }
 
+/// The largest counted model of the mesh-resolution axis, which carries the node axis past
+/// the band variants ([`Scaling::include_largest`]).
+#[derive(Clone, Debug, Serialize)]
+pub struct LargestModel {
+    /// The scene it is a model of.
+    pub scene: String,
+    /// Its mesh, as the mesh-resolution table names it.
+    pub mesh: String,
+    pub nodes: usize,
+    /// Instructions of a steady frame.
+    pub instructions: f64,
+}
+
 /// Both axes and their fitted exponents.
 #[derive(Clone, Debug, Serialize)]
 pub struct Scaling {
@@ -50,7 +63,7 @@ pub struct Scaling {
     pub nodes_exponent: Option<f64>,
     /// The largest model of the mesh-resolution axis (SOFA's fine liver), when the report has
     /// it and it is larger than every band variant: `(scene, mesh, nodes, instructions)`.
-    pub largest: Option<(String, String, usize, f64)>,
+    pub largest: Option<LargestModel>,
     /// The exponent fitted to the node axis and [`Scaling::largest`] together.
     pub nodes_exponent_with_largest: Option<f64>,
     /// Exponent of `cost ∝ featuresᵇ`.
@@ -144,12 +157,11 @@ pub(super) fn measure(
 
 impl Scaling {
     /// Carries the node axis past the band variants with the largest counted model of the
-    /// mesh-resolution axis, `(scene, mesh, nodes, instructions per steady frame)`: beside the
-    /// band's fit, and in a second fit over both. It is another shape with its own features;
+    /// mesh-resolution axis: beside the band's fit, and in a second fit over both. It is another shape with its own features;
     /// at the feature axis's rate per feature they are a small part of its cost, so the two
     /// fits differ by the shape and its finer elements.
-    pub(super) fn include_largest(&mut self, largest: Option<(String, String, usize, f64)>) {
-        let Some(largest) = largest.filter(|l| self.nodes.iter().all(|p| p.nodes < l.2)) else {
+    pub(super) fn include_largest(&mut self, largest: Option<LargestModel>) {
+        let Some(largest) = largest.filter(|l| self.nodes.iter().all(|p| p.nodes < l.nodes)) else {
             return;
         };
         let mut points: Vec<(f64, f64)> = self
@@ -158,7 +170,7 @@ impl Scaling {
             .filter_map(|p| p.instructions.map(|v| (p.nodes as f64, v)))
             .collect();
         if points.len() == self.nodes.len() {
-            points.push((largest.2 as f64, largest.3));
+            points.push((largest.nodes as f64, largest.instructions));
             self.nodes_exponent_with_largest = exponent(&points);
         }
         self.largest = Some(largest);
