@@ -12,7 +12,8 @@
 //!
 //! A temporal filter keeps tracker failures out: a feature whose residual jumps from one frame
 //! to the next far more than the others' (the paper's `E_i > ε_t·Ē`, made robust the same way)
-//! is taken out of detection for good, with all its pairs.
+//! while none of its neighbours jumped with it is taken out of detection for good, with all its
+//! pairs. A lip of a cut opening under the camera jumps as a whole: its features stay.
 //!
 //! Cost per frame: bounded by [`DetectionWork::bound`] in the capacities.
 
@@ -48,7 +49,8 @@ pub struct DetectionConfig<T> {
     /// by this many robust standard deviations (see [`crate::detect`]).
     pub outlier_sigmas: T,
     /// A feature is a tracking failure when its residual changes from one frame to the next by
-    /// more than the median change plus this many robust standard deviations of the changes.
+    /// more than the median change plus this many robust standard deviations of the changes,
+    /// and no neighbour's changed as much and alike (within the same limit).
     /// Infinite turns the temporal filter off (what a build without the `temporal-filter`
     /// feature always does).
     pub temporal_sigmas: T,
@@ -250,7 +252,8 @@ impl DetectionWork {
     /// The most work of one frame with `features` feature slots, `pairs` pairs and `degree`
     /// pairs at most per feature (at most `pairs`):
     /// - feature visits `4 n`: the temporal filter's three passes and the per-feature levels;
-    /// - pair visits `5 P`: differences, per-feature lists, levels, outliers, persistence;
+    /// - pair visits `7 P`: the temporal filter's neighbour lists (`2 P`), differences,
+    ///   per-feature lists, levels, outliers, persistence;
     /// - comparisons: the median and MAD of the changes (`2 S(n)`) and of the differences
     ///   (`2 S(P)`), and each feature's lower tertile (`Σ S(dᵢ) ≤ S(2P)` as `Σ dᵢ = 2P`),
     ///   with `S(m) = 2 m ⌈log₂ m⌉ + 2 m` heapsort's bound.
@@ -258,7 +261,7 @@ impl DetectionWork {
         use crate::robust::sort_bound;
         DetectionWork {
             feature_visits: 4 * features,
-            pair_visits: 5 * pairs,
+            pair_visits: 7 * pairs,
             comparisons: 2 * sort_bound(features) + 2 * sort_bound(pairs) + sort_bound(2 * pairs),
         }
     }

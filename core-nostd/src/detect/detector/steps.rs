@@ -48,13 +48,55 @@ impl<'a, T: Real> Detector<'a, T> {
             work.comparisons += comparisons;
             let limit = (median + config.temporal_sigmas * T::of(MAD_TO_SIGMA) * mad)
                 .max(config.min_difference_px);
-            let slots = self
-                .feature_state
-                .iter_mut()
-                .zip(observed)
-                .zip(d.iter().zip(self.previous.iter()));
-            for ((s, &o), (&di, &previous)) in slots.take(n) {
-                if eligible(*s, o) && norm(di, previous) > limit {
+            // A feature jumps alone, a tracking failure, when no neighbour's residual changed
+            // with it. Where a cut opens under the camera (a scissor advancing), the features
+            // of each lip jump together, each with neighbours on its own lip that moved alike:
+            // they are the cut's evidence, and are kept. Decided for every feature from the
+            // states the frame starts with (`scratch`: 1 to take out), every pair list scanned
+            // whole, so that the work does not depend on the data.
+            let change = |f: usize| match (self.current.get(f), self.previous.get(f)) {
+                (Some(&c), Some(&p)) => Some([c[0] - p[0], c[1] - p[1]]),
+                _ => None,
+            };
+            let starts = self
+                .incident_start
+                .iter()
+                .zip(self.incident_start.iter().skip(1));
+            let slots = self.feature_state.iter().zip(observed).zip(starts);
+            for (i, (((&s, &o), (&lo, &hi)), out)) in
+                slots.zip(self.scratch.iter_mut()).take(n).enumerate()
+            {
+                let mine = change(i).unwrap_or([T::zero(); 2]);
+                let incident = self
+                    .incident
+                    .get(lo as usize..hi as usize)
+                    .unwrap_or_default();
+                let mut followed = false;
+                for &k in incident {
+                    let Some(&[a, b]) = self.pairs.get(k as usize) else {
+                        continue;
+                    };
+                    let j = if a as usize == i { b } else { a } as usize;
+                    let (Some(&sj), Some(&oj), Some(theirs)) =
+                        (self.feature_state.get(j), observed.get(j), change(j))
+                    else {
+                        continue;
+                    };
+                    followed |= eligible(sj, oj)
+                        && norm(theirs, [T::zero(); 2]) > limit
+                        && norm(mine, theirs) <= limit;
+                }
+                work.pair_visits += incident.len() as u64;
+                let jumped = change(i).is_some_and(|c| norm(c, [T::zero(); 2]) > limit);
+                *out = if eligible(s, o) && jumped && !followed {
+                    T::one()
+                } else {
+                    T::zero()
+                };
+            }
+            let slots = self.feature_state.iter_mut().zip(self.scratch.iter());
+            for (s, &out) in slots.take(n) {
+                if out > T::zero() {
                     *s |= FILTERED;
                     self.features_filtered += 1;
                     newly_filtered = true;

@@ -162,6 +162,42 @@ fn a_single_jumping_feature_is_filtered_and_cuts_nothing() {
 }
 
 #[test]
+#[cfg(feature = "temporal-filter")]
+fn a_lip_that_jumps_together_is_kept_and_splits() {
+    // A cut opening under the camera: from frame 2 on, the residuals of the right half of the
+    // grid (x > 95 px) jump by 12 px to the right, all together, as a lip does when the
+    // scissor passes. Each of its features has neighbours on its own lip that moved alike: none
+    // is a tracking failure, and the pairs across the cut split.
+    let mut s = store();
+    let mut det = detector(&mut s, 400, 2000);
+    let uv = grid(20, 10.0);
+    det.init(&uv, &[[0.0; 2]; 400], &config()).unwrap();
+    let mut d = [[0.0; 2]; 400];
+    let mut split = 0;
+    for frame in 0..8 {
+        for (k, dk) in d.iter_mut().enumerate() {
+            let h = |salt: u64| {
+                let x =
+                    ((k as u64 * 40_503 + frame as u64 * 9_973 + salt) * 2_654_435_761) % 1_000_003;
+                x as f64 / 1_000_003.0 - 0.5
+            };
+            *dk = [h(1), h(7)];
+            if frame >= 2 && uv[k][0] > 95.0 {
+                dk[0] += 12.0;
+            }
+        }
+        let r = det.update(frame, &d, &[1; 400], &uv, &config());
+        assert_eq!(r.features_filtered, 0, "frame {frame}");
+        split = r.split;
+    }
+    assert!(split > 0);
+    // The separation points lie between the columns at x = 90 and x = 100.
+    for p in det.points() {
+        assert!((p[0] - 95.0).abs() <= 5.0, "{p:?}");
+    }
+}
+
+#[test]
 fn too_many_pairs_is_a_capacity_error() {
     let mut s = store();
     let mut det = detector(&mut s, 400, 100);

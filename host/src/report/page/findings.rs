@@ -452,7 +452,8 @@ fn deformation(s: &mut String, report: &Report) {
         s,
         "- **Deformation** (the scene's own material and solver; *mirrored*: the observations \
          of the {mirrored} frames after frame 0 mirrored left to right, so that the springs pull \
-         the model through itself, then the true tracks again; *squeezed*: variants of `{}` \
+         the model through itself, then the true tracks again, with cutting off (with it on, \
+         every scene's detector starts a false cut from those frames); *squeezed*: variants of `{}` \
          generated with the block pushed to a fraction of its length; every column with the \
          inversion barrier but *SVK alone*): target error over the rest model's, and the most \
          tetrahedra inside out after any frame → after the last, `f64` / `f32`.\n\n| scene |",

@@ -565,7 +565,8 @@ fn page(
          <code>f64</code> and <code>f32</code>. <b>Deformation</b>, in <code>f64</code> and \
          <code>f32</code>: the observations of the first {} frames after frame 0 mirrored left \
          to right, so that the springs pull the model through itself before the true tracks \
-         return (each cell shows the most elements inside out after any frame → after the \
+         return, with cutting off (with it on, every scene's detector starts a false cut from \
+         those frames) (each cell shows the most elements inside out after any frame → after the \
          last; the <i>SVK alone</i> column is the same run without the inversion barrier), and \
          on <code>{}</code> variants generated with the block squeezed to 90, 75 \
          and 60 % of its length. A cell is <b>converged</b> when every position \
