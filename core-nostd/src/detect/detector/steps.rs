@@ -66,7 +66,9 @@ impl<'a, T: Real> Detector<'a, T> {
             for (i, (((&s, &o), (&lo, &hi)), out)) in
                 slots.zip(self.scratch.iter_mut()).take(n).enumerate()
             {
-                let mine = change(i).unwrap_or([T::zero(); 2]);
+                let mine = change(i);
+                let jumped = mine.is_some_and(|c| norm(c, [T::zero(); 2]) > limit);
+                let mine = mine.unwrap_or([T::zero(); 2]);
                 let incident = self
                     .incident
                     .get(lo as usize..hi as usize)
@@ -87,7 +89,6 @@ impl<'a, T: Real> Detector<'a, T> {
                         && norm(mine, theirs) <= limit;
                 }
                 work.pair_visits += incident.len() as u64;
-                let jumped = change(i).is_some_and(|c| norm(c, [T::zero(); 2]) > limit);
                 *out = if eligible(s, o) && jumped && !followed {
                     T::one()
                 } else {
