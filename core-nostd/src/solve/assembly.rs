@@ -197,14 +197,10 @@ impl<T: Real> Problem<'_, '_, T> {
         Ok((ux(t), tet, w))
     }
 
-    /// Unit direction of the camera ray through a node's rest position `q`.
-    fn ray_at_rest(&self, q: &[T; 3]) -> Vector3<T> {
-        self.camera.ray_direction_through(&vec3(q))
-    }
-
     fn depth_energy(&self, x: &[[T; 3]]) -> T {
         let rest = self.mesh.rest();
         let mut sum = T::zero();
+        let axis = self.camera.view_direction();
         // `x` and the weights hold at least the `n_nodes()` nodes of `rest()`.
         let nodes = self.depth_weight.iter().zip(x).zip(rest);
         for ((&c, p), q) in nodes.take(self.mesh.n_nodes()) {
@@ -212,7 +208,7 @@ impl<T: Real> Problem<'_, '_, T> {
                 continue;
             }
             let c = c * self.depth_scale;
-            let s = (vec3(p) - vec3(q)).dot(&self.ray_at_rest(q));
+            let s = (vec3(p) - vec3(q)).dot(&axis);
             sum += T::of(0.5) * c * s * s;
         }
         sum
@@ -362,6 +358,7 @@ impl<T: Real> Problem<'_, '_, T> {
         // and `x`, the weights, the previous and the rest positions at least as many. The pattern
         // was built for these free nodes and its invariants ([`UpperCsc::new`]) end every
         // column with its diagonal, so no entry below falls outside `col_ptr` or `h`.
+        let axis = self.camera.view_direction();
         let nodes = free
             .iter()
             .zip(self.damping.iter().zip(self.depth_weight))
@@ -382,18 +379,17 @@ impl<T: Real> Problem<'_, '_, T> {
                     }
                 }
             }
-            // The prior on depth: `r (d · e) e` and `r e eᵀ`.
+            // The prior on depth: `r (d · e) e` and `r e eᵀ`, `e` the optical axis.
             let r = r * self.depth_scale;
             if r > T::zero() {
-                let e_ray = self.ray_at_rest(p_rest);
                 let u = vec3(p) - vec3(p_rest);
-                let s = u.dot(&e_ray);
+                let s = u.dot(&axis);
                 e.depth += T::of(0.5) * r * s * s;
-                add_gradient(grad, f, &(e_ray * (r * s)));
-                force_sum += (e_ray * (r * s)).abs().sum();
+                add_gradient(grad, f, &(axis * (r * s)));
+                force_sum += (axis * (r * s)).abs().sum();
                 if let Some(h) = hessian.as_deref_mut() {
                     // Column 3f + c of the diagonal block ends with its rows 3f ..= 3f + c.
-                    let e_arr = [e_ray.x, e_ray.y, e_ray.z];
+                    let e_arr = [axis.x, axis.y, axis.z];
                     let ends = column_ends(self.col_ptr, f);
                     for (col, (&end, &e_col)) in ends.iter().zip(&e_arr).enumerate() {
                         let rows = ux(end).wrapping_sub(1 + col)..ux(end);
