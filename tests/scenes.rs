@@ -238,3 +238,37 @@ fn stiff_springs_do_not_move_the_model_in_depth() {
         assert!(s.tre_mm_final < rest, "{name}: {s:?}");
     }
 }
+
+/// Issue 10's acceptance, as far as the committed cut scenes reach it, kept from slipping back:
+/// on `band-side-cut` all of it (Dice at least 0.97, at least 75 % of the uncut model's Dice
+/// deficit closed, the targets at least 40 % nearer the truth than the uncut model's and nearer
+/// than the rest model's); on `band-middle-cut` the Dice and the targets; on `liver-lobe` the
+/// targets nearer than the rest model's. What is missing (the middle cut closes 68 % of the
+/// deficit, the liver 21 % with a Dice of 0.936) is in the README under "Scenes".
+#[test]
+fn the_cut_scenes_keep_what_they_reach_of_issue_10() {
+    let closed = |s: &Summary| (s.dice_final - s.dice_final_uncut) / (1.0 - s.dice_final_uncut);
+    let side = run("band-side-cut");
+    assert!(side.dice_final >= 0.97, "{side:?}");
+    assert!(closed(&side) >= 0.75, "{side:?}");
+    let middle = run("band-middle-cut");
+    assert!(middle.dice_final >= 0.97, "{middle:?}");
+    for s in [&side, &middle] {
+        assert!(s.tre_mm_final <= 0.6 * s.tre_mm_final_uncut, "{s:?}");
+    }
+    let liver = run("liver-lobe");
+    for s in [&side, &middle, &liver] {
+        eprintln!(
+            "{}: Dice {:.3} (uncut {:.3}, {:.0} % closed), targets {:.2} mm (uncut {:.2}, rest {:.2})",
+            s.scene,
+            s.dice_final,
+            s.dice_final_uncut,
+            100.0 * closed(s),
+            s.tre_mm_final,
+            s.tre_mm_final_uncut,
+            s.tre_mm_final_rest
+        );
+        assert!(s.dice_final > s.dice_final_uncut, "{s:?}");
+        assert!(s.tre_mm_final < s.tre_mm_final_rest, "{s:?}");
+    }
+}

@@ -423,7 +423,13 @@ pub(crate) fn apply<T: Real>(
                 (a[1] + b[1] + c[1]) / third,
                 (a[2] + b[2] + c[2]) / third,
             ];
-            sep.in_extent(&centre) && before_tips(key)
+            // Past an end inside the object, by up to the face's own size, the end's plane
+            // decides (`before_tips`): a face whose far nodes were declared on that plane
+            // reaches past the extent, and left joined it would hold the lips together
+            // there (the crack front would run slanted through the thickness).
+            let inside =
+                sep.in_extent(&centre) || sep.near_inner_end(&centre, sep.image_size(&[a, b, c]));
+            inside && before_tips(key)
         },
         faces,
         cut_store,

@@ -6,6 +6,7 @@
 //! (declaring a node on the surface, which never changes geometry and never creates a
 //! crossing), so each step can only simplify what the next one splits.
 
+use crate::embed::gather;
 use crate::mesh::{Mesh, orientation, shape_quality};
 use crate::real::Real;
 
@@ -203,16 +204,8 @@ pub(super) fn select<T: Real>(
         if !crosses(&s) {
             continue;
         }
-        // The tetrahedron's size in the image: the largest distance between two of its
-        // nodes' images (0 if one cannot be projected).
-        let image = tet.map(|v| x.get(v as usize).and_then(|p| sep.project(p)));
-        let mut size = T::zero();
-        for pair in pairs(&image) {
-            if let (Some(p), Some(q)) = pair {
-                let d = [p[0] - q[0], p[1] - q[1]];
-                size = size.max((d[0] * d[0] + d[1] * d[1]).sqrt());
-            }
-        }
+        // The tetrahedron's size in the image.
+        let size = gather(x, tet).map_or(T::zero(), |corners| sep.image_size(&corners));
         let counts = |p: &[T; 3]| sep.in_extent(p) || sep.near_inner_end(p, size);
         let nodes = with_signs(&s, tet);
         let mut inside = false;

@@ -297,6 +297,22 @@ impl<'s, T: Real> SeparationSurface<'s, T> {
         Some([uv.x, uv.y])
     }
 
+    /// The size of some points in the image: the largest distance between the images of two
+    /// of them (a point that cannot be projected is left out).
+    pub fn image_size<const N: usize>(&self, points: &[[T; 3]; N]) -> T {
+        let image = points.map(|p| self.project(&p));
+        let mut size = T::zero();
+        for (i, p) in image.iter().enumerate() {
+            for q in image.iter().skip(i + 1) {
+                if let (Some(p), Some(q)) = (p, q) {
+                    let d = sub(*p, *q);
+                    size = size.max(dot2(d, d).sqrt());
+                }
+            }
+        }
+        size
+    }
+
     /// Where the image of `p` lies relative to end `k` of the polyline: its distance in pixels.
     pub fn distance_to_end(&self, k: usize, p: &[T; 3]) -> Option<T> {
         let uv = self

@@ -111,6 +111,8 @@ pub struct SettingResult {
     pub tre_mm_final: f64,
     /// Surface error of the last frame, millimetres (RMS).
     pub surface_mm_final: f64,
+    /// Nodes and tetrahedra of the mesh at the end (more than at rest where it was cut).
+    pub mesh_final: [usize; 2],
     /// Wall time of a step, milliseconds: median and largest.
     pub ms_median: f64,
     /// Largest step time, milliseconds.
@@ -374,6 +376,7 @@ fn setting_result(
         dice_mean_after_cut: summary.dice_mean_after_cut,
         tre_mm_final: summary.tre_mm_final,
         surface_mm_final: summary.surface_rmse_mm_final,
+        mesh_final: [summary.nodes_final, summary.tets_final],
         ms_median: summary.ms_per_frame_median,
         ms_max: summary.ms_per_frame_max,
         instructions_median: steady_median(counts, &cut_frames(trace)),
