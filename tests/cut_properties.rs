@@ -56,6 +56,8 @@ struct Case {
     extension_px: f64,
     /// Room for new nodes and tetrahedra (small values make some cuts overflow).
     room: (usize, usize),
+    /// How far interior coordinates move off the box's grid, in cells.
+    jitter: f64,
 }
 
 fn case() -> impl proptest::strategy::Strategy<Value = Case> {
@@ -88,6 +90,7 @@ fn case() -> impl proptest::strategy::Strategy<Value = Case> {
             kind,
             extension_px: ext,
             room,
+            jitter: 0.2,
         })
 }
 
@@ -105,10 +108,10 @@ fn setup(c: &Case, rng: &mut Rng) -> Setup {
     let mut rest = mesh.nodes.clone();
     for p in rest.iter_mut() {
         for k in 0..3 {
-            // Interior coordinates move by up to a fifth of a cell; the box stays a box.
+            // Interior coordinates move by up to `jitter` cells; the box stays a box.
             let on_face = p[k].abs() < 1e-12 || (p[k] - c.size[k]).abs() < 1e-12;
             if !on_face {
-                p[k] += (rng.uniform() - 0.5) * 0.4 * h[k];
+                p[k] += (rng.uniform() - 0.5) * 2.0 * c.jitter * h[k];
             }
         }
     }
@@ -260,21 +263,15 @@ struct Outcome {
     refused: usize,
 }
 
-fn run(c: &Case) -> Result<Outcome, TestCaseError> {
-    let mut rng = Rng::new(c.seed);
-    let s = setup(c, &mut rng);
-    let input = MeshInput {
-        rest: &s.rest,
-        tets: &s.tets,
-        fixed: &s.fixed,
-    };
-    let config = ModelConfig {
+/// The model's settings in every case: a soft solid, springs, no depth prior.
+fn model_config(camera: Camera<f64>) -> ModelConfig<f64> {
+    ModelConfig {
         material: Material {
             young: 3.0e4,
             poisson: 0.4,
             inversion_barrier: true,
         },
-        camera: s.camera,
+        camera,
         solver: SolverConfig {
             strategy: Linear::Refactor,
             newton_iterations: 1,
@@ -286,7 +283,18 @@ fn run(c: &Case) -> Result<Outcome, TestCaseError> {
             image_margin: 50.0,
         },
         detection: DetectionConfig::paper(),
+    }
+}
+
+fn run(c: &Case) -> Result<Outcome, TestCaseError> {
+    let mut rng = Rng::new(c.seed);
+    let s = setup(c, &mut rng);
+    let input = MeshInput {
+        rest: &s.rest,
+        tets: &s.tets,
+        fixed: &s.fixed,
     };
+    let config = model_config(s.camera);
     let mut storage = ModelStorage::new(
         &input,
         &SceneCapacities {
@@ -420,4 +428,108 @@ fn most_random_cases_cut_and_some_overflow() {
     eprintln!("{applied} of {cases} cases cut, {refused} refused");
     assert!(applied >= cases / 2, "{applied} of {cases} cases cut");
     assert!(refused >= 5, "{refused} refused");
+}
+
+/// The slab of the tests below: 10 × 4 elements of 1 cm, one element (6 mm) thick, held at
+/// `x = 0` and seen from 0.3 m above its centre (`Case::size`).
+const SLAB: [f64; 3] = [0.1, 0.04, 0.006];
+
+/// What cutting [`SLAB`] from beyond its side `y = 0` to `(x, tip)` on its top face does: the
+/// `(x, y)` of the nodes the cut duplicated on its top face and on its bottom face (each copy
+/// once), and the pieces left.
+fn cut_slab(x: f64, tip: f64) -> (Vec<[f64; 2]>, Vec<[f64; 2]>, usize) {
+    let case = Case {
+        cells: [10, 4, 1],
+        size: SLAB,
+        seed: 1,
+        tilt: [0.0, 0.0],
+        kind: Kind::Partial,
+        extension_px: 0.0,
+        room: (2000, 8000),
+        jitter: 0.0,
+    };
+    let s = setup(&case, &mut Rng::new(1));
+    let input = MeshInput {
+        rest: &s.rest,
+        tets: &s.tets,
+        fixed: &s.fixed,
+    };
+    let mut storage = ModelStorage::new(&input, &SceneCapacities::default()).unwrap();
+    let mut model: Model<'_, f64> = storage.model(&input, &model_config(s.camera)).unwrap();
+    let line = [
+        project(&s.camera, [x, -0.01, SLAB[2]]),
+        project(&s.camera, [x, tip, SLAB[2]]),
+    ];
+    let report = model.cut_along(&line, 0.0).unwrap();
+    assert!(report.applied, "x {x}, tip {tip}: nothing cut");
+    let rest = model.mesh().rest();
+    let duplicated_on = |z: f64| -> Vec<[f64; 2]> {
+        let on_face: Vec<&[f64; 3]> = rest.iter().filter(|p| (p[2] - z).abs() < 1e-12).collect();
+        on_face
+            .iter()
+            .enumerate()
+            .filter(|(i, p)| {
+                on_face
+                    .iter()
+                    .take(*i)
+                    .any(|q| (0..3).all(|k| p[k] == q[k]))
+            })
+            .map(|(_, p)| [p[0], p[1]])
+            .collect()
+    };
+    let pieces = components(model.mesh().tets());
+    (duplicated_on(SLAB[2]), duplicated_on(0.0), pieces)
+}
+
+/// Whether every point of `a` has one of `b` within 1 mm: the separation surface follows the
+/// camera rays, within 0.6 mm of the vertical over the slab's thickness along these lines.
+fn above(a: &[[f64; 2]], b: &[[f64; 2]]) -> bool {
+    a.iter()
+        .all(|p| b.iter().any(|q| (p[0] - q[0]).hypot(p[1] - q[1]) < 1.0e-3))
+}
+
+/// A cut that ends inside a slab one element thick ends straight through the thickness: the
+/// crack front (the duplicated nodes farthest along the cut) is at the same place on the top
+/// and the bottom face, whichever way the line's end meets the mesh (between node rows, on one,
+/// just before or past one; beside the nodes or through them), and the material beyond the end
+/// stays joined. When the faces reaching past the surface's extent to nodes declared on the
+/// end's plane were left joined (before 59e7c5c), the crack front ran slanted through the
+/// thickness, its bottom node a row short of its top one, and held the lips together there.
+/// Through the nodes every duplicated node has its counterpart on the other face.
+#[test]
+fn a_partial_cut_through_a_thin_slab_ends_straight_through_its_thickness() {
+    let front = |nodes: &[[f64; 2]]| nodes.iter().fold(f64::NEG_INFINITY, |m, p| m.max(p[1]));
+    for x in [0.0513, 0.05] {
+        for tip in [0.0195, 0.02, 0.0205, 0.025] {
+            let (top, bottom, pieces) = cut_slab(x, tip);
+            let at =
+                format!("x {x}, tip {tip}: duplicated on top {top:?}, on the bottom {bottom:?}");
+            assert!(!top.is_empty() && !bottom.is_empty(), "{at}");
+            assert!((front(&top) - front(&bottom)).abs() < 1.0e-3, "{at}");
+            // The front stops at the last node row before the tip, or the row before it where
+            // the tip is too close past a row to split there (a node declared on the end's
+            // plane keeps the material beyond it joined): never a row and a half short.
+            assert!(front(&top) < tip && front(&top) > tip - 0.015, "{at}");
+            assert_eq!(pieces, 1, "{at}: a partial cut split the slab");
+            if x == 0.05 {
+                assert!(above(&top, &bottom) && above(&bottom, &top), "{at}");
+            }
+        }
+    }
+}
+
+/// Known defect, left open: cut beside the nodes, the node the split puts on the slab's bottom
+/// edge where the cut enters (`y = 0`) is not duplicated, though its counterpart on the top
+/// edge is, so the two lips stay pinned together at that corner (through the nodes, the same
+/// cut separates both). Found by the test above; not yet traced.
+#[test]
+#[ignore = "known defect: the bottom corner where a cut beside the nodes enters the slab stays joined"]
+fn a_cut_beside_the_nodes_separates_the_corner_where_it_enters() {
+    for tip in [0.0195, 0.025] {
+        let (top, bottom, _) = cut_slab(0.0513, tip);
+        assert!(
+            above(&top, &bottom) && above(&bottom, &top),
+            "tip {tip}: duplicated on top {top:?}, on the bottom {bottom:?}"
+        );
+    }
 }

@@ -353,6 +353,122 @@ fn converged_refactor_solve_matches_a_newton_loop_solved_by_faer() {
     assert!(diff <= 1e-8 * disp, "relative difference {:e}", diff / disp);
 }
 
+/// The depth prior (issue 10) resists a node's change of depth, its motion along the optical
+/// axis, and nothing else. Each free node of a beam is moved by a different amount (so the
+/// motion is no rigid one) either across the axis or along it, and the prior's part of the
+/// linearization (the model with the prior less the same model without it, at the same
+/// positions) is held against closed forms: no energy, gradient or curvature for the motion
+/// across the axis (the prior along the rays through the rest positions, which it replaced,
+/// resisted that motion off the axis); for a motion `v` along it, the energy is the quadratic
+/// `½ vᵀ R v` of the prior's own Hessian `R` from the rest shape, grows fourfold when the
+/// motion doubles, and its gradient `R v` gives `2 E` along `v`.
+#[test]
+fn the_depth_prior_resists_depth_alone() {
+    let beam = Cantilever::new([10, 2, 2]);
+    let input = beam.input();
+    let axis = beam.cam.view_direction();
+    let across = axis.cross(&Vector3::new(1.0, 0.3, 0.2)).normalize();
+    // The prior's part at the rest shape moved by `scale · dir` times a weight that differs
+    // from node to node: its energy, its gradient along the motion `v` (over the unknowns),
+    // `vᵀ R v`, the largest entry of its gradient, and `|v|²`.
+    let prior_at = |dir: Vector3<f64>, scale: f64| -> [f64; 5] {
+        let mut parts = vec![];
+        for depth_prior in [0.1, 0.0] {
+            let mut cfg = config(beam.cam, 2.0e-7, Strategy::Refactor, 0.0);
+            cfg.solver.depth_prior = depth_prior;
+            let mut storage = ModelStorage::with_features(&input, 64).unwrap();
+            let mut model = storage.model(&input, &cfg).unwrap();
+            model.embed_features(&beam.frame0).unwrap();
+            model.observe(&beam.frame0).unwrap();
+            let x: Vec<[f64; 3]> = beam
+                .mesh
+                .nodes
+                .iter()
+                .map(|p| {
+                    let w = scale * (1.0 + 40.0 * p[0] + 1.0e4 * p[1] * p[2]);
+                    [p[0] + w * dir.x, p[1] + w * dir.y, p[2] + w * dir.z]
+                })
+                .collect();
+            model.set_positions(&x).unwrap();
+            let free = model.mesh().free_index().to_vec();
+            let lin = model.linearize().unwrap();
+            let mut v = vec![0.0; lin.gradient.len()];
+            for (node, &f) in free.iter().enumerate() {
+                if f != incise_core::sparse::NONE {
+                    for c in 0..3 {
+                        v[3 * f as usize + c] = x[node][c] - beam.mesh.nodes[node][c];
+                    }
+                }
+            }
+            let (col_ptr, row_idx) = (
+                lin.pattern.col_ptr().to_vec(),
+                lin.pattern.row_idx().to_vec(),
+            );
+            parts.push((
+                lin.energies.depth,
+                lin.gradient.to_vec(),
+                lin.hessian.to_vec(),
+                v,
+                col_ptr,
+                row_idx,
+            ));
+        }
+        let (on, off) = (&parts[0], &parts[1]);
+        assert_eq!(off.0, 0.0, "no prior, no depth energy");
+        assert_eq!((&on.4, &on.5), (&off.4, &off.5), "the same pattern");
+        let v = &on.3;
+        let gradient: Vec<f64> = on.1.iter().zip(&off.1).map(|(a, b)| a - b).collect();
+        let hessian: Vec<f64> = on.2.iter().zip(&off.2).map(|(a, b)| a - b).collect();
+        let mut v_r_v = 0.0;
+        for j in 0..on.4.len() - 1 {
+            for k in on.4[j] as usize..on.4[j + 1] as usize {
+                let i = on.5[k] as usize;
+                let both = if i == j { 1.0 } else { 2.0 };
+                v_r_v += both * v[i] * hessian[k] * v[j];
+            }
+        }
+        let g_v: f64 = gradient.iter().zip(v).map(|(g, v)| g * v).sum();
+        let g_max = gradient.iter().fold(0.0f64, |m, g| m.max(g.abs()));
+        let v_2: f64 = v.iter().map(|v| v * v).sum();
+        [on.0, g_v, v_r_v, g_max, v_2]
+    };
+
+    let [e, g_v, v_r_v, g_max, v_2] = prior_at(axis, 1.0e-4);
+    eprintln!("along the axis: E {e:.6e} J, g·v {g_v:.6e}, vᵀRv {v_r_v:.6e}, |v|² {v_2:.3e}");
+    assert!(e > 0.0 && v_r_v > 0.0);
+    assert!(
+        (e - 0.5 * v_r_v).abs() <= 1e-9 * e,
+        "E {e:e} against ½ vᵀRv {:e}",
+        0.5 * v_r_v
+    );
+    assert!(
+        (g_v - 2.0 * e).abs() <= 1e-9 * e,
+        "g·v {g_v:e} against 2E {:e}",
+        2.0 * e
+    );
+    let [e2, ..] = prior_at(axis, 2.0e-4);
+    assert!(
+        (e2 / e - 4.0).abs() <= 1e-9,
+        "doubling the motion: {:.12}",
+        e2 / e
+    );
+
+    let [e_across, g_v_across, v_r_v_across, g_max_across, v_2_across] = prior_at(across, 1.0e-4);
+    eprintln!(
+        "across the axis: E {e_across:e}, g·v {g_v_across:e}, vᵀRv {v_r_v_across:e}, largest gradient {g_max_across:e}"
+    );
+    assert!(
+        (v_2_across - v_2).abs() <= 1e-9 * v_2,
+        "both motions are as long"
+    );
+    assert!(e_across <= 1e-20 * e, "{e_across:e}");
+    assert!(v_r_v_across.abs() <= 1e-12 * v_r_v, "{v_r_v_across:e}");
+    assert!(
+        g_max_across <= 1e-9 * g_max,
+        "{g_max_across:e} against {g_max:e}"
+    );
+}
+
 /// A box held at one end, bent and stretched by springs pulling its free end in the image
 /// plane; returns the deformed positions.
 fn target_deformation(

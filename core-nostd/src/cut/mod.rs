@@ -22,7 +22,9 @@
 //! 5. **Split** (`split.rs`): a new node on each crossed edge (shared by every tetrahedron
 //!    around it), each crossed tetrahedron replaced by its pieces.
 //! 6. **Separate** (`separate.rs`): the faces on the surface between pieces of opposite sides,
-//!    inside the extent, are cut; their nodes are duplicated where the tetrahedra around them
+//!    inside the extent, are cut (at an end inside the object, also those reaching past the
+//!    extent by up to their own size whose nodes lie before the end's plane, so the crack
+//!    front runs through the thickness where the end is, not slanted behind it); their nodes are duplicated where the tetrahedra around them
 //!    fall into groups no longer joined, so a partial cut leaves the material joined beyond
 //!    its end (which the composite-FEM method the paper cites cannot do).
 //! 7. **Re-embed.** Features and targets in a split tetrahedron move to the piece holding their

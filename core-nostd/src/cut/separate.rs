@@ -1,5 +1,6 @@
 //! Separating the mesh along its cut faces: the faces on the separation surface between
-//! tetrahedra of opposite sides, inside the surface's extent. Each node on a cut face is
+//! tetrahedra of opposite sides that the caller selects (inside the surface's extent, and
+//! past an end inside the object up to the end's plane; see the module `cut`). Each node on a cut face is
 //! duplicated once per extra group of its tetrahedra that stay joined through faces that are
 //! not cut; a node at the end of a partial cut keeps a single group and is not duplicated, so
 //! the material stays joined beyond the cut.

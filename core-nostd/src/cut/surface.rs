@@ -297,8 +297,8 @@ impl<'s, T: Real> SeparationSurface<'s, T> {
         Some([uv.x, uv.y])
     }
 
-    /// The size of some points in the image: the largest distance between the images of two
-    /// of them (a point that cannot be projected is left out).
+    /// The size of some points in the image, pixels: the largest distance between the images
+    /// of two of them (a point that cannot be projected is left out; 0 for fewer than two).
     pub fn image_size<const N: usize>(&self, points: &[[T; 3]; N]) -> T {
         let image = points.map(|p| self.project(&p));
         let mut size = T::zero();

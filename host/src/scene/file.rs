@@ -142,7 +142,8 @@ pub struct SolverSection {
     pub spring_threshold: Option<f64>,
     /// Damping toward the previous frame, fraction of the rest stiffness.
     pub damping: f64,
-    /// Prior on depth (against motion along the camera rays), fraction of the rest stiffness.
+    /// Prior on depth (against each node's change of depth, its motion along the optical axis),
+    /// fraction of the rest stiffness.
     #[serde(default = "default_depth_prior")]
     pub depth_prior: f64,
     /// Observations farther outside the image are rejected, pixels.
