@@ -421,10 +421,11 @@ fn the_depth_prior_resists_depth_alone() {
         let hessian: Vec<f64> = on.2.iter().zip(&off.2).map(|(a, b)| a - b).collect();
         let mut v_r_v = 0.0;
         for j in 0..on.4.len() - 1 {
-            for k in on.4[j] as usize..on.4[j + 1] as usize {
-                let i = on.5[k] as usize;
+            let column = on.4[j] as usize..on.4[j + 1] as usize;
+            for (&i, &h) in on.5[column.clone()].iter().zip(&hessian[column]) {
+                let i = i as usize;
                 let both = if i == j { 1.0 } else { 2.0 };
-                v_r_v += both * v[i] * hessian[k] * v[j];
+                v_r_v += both * v[i] * h * v[j];
             }
         }
         let g_v: f64 = gradient.iter().zip(v).map(|(g, v)| g * v).sum();

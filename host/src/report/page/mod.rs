@@ -264,26 +264,37 @@ pub fn write_report(
     for scene in scenes {
         let name = scene.file.name.clone();
         bar.set_prefix(name.clone());
+        // Each setting is run, then counted by callgrind in a process of its own: one
+        // setting per core at a time (the counts do not depend on what else runs; the wall
+        // times, one run per core, hardly do).
+        let runs = on_every_core(
+            &settings_for(&scene.file.solver, options.quick),
+            |&(setting, own)| {
+                let mut s = scene.clone();
+                setting.apply(&mut s);
+                let (summary, trace) = run_scene(&s, &RunOptions::default())
+                    .map_err(|e| format!("{name}, {}: {e}", setting.label()))?;
+                let counts = if counting {
+                    let frames = frames_counted(own, options.quick);
+                    instructions::per_frame(&scene.dir, &setting, frames)
+                        .map_err(|e| format!("{name}, {}: instructions: {e}", setting.label()))?
+                } else {
+                    vec![]
+                };
+                bar.inc(1);
+                Ok::<_, String>((setting, own, summary, trace, counts))
+            },
+        );
         let mut settings = vec![];
         let mut own_trace = None;
         let mut own_counts = vec![];
-        for (setting, own) in settings_for(&scene.file.solver, options.quick) {
-            let mut s = scene.clone();
-            setting.apply(&mut s);
-            let (summary, trace) = run_scene(&s, &RunOptions::default())
-                .map_err(|e| format!("{name}, {}: {e}", setting.label()))?;
-            let counts = if counting {
-                instructions::per_frame(&scene.dir, &setting, frames_counted(own, options.quick))
-                    .map_err(|e| format!("{name}, {}: instructions: {e}", setting.label()))?
-            } else {
-                vec![]
-            };
+        for run in runs {
+            let (setting, own, summary, trace, counts) = run?;
             settings.push(setting_result(&setting, own, &summary, &trace, &counts));
             if own {
                 own_trace = Some(trace);
                 own_counts = counts;
             }
-            bar.inc(1);
         }
         let trace = own_trace.ok_or("no run with the scene's own setting")?;
         let mut scene_report = scene_report(scene, settings, &trace, own_counts, counting)?;
@@ -319,6 +330,35 @@ pub fn write_report(
     }
     html::write(&report, out)?;
     Ok(report)
+}
+
+/// `job` on every item, on as many threads as the machine has cores, each taking the next
+/// item not yet taken: the results in the items' order.
+pub(super) fn on_every_core<I: Sync, R: Send>(items: &[I], job: impl Fn(&I) -> R + Sync) -> Vec<R> {
+    let workers = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let mut results: Vec<(usize, R)> = std::thread::scope(|s| {
+        let handles: Vec<_> = (0..workers)
+            .map(|_| {
+                s.spawn(|| {
+                    let mut mine = vec![];
+                    loop {
+                        let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                        let Some(item) = items.get(i) else {
+                            break mine;
+                        };
+                        mine.push((i, job(item)));
+                    }
+                })
+            })
+            .collect();
+        handles
+            .into_iter()
+            .flat_map(|h| h.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
+            .collect()
+    });
+    results.sort_by_key(|(i, _)| *i);
+    results.into_iter().map(|(_, r)| r).collect()
 }
 
 /// Frame numbers of `trace` that cut the mesh.

@@ -97,21 +97,22 @@ pub(super) fn len() -> usize {
 pub(super) fn measure(
     base_scene: &Path,
     counting: bool,
-    mut tick: impl FnMut(),
+    tick: impl Fn() + Sync,
 ) -> Result<Scaling, String> {
     let scenario = base_scene.join("scenario.toml");
     let text =
         std::fs::read_to_string(&scenario).map_err(|e| format!("{}: {e}", scenario.display()))?;
     let work = std::env::temp_dir().join(format!("incise-scaling-{}", std::process::id()));
-    let mut points = vec![];
-    for (cells, features) in variants() {
+    // One variant per core at a time: each is generated and counted on its own.
+    let points = super::on_every_core(&variants(), |&(cells, features)| {
         let dir = work.join(format!("{}-{}-{}-{features}", cells[0], cells[1], cells[2]));
         let point = measure_variant(&text, &dir, cells, features, counting)
             .map_err(|e| format!("{BASE} with model cells {cells:?} and {features} features: {e}"));
         let _ = std::fs::remove_dir_all(&dir);
-        points.push(point?);
         tick();
-    }
+        point
+    });
+    let points = points.into_iter().collect::<Result<Vec<Point>, String>>()?;
     let _ = std::fs::remove_dir_all(&work);
     let nodes: Vec<Point> = points
         .iter()

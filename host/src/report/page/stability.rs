@@ -455,33 +455,14 @@ pub(super) fn run_cells(
             .and_then(|keep| variants.iter().find(|(k, _)| *k == keep))
             .map_or(scene, |(_, s)| s)
     };
-    let workers = std::thread::available_parallelism().map_or(1, |n| n.get());
-    let next = std::sync::atomic::AtomicUsize::new(0);
-    let mut results: Vec<(usize, Cell)> = std::thread::scope(|s| {
-        let handles: Vec<_> = (0..workers)
-            .map(|_| {
-                s.spawn(|| {
-                    let mut mine = vec![];
-                    loop {
-                        let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                        let Some(&cell) = cells.get(i) else {
-                            break mine;
-                        };
-                        mine.push((i, run_cell(scene_of(&cell), cell)));
-                        done();
-                    }
-                })
-            })
-            .collect();
-        handles
-            .into_iter()
-            .flat_map(|h| h.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
-            .collect()
+    let results = super::on_every_core(cells, |&cell| {
+        let result = run_cell(scene_of(&cell), cell);
+        done();
+        result
     });
     // The variants' ground truth is read from their directories by the runs: kept until now.
     let _ = std::fs::remove_dir_all(&work);
-    results.sort_by_key(|(i, _)| *i);
-    Ok(results.into_iter().map(|(_, c)| c).collect())
+    Ok(results)
 }
 
 /// Runs `scene` (cutting on) with one cell's material, springs, precision and tracks.
