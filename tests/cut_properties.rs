@@ -436,8 +436,8 @@ const SLAB: [f64; 3] = [0.1, 0.04, 0.006];
 
 /// What cutting [`SLAB`] from beyond its side `y = 0` to `(x, tip)` on its top face does: the
 /// `(x, y)` of the nodes the cut duplicated on its top face and on its bottom face (each copy
-/// once), and the pieces left.
-fn cut_slab(x: f64, tip: f64) -> (Vec<[f64; 2]>, Vec<[f64; 2]>, usize) {
+/// once), the pieces left, and the rest volume of the cut mesh.
+fn cut_slab(x: f64, tip: f64) -> (Vec<[f64; 2]>, Vec<[f64; 2]>, usize, f64) {
     let case = Case {
         cells: [10, 4, 1],
         size: SLAB,
@@ -478,7 +478,21 @@ fn cut_slab(x: f64, tip: f64) -> (Vec<[f64; 2]>, Vec<[f64; 2]>, usize) {
             .collect()
     };
     let pieces = components(model.mesh().tets());
-    (duplicated_on(SLAB[2]), duplicated_on(0.0), pieces)
+    let volume = model
+        .mesh()
+        .tets()
+        .iter()
+        .map(|t| {
+            let [a, b, c, d] = t.map(|v| rest[v as usize]);
+            let e = |p: [f64; 3]| [p[0] - a[0], p[1] - a[1], p[2] - a[2]];
+            let (u, v, w) = (e(b), e(c), e(d));
+            (u[0] * (v[1] * w[2] - v[2] * w[1]) - u[1] * (v[0] * w[2] - v[2] * w[0])
+                + u[2] * (v[0] * w[1] - v[1] * w[0]))
+                .abs()
+                / 6.0
+        })
+        .sum();
+    (duplicated_on(SLAB[2]), duplicated_on(0.0), pieces, volume)
 }
 
 /// Whether every point of `a` has one of `b` within 1 mm: the separation surface follows the
@@ -501,7 +515,7 @@ fn a_partial_cut_through_a_thin_slab_ends_straight_through_its_thickness() {
     let front = |nodes: &[[f64; 2]]| nodes.iter().fold(f64::NEG_INFINITY, |m, p| m.max(p[1]));
     for x in [0.0513, 0.05] {
         for tip in [0.0195, 0.02, 0.0205, 0.025] {
-            let (top, bottom, pieces) = cut_slab(x, tip);
+            let (top, bottom, pieces, _) = cut_slab(x, tip);
             let at =
                 format!("x {x}, tip {tip}: duplicated on top {top:?}, on the bottom {bottom:?}");
             assert!(!top.is_empty() && !bottom.is_empty(), "{at}");
@@ -518,18 +532,24 @@ fn a_partial_cut_through_a_thin_slab_ends_straight_through_its_thickness() {
     }
 }
 
-/// Known defect, left open: cut beside the nodes, the node the split puts on the slab's bottom
-/// edge where the cut enters (`y = 0`) is not duplicated, though its counterpart on the top
-/// edge is, so the two lips stay pinned together at that corner (through the nodes, the same
-/// cut separates both). Found by the test above; not yet traced.
+/// Known defect, left open: a cut that enters the slab beside its nodes should snap the rim
+/// nodes where it enters along the rims, so that the slab keeps its shape (its volume, to
+/// rounding) and the entry corner comes apart on both faces. Snapping lets a boundary node
+/// slide along any boundary edge, so the bottom rim node slides up the diagonal of the side
+/// face instead: it is duplicated, but 0.8 mm above the bottom face, and a sliver is taken off
+/// the slab. The fix (branch `lead/crease-snapping`: no sliding across a crease of the surface)
+/// passes this test but costs `band-middle-cut` its detected-cut Dice (0.974 → 0.963).
 #[test]
-#[ignore = "known defect: the bottom corner where a cut beside the nodes enters the slab stays joined"]
-fn a_cut_beside_the_nodes_separates_the_corner_where_it_enters() {
+#[ignore = "known defect: a rim node snapped where a cut enters slides off the rim"]
+fn a_cut_beside_the_nodes_keeps_the_rims_where_it_enters() {
+    let slab = SLAB[0] * SLAB[1] * SLAB[2];
     for tip in [0.0195, 0.025] {
-        let (top, bottom, _) = cut_slab(0.0513, tip);
+        let (top, bottom, _, volume) = cut_slab(0.0513, tip);
+        let at = format!("tip {tip}: duplicated on top {top:?}, on the bottom {bottom:?}");
+        assert!(above(&top, &bottom) && above(&bottom, &top), "{at}");
         assert!(
-            above(&top, &bottom) && above(&bottom, &top),
-            "tip {tip}: duplicated on top {top:?}, on the bottom {bottom:?}"
+            (volume - slab).abs() < 1.0e-12 * slab,
+            "{at}: volume {volume}, slab {slab}"
         );
     }
 }

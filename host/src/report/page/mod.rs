@@ -306,11 +306,9 @@ pub fn write_report(
         bar.set_prefix("cost growth");
         report.scaling = Some(scaling::measure(&base.dir, counting, || bar.inc(1))?);
     }
-    for base in resolution_bases {
-        bar.set_prefix(format!("{} meshes", base.file.name));
-        report
-            .resolution
-            .push(resolution::measure(base, counting, || bar.inc(1))?);
+    if !resolution_bases.is_empty() {
+        bar.set_prefix("model meshes");
+        report.resolution = resolution::measure(&resolution_bases, counting, || bar.inc(1))?;
     }
     bar.finish_and_clear();
     let largest = report

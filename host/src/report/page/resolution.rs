@@ -5,7 +5,7 @@
 //! model is written as a scene beside the same truth and tracks, and run with the scene's own
 //! setting.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use serde::Serialize;
 
@@ -69,16 +69,70 @@ pub(super) const fn len() -> usize {
     MODELS.len()
 }
 
-/// Runs the three models of `scene` (whose `scenario.toml` lies beside it), calling `tick`
-/// after each.
+/// One model to run: the scene it makes (the base itself, or a variant written to `dir`).
+struct Job {
+    base: usize,
+    label: &'static str,
+    scene: Scene,
+    dir: PathBuf,
+}
+
+/// Runs the three models of each of `bases` (whose `scenario.toml` lies beside them), calling
+/// `tick` after each. The variants are written first, one base after the other; the models
+/// then run one per core, the largest first (the fine liver under callgrind is most of the
+/// axis's time, so it starts at once and the others share the second core meanwhile).
 ///
 /// # Errors
 /// A message naming the model that could not be made or run.
 pub(super) fn measure(
-    scene: &Scene,
+    bases: &[&Scene],
     counting: bool,
-    mut tick: impl FnMut(),
-) -> Result<Resolution, String> {
+    tick: impl Fn() + Sync,
+) -> Result<Vec<Resolution>, String> {
+    let work = std::env::temp_dir().join(format!("incise-resolution-{}", std::process::id()));
+    let jobs = bases
+        .iter()
+        .enumerate()
+        .map(|(base, scene)| variants(base, scene, &work))
+        .collect::<Result<Vec<_>, _>>();
+    let mut jobs: Vec<Job> = match jobs {
+        Ok(jobs) => jobs.into_iter().flatten().collect(),
+        Err(e) => {
+            let _ = std::fs::remove_dir_all(&work);
+            return Err(e);
+        }
+    };
+    jobs.sort_by_key(|j| std::cmp::Reverse(j.scene.rest.len()));
+    let results = super::on_every_core(&jobs, |job| {
+        let model = run_model(&job.scene, &job.dir, job.label, counting).map_err(|e| {
+            let name = &bases.get(job.base).map_or("", |b| b.file.name.as_str());
+            format!("{name} with {} mesh: {e}", job.label)
+        });
+        tick();
+        model
+    });
+    let _ = std::fs::remove_dir_all(&work);
+    let mut axes: Vec<Resolution> = bases
+        .iter()
+        .map(|b| Resolution {
+            scene: b.file.name.clone(),
+            models: vec![],
+        })
+        .collect();
+    for (job, model) in jobs.iter().zip(results) {
+        if let Some(axis) = axes.get_mut(job.base) {
+            axis.models.push(model?);
+        }
+    }
+    for axis in &mut axes {
+        axis.models.sort_by_key(|m| m.nodes);
+    }
+    Ok(axes)
+}
+
+/// The three models of `scene` (base number `base`): the scene itself, and the finer meshes
+/// written under `work` beside the same truth.
+fn variants(base: usize, scene: &Scene, work: &Path) -> Result<Vec<Job>, String> {
     let name = &scene.file.name;
     let scenario = scene.dir.join("scenario.toml");
     let mut sim = simulate(&scenario, false).map_err(|e| format!("{name}: {e}"))?;
@@ -87,13 +141,12 @@ pub(super) fn measure(
         (MODELS[1], coarse.refine()),
         (MODELS[2], sim.meshes.fine.clone()),
     ];
-    let work = std::env::temp_dir().join(format!("incise-resolution-{}", std::process::id()));
-    // The scene's own model first, then the finer ones written beside the same truth.
-    let mut models = vec![
-        run_model(scene, &scene.dir, MODELS[0], counting)
-            .map_err(|e| format!("{name} with {} mesh: {e}", MODELS[0]))?,
-    ];
-    tick();
+    let mut jobs = vec![Job {
+        base,
+        label: MODELS[0],
+        scene: scene.clone(),
+        dir: scene.dir.clone(),
+    }];
     for (label, mesh) in finer {
         let dir = work.join(format!("{name}-{}", mesh.nodes.len()));
         // Room for a cut grows with the cut's area in elements.
@@ -106,19 +159,18 @@ pub(super) fn measure(
         sim.meshes.model = mesh;
         // Written beside the scene as `model.msh`.
         sim.meshes.model_mesh_file = None;
-        let model = write_scene(&sim, &scenario, &dir, false)
+        let variant = write_scene(&sim, &scenario, &dir, false)
             .map_err(|e| e.to_string())
             .and_then(|_| Scene::load(&dir).map_err(|e| e.to_string()))
-            .and_then(|variant| run_model(&variant, &dir, label, counting));
-        let _ = std::fs::remove_dir_all(&dir);
-        models.push(model.map_err(|e| format!("{name} with {label} mesh: {e}"))?);
-        tick();
+            .map_err(|e| format!("{name} with {label} mesh: {e}"))?;
+        jobs.push(Job {
+            base,
+            label,
+            scene: variant,
+            dir,
+        });
     }
-    let _ = std::fs::remove_dir_all(&work);
-    Ok(Resolution {
-        scene: name.clone(),
-        models,
-    })
+    Ok(jobs)
 }
 
 fn run_model(
@@ -156,9 +208,12 @@ mod tests {
     fn the_band_is_run_with_three_meshes_against_one_truth() {
         let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/band-side-cut");
         let scene = Scene::load(&dir).unwrap();
-        let mut ticks = 0;
-        let axis = measure(&scene, false, || ticks += 1).unwrap();
-        assert_eq!(ticks, len());
+        let ticks = std::sync::atomic::AtomicUsize::new(0);
+        let tick = || {
+            ticks.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        };
+        let axis = measure(&[&scene], false, tick).unwrap().remove(0);
+        assert_eq!(ticks.into_inner(), len());
         assert_eq!(axis.models.len(), 3);
         let own = run_scene(&scene, &RunOptions::default()).unwrap().0;
         assert_eq!(axis.models[0].dice_final, own.dice_final);
