@@ -261,35 +261,76 @@ pub fn write_report(
         scaling: None,
         resolution: vec![],
     };
-    for scene in scenes {
-        let name = scene.file.name.clone();
-        bar.set_prefix(name.clone());
-        // Each setting is run, then counted by callgrind in a process of its own: one
-        // setting per core at a time (the counts do not depend on what else runs; the wall
-        // times, one run per core, hardly do).
-        let runs = on_every_core(
-            &settings_for(&scene.file.solver, options.quick),
-            |&(setting, own)| {
-                let mut s = scene.clone();
-                setting.apply(&mut s);
-                let (summary, trace) = run_scene(&s, &RunOptions::default())
-                    .map_err(|e| format!("{name}, {}: {e}", setting.label()))?;
-                let counts = if counting {
-                    let frames = frames_counted(own, options.quick);
-                    instructions::per_frame(&scene.dir, &setting, frames)
-                        .map_err(|e| format!("{name}, {}: instructions: {e}", setting.label()))?
-                } else {
-                    vec![]
-                };
-                bar.inc(1);
-                Ok::<_, String>((setting, own, summary, trace, counts))
-            },
-        );
+    // Every scene's settings and stability cells in one pool, one run per core at a time:
+    // the settings first (each counted by callgrind in a process of its own, the longest
+    // runs), then the cells. The counts do not depend on what else runs; the wall times, one
+    // run per core, hardly do.
+    let settings: Vec<(usize, SweepSetting, bool)> = scenes
+        .iter()
+        .enumerate()
+        .flat_map(|(i, s)| {
+            settings_for(&s.file.solver, options.quick)
+                .into_iter()
+                .map(move |(setting, own)| (i, setting, own))
+        })
+        .collect();
+    let cells: Vec<(usize, stability::CellSetting)> = scenes
+        .iter()
+        .enumerate()
+        .flat_map(|(i, s)| {
+            stability::grid(s, options.quick)
+                .into_iter()
+                .map(move |c| (i, c))
+        })
+        .collect();
+    let squeezed = stability::Squeezed::generate(scenes, &cells)?;
+    let jobs: Vec<Job> = (settings
+        .iter()
+        .map(|&(i, setting, own)| Job::Setting(i, setting, own)))
+    .chain(cells.iter().map(|&(i, cell)| Job::Cell(i, cell)))
+    .collect();
+    bar.set_prefix("scenes");
+    let done = on_every_core(&jobs, |job| {
+        let done = match *job {
+            Job::Setting(i, setting, own) => Done::Setting(Box::new(
+                scenes
+                    .get(i)
+                    .ok_or_else(|| "no such scene".to_string())
+                    .and_then(|scene| run_setting(scene, setting, own, counting, options.quick)),
+            )),
+            Job::Cell(i, cell) => Done::Cell(scenes.get(i).map(|base| {
+                Box::new(stability::run_cell(
+                    squeezed.scene_for(i, base, &cell),
+                    cell,
+                ))
+            })),
+        };
+        bar.inc(1);
+        done
+    });
+    drop(squeezed);
+    let mut per_scene: Vec<(Vec<SettingRun>, Vec<stability::Cell>)> =
+        scenes.iter().map(|_| (vec![], vec![])).collect();
+    for (job, done) in jobs.iter().zip(done) {
+        match (job, done) {
+            (Job::Setting(i, ..), Done::Setting(run)) => {
+                if let Some(slot) = per_scene.get_mut(*i) {
+                    slot.0.push((*run)?);
+                }
+            }
+            (Job::Cell(i, _), Done::Cell(Some(cell))) => {
+                if let Some(slot) = per_scene.get_mut(*i) {
+                    slot.1.push(*cell);
+                }
+            }
+            _ => return Err("a report run lost its scene".into()),
+        }
+    }
+    for (scene, (runs, cells)) in scenes.iter().zip(per_scene) {
         let mut settings = vec![];
         let mut own_trace = None;
         let mut own_counts = vec![];
-        for run in runs {
-            let (setting, own, summary, trace, counts) = run?;
+        for (setting, own, summary, trace, counts) in runs {
             settings.push(setting_result(&setting, own, &summary, &trace, &counts));
             if own {
                 own_trace = Some(trace);
@@ -298,8 +339,7 @@ pub fn write_report(
         }
         let trace = own_trace.ok_or("no run with the scene's own setting")?;
         let mut scene_report = scene_report(scene, settings, &trace, own_counts, counting)?;
-        scene_report.stability =
-            stability::run_cells(scene, &stability::grid(scene, options.quick), || bar.inc(1))?;
+        scene_report.stability = cells;
         report.scenes.push(scene_report);
     }
     if let Some(base) = scaling_base {
@@ -328,6 +368,46 @@ pub fn write_report(
     }
     html::write(&report, out)?;
     Ok(report)
+}
+
+/// One run of the report's first pool: a setting of scene `i` (the scene's own when the flag
+/// is set), or a stability cell of it.
+#[derive(Clone, Copy)]
+enum Job {
+    Setting(usize, SweepSetting, bool),
+    Cell(usize, stability::CellSetting),
+}
+
+/// What a [`Job`] gives.
+enum Done {
+    Setting(Box<Result<SettingRun, String>>),
+    Cell(Option<Box<stability::Cell>>),
+}
+
+/// A setting's run: the setting, whether it is the scene's own, its summary and trace, and its
+/// instructions per frame (empty when not counted).
+type SettingRun = (SweepSetting, bool, Summary, Trace, Vec<u64>);
+
+/// Runs `scene` with `setting`, then counts it under callgrind (when `counting`).
+fn run_setting(
+    scene: &Scene,
+    setting: SweepSetting,
+    own: bool,
+    counting: bool,
+    quick: bool,
+) -> Result<SettingRun, String> {
+    let name = &scene.file.name;
+    let mut s = scene.clone();
+    setting.apply(&mut s);
+    let (summary, trace) = run_scene(&s, &RunOptions::default())
+        .map_err(|e| format!("{name}, {}: {e}", setting.label()))?;
+    let counts = if counting {
+        instructions::per_frame(&scene.dir, &setting, frames_counted(own, quick))
+            .map_err(|e| format!("{name}, {}: instructions: {e}", setting.label()))?
+    } else {
+        vec![]
+    };
+    Ok((setting, own, summary, trace, counts))
 }
 
 /// `job` on every item, on as many threads as the machine has cores, each taking the next

@@ -25,6 +25,7 @@
 //!   length (its own scene: 67 %).
 
 use std::panic::{AssertUnwindSafe, catch_unwind};
+use std::path::PathBuf;
 
 use incise_core::solve::DEFAULT_COUPLING;
 use serde::Serialize;
@@ -427,42 +428,75 @@ fn degrade(frames: &mut [Vec<Observation<f64>>], size: [f64; 2], noise_px: f64, 
     }
 }
 
-/// Runs the `cells` of `scene`, as many at once as the machine has cores (each run is
-/// independent and deterministic, so the result does not depend on how many), calling `done`
-/// after each; the cells in the order given. A panic outside a cell's own run (which
-/// [`run_cell`] catches and classifies) is passed on, not a cell silently lost.
-///
-/// # Errors
-/// A compression variant that could not be generated.
-pub(super) fn run_cells(
-    scene: &Scene,
-    cells: &[CellSetting],
-    done: impl Fn() + Sync,
-) -> Result<Vec<Cell>, String> {
-    // The compression variants, generated once each before the cells run.
-    let work = std::env::temp_dir().join(format!("incise-compression-{}", std::process::id()));
-    let mut variants: Vec<(f64, Scene)> = vec![];
-    for keep in cells.iter().filter_map(|c| c.compression) {
-        if variants.iter().all(|(k, _)| *k != keep) {
-            let dir = work.join(format!("{}-{keep}", scene.file.name));
-            let variant = compressed(scene, keep, &dir)
-                .map_err(|e| format!("{} squeezed to {keep}: {e}", scene.file.name));
-            variants.push((keep, variant?));
+/// The squeezed variants of the scenes whose cells ask for compression, generated once each
+/// before any cell runs, into a directory of their own that is removed when this is dropped
+/// (the runs read the variants' ground truth from it).
+pub(super) struct Squeezed {
+    work: PathBuf,
+    variants: Vec<(usize, f64, Scene)>,
+}
+
+impl Squeezed {
+    /// Generates the variants that `cells` (each with the number of its scene in `scenes`)
+    /// need.
+    ///
+    /// # Errors
+    /// A compression variant that could not be generated.
+    pub(super) fn generate(
+        scenes: &[Scene],
+        cells: &[(usize, CellSetting)],
+    ) -> Result<Self, String> {
+        let mut wanted: Vec<(usize, f64)> = vec![];
+        for &(i, cell) in cells {
+            if let Some(keep) = cell.compression
+                && !wanted.contains(&(i, keep))
+            {
+                wanted.push((i, keep));
+            }
         }
+        let work = std::env::temp_dir().join(format!("incise-compression-{}", std::process::id()));
+        // One variant per core at a time: each simulates its scene's object anew.
+        let made = super::on_every_core(&wanted, |&(i, keep)| {
+            let scene = scenes.get(i).ok_or("no such scene")?;
+            let dir = work.join(format!("{}-{keep}", scene.file.name));
+            compressed(scene, keep, &dir)
+                .map(|variant| (i, keep, variant))
+                .map_err(|e| format!("{} squeezed to {keep}: {e}", scene.file.name))
+        });
+        let mut squeezed = Squeezed {
+            work,
+            variants: vec![],
+        };
+        for variant in made {
+            squeezed.variants.push(variant?);
+        }
+        Ok(squeezed)
     }
-    let scene_of = |cell: &CellSetting| {
+
+    fn find(&self, scene: usize, keep: f64) -> Option<&Scene> {
+        self.variants
+            .iter()
+            .find(|(i, k, _)| *i == scene && *k == keep)
+            .map(|(_, _, s)| s)
+    }
+
+    /// The scene `cell` runs on: `base` (number `i`), or its squeezed variant.
+    pub(super) fn scene_for<'s>(
+        &'s self,
+        i: usize,
+        base: &'s Scene,
+        cell: &CellSetting,
+    ) -> &'s Scene {
         cell.compression
-            .and_then(|keep| variants.iter().find(|(k, _)| *k == keep))
-            .map_or(scene, |(_, s)| s)
-    };
-    let results = super::on_every_core(cells, |&cell| {
-        let result = run_cell(scene_of(&cell), cell);
-        done();
-        result
-    });
-    // The variants' ground truth is read from their directories by the runs: kept until now.
-    let _ = std::fs::remove_dir_all(&work);
-    Ok(results)
+            .and_then(|keep| self.find(i, keep))
+            .unwrap_or(base)
+    }
+}
+
+impl Drop for Squeezed {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.work);
+    }
 }
 
 /// Runs `scene` (cutting on) with one cell's material, springs, precision and tracks.
