@@ -261,10 +261,11 @@ pub fn write_report(
         scaling: None,
         resolution: vec![],
     };
-    // Every scene's settings and stability cells in one pool, one run per core at a time:
-    // the settings first (each counted by callgrind in a process of its own, the longest
-    // runs), then the cells. The counts do not depend on what else runs; the wall times, one
-    // run per core, hardly do.
+    // Every run of the report in one pool, one run per core at a time, the longest first: the
+    // mesh-resolution models (largest first: the fine liver under callgrind is the longest
+    // run of all), each scene's settings (each counted by callgrind in a process of its own),
+    // the cost-growth variants, then the stability cells. The counts do not depend on what
+    // else runs; the wall times, one run per core, hardly do.
     let settings: Vec<(usize, SweepSetting, bool)> = scenes
         .iter()
         .enumerate()
@@ -283,13 +284,37 @@ pub fn write_report(
                 .map(move |c| (i, c))
         })
         .collect();
-    let squeezed = stability::Squeezed::generate(scenes, &cells)?;
-    let jobs: Vec<Job> = (settings
-        .iter()
-        .map(|&(i, setting, own)| Job::Setting(i, setting, own)))
-    .chain(cells.iter().map(|&(i, cell)| Job::Cell(i, cell)))
-    .collect();
-    bar.set_prefix("scenes");
+    bar.set_prefix("preparing");
+    let squeezed = stability::Squeezed::new(&cells);
+    let models = resolution::prepare(&resolution_bases)?;
+    let mut by_size: Vec<usize> = (0..models.jobs.len()).collect();
+    by_size.sort_by_key(|&k| std::cmp::Reverse(models.jobs.get(k).map_or(0, |j| j.nodes())));
+    let growth = scaling_base.map_or(0, |_| scaling::len());
+    // The first cell of each squeezed variant first, one scene after another, so that the two
+    // cores generate different variants instead of one waiting for the other's.
+    let mut cell_order: Vec<usize> = (0..cells.len()).collect();
+    let rank = |k: usize| {
+        let (i, cell) = cells[k];
+        let same = |&&(j, c): &&(usize, stability::CellSetting)| {
+            j == i && c.compression == cell.compression
+        };
+        (
+            cell.compression.is_none(),
+            cells[..k].iter().filter(same).count(),
+            i,
+        )
+    };
+    cell_order.sort_by_key(|&k| rank(k));
+    let jobs: Vec<Job> = (by_size.into_iter().map(Job::Model))
+        .chain(
+            settings
+                .iter()
+                .map(|&(i, setting, own)| Job::Setting(i, setting, own)),
+        )
+        .chain((0..growth).map(Job::Growth))
+        .chain(cell_order.into_iter().map(Job::Cell))
+        .collect();
+    bar.set_prefix("runs");
     let done = on_every_core(&jobs, |job| {
         let done = match *job {
             Job::Setting(i, setting, own) => Done::Setting(Box::new(
@@ -298,12 +323,26 @@ pub fn write_report(
                     .ok_or_else(|| "no such scene".to_string())
                     .and_then(|scene| run_setting(scene, setting, own, counting, options.quick)),
             )),
-            Job::Cell(i, cell) => Done::Cell(scenes.get(i).map(|base| {
-                Box::new(stability::run_cell(
-                    squeezed.scene_for(i, base, &cell),
-                    cell,
-                ))
-            })),
+            Job::Cell(k) => Done::Cell(Box::new(
+                cells
+                    .get(k)
+                    .and_then(|&(i, cell)| Some((i, cell, scenes.get(i)?)))
+                    .ok_or_else(|| "no such cell".to_string())
+                    .and_then(|(i, cell, base)| Ok((cell, squeezed.scene_for(i, base, &cell)?)))
+                    .map(|(cell, scene)| stability::run_cell(scene, cell)),
+            )),
+            Job::Growth(k) => Done::Growth(Box::new(
+                scaling_base
+                    .ok_or_else(|| "no cost-growth base".to_string())
+                    .and_then(|base| scaling::measure_point(&base.dir, k, counting)),
+            )),
+            Job::Model(k) => Done::Model(Box::new(
+                models
+                    .jobs
+                    .get(k)
+                    .ok_or_else(|| "no such model".to_string())
+                    .and_then(|job| resolution::run(job, &resolution_bases, counting)),
+            )),
         };
         bar.inc(1);
         done
@@ -311,6 +350,11 @@ pub fn write_report(
     drop(squeezed);
     let mut per_scene: Vec<(Vec<SettingRun>, Vec<stability::Cell>)> =
         scenes.iter().map(|_| (vec![], vec![])).collect();
+    let mut points = vec![];
+    let mut cell_runs: Vec<Option<Result<stability::Cell, String>>> =
+        cells.iter().map(|_| None).collect();
+    let mut model_runs: Vec<Option<Result<resolution::Model, String>>> =
+        models.jobs.iter().map(|_| None).collect();
     for (job, done) in jobs.iter().zip(done) {
         match (job, done) {
             (Job::Setting(i, ..), Done::Setting(run)) => {
@@ -318,12 +362,25 @@ pub fn write_report(
                     slot.0.push((*run)?);
                 }
             }
-            (Job::Cell(i, _), Done::Cell(Some(cell))) => {
-                if let Some(slot) = per_scene.get_mut(*i) {
-                    slot.1.push(*cell);
+            (Job::Cell(k), Done::Cell(cell)) => {
+                if let Some(slot) = cell_runs.get_mut(*k) {
+                    *slot = Some(*cell);
+                }
+            }
+            (Job::Growth(_), Done::Growth(point)) => points.push(*point),
+            (Job::Model(k), Done::Model(model)) => {
+                if let Some(slot) = model_runs.get_mut(*k) {
+                    *slot = Some(*model);
                 }
             }
             _ => return Err("a report run lost its scene".into()),
+        }
+    }
+    // The cells in the grid's order.
+    for (&(i, _), run) in cells.iter().zip(cell_runs) {
+        if let Some(slot) = per_scene.get_mut(i) {
+            slot.1
+                .push(run.unwrap_or_else(|| Err("a cell was not run".into()))?);
         }
     }
     for (scene, (runs, cells)) in scenes.iter().zip(per_scene) {
@@ -342,14 +399,15 @@ pub fn write_report(
         scene_report.stability = cells;
         report.scenes.push(scene_report);
     }
-    if let Some(base) = scaling_base {
-        bar.set_prefix("cost growth");
-        report.scaling = Some(scaling::measure(&base.dir, counting, || bar.inc(1))?);
+    if scaling_base.is_some() {
+        report.scaling = Some(scaling::assemble(points, counting)?);
     }
-    if !resolution_bases.is_empty() {
-        bar.set_prefix("model meshes");
-        report.resolution = resolution::measure(&resolution_bases, counting, || bar.inc(1))?;
-    }
+    let model_runs = model_runs
+        .into_iter()
+        .map(|m| m.unwrap_or_else(|| Err("a model was not run".into())))
+        .collect();
+    report.resolution = resolution::assemble(&resolution_bases, &models, model_runs)?;
+    drop(models);
     bar.finish_and_clear();
     let largest = report
         .resolution
@@ -370,18 +428,23 @@ pub fn write_report(
     Ok(report)
 }
 
-/// One run of the report's first pool: a setting of scene `i` (the scene's own when the flag
-/// is set), or a stability cell of it.
+/// One run of the report's pool: a setting of scene `i` (the scene's own when the flag is
+/// set), stability cell `k` (of every scene's, in grid order), cost-growth variant `k`, or
+/// mesh-resolution model `k`.
 #[derive(Clone, Copy)]
 enum Job {
     Setting(usize, SweepSetting, bool),
-    Cell(usize, stability::CellSetting),
+    Cell(usize),
+    Growth(usize),
+    Model(usize),
 }
 
 /// What a [`Job`] gives.
 enum Done {
     Setting(Box<Result<SettingRun, String>>),
-    Cell(Option<Box<stability::Cell>>),
+    Cell(Box<Result<stability::Cell, String>>),
+    Growth(Box<Result<scaling::Point, String>>),
+    Model(Box<Result<resolution::Model, String>>),
 }
 
 /// A setting's run: the setting, whether it is the scene's own, its summary and trace, and its

@@ -70,48 +70,74 @@ pub(super) const fn len() -> usize {
 }
 
 /// One model to run: the scene it makes (the base itself, or a variant written to `dir`).
-struct Job {
+pub(super) struct Job {
     base: usize,
     label: &'static str,
     scene: Scene,
     dir: PathBuf,
 }
 
-/// Runs the three models of each of `bases` (whose `scenario.toml` lies beside them), calling
-/// `tick` after each. The variants are written first, one base after the other; the models
-/// then run one per core, the largest first (the fine liver under callgrind is most of the
-/// axis's time, so it starts at once and the others share the second core meanwhile).
+impl Job {
+    /// The model's nodes (the report runs the largest first).
+    pub(super) fn nodes(&self) -> usize {
+        self.scene.rest.len()
+    }
+}
+
+/// The models of every base, their variants written into a directory of their own that is
+/// removed when this is dropped (the runs read the variants' truth from it).
+pub(super) struct Prepared {
+    pub jobs: Vec<Job>,
+    work: PathBuf,
+}
+
+impl Drop for Prepared {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.work);
+    }
+}
+
+/// Writes the finer models of each of `bases` (whose `scenario.toml` lies beside them) beside
+/// the same truth.
 ///
 /// # Errors
-/// A message naming the model that could not be made or run.
-pub(super) fn measure(
-    bases: &[&Scene],
-    counting: bool,
-    tick: impl Fn() + Sync,
-) -> Result<Vec<Resolution>, String> {
-    let work = std::env::temp_dir().join(format!("incise-resolution-{}", std::process::id()));
-    let jobs = bases
-        .iter()
-        .enumerate()
-        .map(|(base, scene)| variants(base, scene, &work))
-        .collect::<Result<Vec<_>, _>>();
-    let mut jobs: Vec<Job> = match jobs {
-        Ok(jobs) => jobs.into_iter().flatten().collect(),
-        Err(e) => {
-            let _ = std::fs::remove_dir_all(&work);
-            return Err(e);
-        }
+/// A message naming the model that could not be made.
+pub(super) fn prepare(bases: &[&Scene]) -> Result<Prepared, String> {
+    let mut prepared = Prepared {
+        jobs: vec![],
+        work: std::env::temp_dir().join(format!("incise-resolution-{}", std::process::id())),
     };
-    jobs.sort_by_key(|j| std::cmp::Reverse(j.scene.rest.len()));
-    let results = super::on_every_core(&jobs, |job| {
-        let model = run_model(&job.scene, &job.dir, job.label, counting).map_err(|e| {
-            let name = &bases.get(job.base).map_or("", |b| b.file.name.as_str());
-            format!("{name} with {} mesh: {e}", job.label)
-        });
-        tick();
-        model
+    // One base per core: each simulates its object anew.
+    let numbered: Vec<(usize, &Scene)> = bases.iter().copied().enumerate().collect();
+    let made = super::on_every_core(&numbered, |&(base, scene)| {
+        variants(base, scene, &prepared.work)
     });
-    let _ = std::fs::remove_dir_all(&work);
+    for jobs in made {
+        prepared.jobs.extend(jobs?);
+    }
+    Ok(prepared)
+}
+
+/// Runs one model (and counts it when `counting`).
+///
+/// # Errors
+/// A message naming the base and the model.
+pub(super) fn run(job: &Job, bases: &[&Scene], counting: bool) -> Result<Model, String> {
+    run_model(&job.scene, &job.dir, job.label, counting).map_err(|e| {
+        let name = bases.get(job.base).map_or("", |b| b.file.name.as_str());
+        format!("{name} with {} mesh: {e}", job.label)
+    })
+}
+
+/// The axis of every base from the models' results (in the order of `prepared.jobs`).
+///
+/// # Errors
+/// The first model that could not be run.
+pub(super) fn assemble(
+    bases: &[&Scene],
+    prepared: &Prepared,
+    models: Vec<Result<Model, String>>,
+) -> Result<Vec<Resolution>, String> {
     let mut axes: Vec<Resolution> = bases
         .iter()
         .map(|b| Resolution {
@@ -119,7 +145,7 @@ pub(super) fn measure(
             models: vec![],
         })
         .collect();
-    for (job, model) in jobs.iter().zip(results) {
+    for (job, model) in prepared.jobs.iter().zip(models) {
         if let Some(axis) = axes.get_mut(job.base) {
             axis.models.push(model?);
         }
@@ -208,12 +234,14 @@ mod tests {
     fn the_band_is_run_with_three_meshes_against_one_truth() {
         let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/band-side-cut");
         let scene = Scene::load(&dir).unwrap();
-        let ticks = std::sync::atomic::AtomicUsize::new(0);
-        let tick = || {
-            ticks.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-        };
-        let axis = measure(&[&scene], false, tick).unwrap().remove(0);
-        assert_eq!(ticks.into_inner(), len());
+        let prepared = prepare(&[&scene]).unwrap();
+        assert_eq!(prepared.jobs.len(), len());
+        let models = prepared
+            .jobs
+            .iter()
+            .map(|job| run(job, &[&scene], false))
+            .collect();
+        let axis = assemble(&[&scene], &prepared, models).unwrap().remove(0);
         assert_eq!(axis.models.len(), 3);
         let own = run_scene(&scene, &RunOptions::default()).unwrap().0;
         assert_eq!(axis.models[0].dice_final, own.dice_final);

@@ -89,31 +89,39 @@ pub(super) fn len() -> usize {
     variants().len()
 }
 
-/// Generates and measures every variant of `fixtures/<BASE>/scenario.toml` (found beside
-/// `base_scene`), calling `tick` after each.
+/// Generates and measures variant `k` of [`variants`] in a directory of its own, removed
+/// afterwards (the report runs them in its pool of runs, one per core at a time).
 ///
 /// # Errors
 /// A message naming the variant that could not be made or run.
-pub(super) fn measure(
-    base_scene: &Path,
-    counting: bool,
-    tick: impl Fn() + Sync,
-) -> Result<Scaling, String> {
+pub(super) fn measure_point(base_scene: &Path, k: usize, counting: bool) -> Result<Point, String> {
     let scenario = base_scene.join("scenario.toml");
     let text =
         std::fs::read_to_string(&scenario).map_err(|e| format!("{}: {e}", scenario.display()))?;
-    let work = std::env::temp_dir().join(format!("incise-scaling-{}", std::process::id()));
-    // One variant per core at a time: each is generated and counted on its own.
-    let points = super::on_every_core(&variants(), |&(cells, features)| {
-        let dir = work.join(format!("{}-{}-{}-{features}", cells[0], cells[1], cells[2]));
-        let point = measure_variant(&text, &dir, cells, features, counting)
-            .map_err(|e| format!("{BASE} with model cells {cells:?} and {features} features: {e}"));
-        let _ = std::fs::remove_dir_all(&dir);
-        tick();
-        point
-    });
+    let &(cells, features) = variants().get(k).ok_or("no such variant")?;
+    let dir = std::env::temp_dir().join(format!(
+        "incise-scaling-{}-{}-{}-{}-{features}",
+        std::process::id(),
+        cells[0],
+        cells[1],
+        cells[2]
+    ));
+    let point = measure_variant(&text, &dir, cells, features, counting)
+        .map_err(|e| format!("{BASE} with model cells {cells:?} and {features} features: {e}"));
+    let _ = std::fs::remove_dir_all(&dir);
+    point
+}
+
+/// The two axes and their fitted exponents from the points of every variant, in the order of
+/// [`variants`].
+///
+/// # Errors
+/// The first variant that could not be made or run.
+pub(super) fn assemble(
+    points: Vec<Result<Point, String>>,
+    counting: bool,
+) -> Result<Scaling, String> {
     let points = points.into_iter().collect::<Result<Vec<Point>, String>>()?;
-    let _ = std::fs::remove_dir_all(&work);
     let nodes: Vec<Point> = points
         .iter()
         .filter(|p| p.features == 300)
