@@ -9,6 +9,10 @@
 //!
 //! The error against run time also has a mesh-resolution axis (`resolution`): the band and the
 //! liver modelled by their own mesh, that mesh refined, and the real object's fine mesh.
+//!
+//! Every run of the report (settings, cells, cost-growth variants, model meshes) goes into one
+//! pool of threads, one per core, the longest runs first: run phase after phase, each waiting
+//! for its slowest run, the quick report took 66 s on two cores, and 51 s in one pool.
 
 mod figures;
 mod findings;
