@@ -27,8 +27,8 @@ pub fn per_frame(
     frames: usize,
 ) -> Result<Vec<u64>, String> {
     let exe = std::env::current_exe().map_err(|e| format!("the incise binary: {e}"))?;
-    let dir = tempfile_dir()?;
-    let out = dir.join("cg");
+    let dir = super::scratch_dir("callgrind")?;
+    let out = dir.path().join("cg");
     let output = Command::new("valgrind")
         .arg("--tool=callgrind")
         .arg("--dump-before=*incise_core*Model*step*")
@@ -42,7 +42,8 @@ pub fn per_frame(
         .args(["--frames", &frames.to_string()])
         .args(["--real", setting.precision.name()])
         .output();
-    let result = match output {
+    // `dir` and its dumps go when it is dropped, after they are read.
+    match output {
         Err(e) => Err(format!("valgrind could not be started ({e})")),
         Ok(o) if !o.status.success() => Err(format!(
             "the counted run failed: {}",
@@ -51,10 +52,8 @@ pub fn per_frame(
                 .last()
                 .unwrap_or("")
         )),
-        Ok(_) => read_dumps(&dir),
-    };
-    let _ = std::fs::remove_dir_all(&dir);
-    result
+        Ok(_) => read_dumps(dir.path()),
+    }
 }
 
 /// The mean instructions of the first `frames` stepped frames of the scene in `scene_dir` with
@@ -83,19 +82,6 @@ pub(super) fn available() -> bool {
         .arg("--version")
         .output()
         .is_ok_and(|o| o.status.success())
-}
-
-/// A fresh directory for one counted run's dumps.
-fn tempfile_dir() -> Result<std::path::PathBuf, String> {
-    use std::sync::atomic::{AtomicUsize, Ordering};
-    static NEXT: AtomicUsize = AtomicUsize::new(0);
-    let dir = std::env::temp_dir().join(format!(
-        "incise-report-{}-{}",
-        std::process::id(),
-        NEXT.fetch_add(1, Ordering::Relaxed)
-    ));
-    std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
-    Ok(dir)
 }
 
 /// The instructions of each step from the dumps in `dir`: `cg.1` holds the set-up, `cg.n`

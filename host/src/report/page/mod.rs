@@ -289,26 +289,28 @@ pub fn write_report(
         })
         .collect();
     bar.set_prefix("preparing");
-    let squeezed = stability::Squeezed::new(&cells);
+    let squeezed = stability::Squeezed::new(&cells)?;
     let models = resolution::prepare(&resolution_bases)?;
     let mut by_size: Vec<usize> = (0..models.jobs.len()).collect();
     by_size.sort_by_key(|&k| std::cmp::Reverse(models.jobs.get(k).map_or(0, |j| j.nodes())));
     let growth = scaling_base.map_or(0, |_| scaling::len());
     // The first cell of each squeezed variant first, one scene after another, so that the two
     // cores generate different variants instead of one waiting for the other's.
+    // Each cell's rank: whether it is squeezed, how many cells of its scene and variant come
+    // before it, its scene (one pass, counting as it goes).
+    let mut seen: std::collections::HashMap<(usize, Option<u64>), usize> = Default::default();
+    let ranks: Vec<(bool, usize, usize)> = cells
+        .iter()
+        .map(|&(i, cell)| {
+            let before = seen
+                .entry((i, cell.compression.map(f64::to_bits)))
+                .or_default();
+            *before += 1;
+            (cell.compression.is_none(), *before - 1, i)
+        })
+        .collect();
     let mut cell_order: Vec<usize> = (0..cells.len()).collect();
-    let rank = |k: usize| {
-        let (i, cell) = cells[k];
-        let same = |&&(j, c): &&(usize, stability::CellSetting)| {
-            j == i && c.compression == cell.compression
-        };
-        (
-            cell.compression.is_none(),
-            cells[..k].iter().filter(same).count(),
-            i,
-        )
-    };
-    cell_order.sort_by_key(|&k| rank(k));
+    cell_order.sort_by_key(|&k| ranks.get(k).copied());
     let jobs: Vec<Job> = (by_size.into_iter().map(Job::Model))
         .chain(
             settings
@@ -475,6 +477,24 @@ fn run_setting(
         vec![]
     };
     Ok((setting, own, summary, trace, counts))
+}
+
+/// A fresh directory for the report's scratch files (generated variants, callgrind dumps),
+/// named after `what`, removed with everything in it when the handle is dropped, on every
+/// path out, errors and panics included.
+///
+/// # Errors
+/// A message naming the directory that could not be made.
+pub(super) fn scratch_dir(what: &str) -> Result<tempfile::TempDir, String> {
+    tempfile::Builder::new()
+        .prefix(&format!("incise-{what}-"))
+        .tempdir()
+        .map_err(|e| {
+            format!(
+                "a scratch directory in {}: {e}",
+                std::env::temp_dir().display()
+            )
+        })
 }
 
 /// `job` on every item, on as many threads as the machine has cores, each taking the next

@@ -88,13 +88,7 @@ impl Job {
 /// removed when this is dropped (the runs read the variants' truth from it).
 pub(super) struct Prepared {
     pub jobs: Vec<Job>,
-    work: PathBuf,
-}
-
-impl Drop for Prepared {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.work);
-    }
+    work: tempfile::TempDir,
 }
 
 /// Writes the finer models of each of `bases` (whose `scenario.toml` lies beside them) beside
@@ -105,12 +99,12 @@ impl Drop for Prepared {
 pub(super) fn prepare(bases: &[&Scene]) -> Result<Prepared, String> {
     let mut prepared = Prepared {
         jobs: vec![],
-        work: std::env::temp_dir().join(format!("incise-resolution-{}", std::process::id())),
+        work: super::scratch_dir("resolution")?,
     };
     // One base per core: each simulates its object anew.
     let numbered: Vec<(usize, &Scene)> = bases.iter().copied().enumerate().collect();
     let made = super::on_every_core(&numbered, |&(base, scene)| {
-        variants(base, scene, &prepared.work)
+        variants(base, scene, prepared.work.path())
     });
     for jobs in made {
         prepared.jobs.extend(jobs?);
@@ -258,5 +252,10 @@ mod tests {
             assert!(m.tre_mm_final < m.tre_mm_rest, "{m:?}");
             assert!(m.dice_final >= m.dice_final_uncut, "{m:?}");
         }
+        // The finer models were written into a scratch directory that goes with them.
+        let work = prepared.work.path().to_path_buf();
+        assert!(work.is_dir() && std::fs::read_dir(&work).unwrap().count() > 0);
+        drop(prepared);
+        assert!(!work.exists(), "{} left behind", work.display());
     }
 }

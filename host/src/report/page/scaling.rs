@@ -99,17 +99,12 @@ pub(super) fn measure_point(base_scene: &Path, k: usize, counting: bool) -> Resu
     let text =
         std::fs::read_to_string(&scenario).map_err(|e| format!("{}: {e}", scenario.display()))?;
     let &(cells, features) = variants().get(k).ok_or("no such variant")?;
-    let dir = std::env::temp_dir().join(format!(
-        "incise-scaling-{}-{}-{}-{}-{features}",
-        std::process::id(),
-        cells[0],
-        cells[1],
-        cells[2]
-    ));
-    let point = measure_variant(&text, &dir, cells, features, counting)
-        .map_err(|e| format!("{BASE} with model cells {cells:?} and {features} features: {e}"));
-    let _ = std::fs::remove_dir_all(&dir);
-    point
+    let dir = super::scratch_dir(&format!(
+        "scaling-{}-{}-{}-{features}",
+        cells[0], cells[1], cells[2]
+    ))?;
+    measure_variant(&text, dir.path(), cells, features, counting)
+        .map_err(|e| format!("{BASE} with model cells {cells:?} and {features} features: {e}"))
 }
 
 /// The two axes and their fitted exponents from the points of every variant, in the order of

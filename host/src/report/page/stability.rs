@@ -25,7 +25,6 @@
 //!   length (its own scene: 67 %).
 
 use std::panic::{AssertUnwindSafe, catch_unwind};
-use std::path::PathBuf;
 use std::sync::OnceLock;
 
 use incise_core::solve::DEFAULT_COUPLING;
@@ -434,7 +433,7 @@ fn degrade(frames: &mut [Vec<Observation<f64>>], size: [f64; 2], noise_px: f64, 
 /// its own that is removed when this is dropped (the runs read the variants' ground truth
 /// from it).
 pub(super) struct Squeezed {
-    work: PathBuf,
+    work: tempfile::TempDir,
     variants: Vec<(usize, f64, Variant)>,
 }
 
@@ -443,7 +442,10 @@ type Variant = OnceLock<Result<Scene, String>>;
 
 impl Squeezed {
     /// Room for the variants that `cells` (each with the number of its scene) need.
-    pub(super) fn new(cells: &[(usize, CellSetting)]) -> Self {
+    ///
+    /// # Errors
+    /// The scratch directory could not be made.
+    pub(super) fn new(cells: &[(usize, CellSetting)]) -> Result<Self, String> {
         let mut variants: Vec<(usize, f64, Variant)> = vec![];
         for &(i, cell) in cells {
             if let Some(keep) = cell.compression
@@ -452,10 +454,10 @@ impl Squeezed {
                 variants.push((i, keep, OnceLock::new()));
             }
         }
-        Squeezed {
-            work: std::env::temp_dir().join(format!("incise-compression-{}", std::process::id())),
+        Ok(Squeezed {
+            work: super::scratch_dir("compression")?,
             variants,
-        }
+        })
     }
 
     /// The scene `cell` runs on: `base` (number `i`), or its squeezed variant, generated now
@@ -484,18 +486,12 @@ impl Squeezed {
             })?;
         variant
             .get_or_init(|| {
-                let dir = self.work.join(format!("{}-{keep}", base.file.name));
+                let dir = self.work.path().join(format!("{}-{keep}", base.file.name));
                 compressed(base, keep, &dir)
                     .map_err(|e| format!("{} squeezed to {keep}: {e}", base.file.name))
             })
             .as_ref()
             .map_err(Clone::clone)
-    }
-}
-
-impl Drop for Squeezed {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.work);
     }
 }
 
