@@ -295,9 +295,9 @@ pub fn write_report(
     by_size.sort_by_key(|&k| std::cmp::Reverse(models.jobs.get(k).map_or(0, |j| j.nodes())));
     let growth = scaling_base.map_or(0, |_| scaling::len());
     // The first cell of each squeezed variant first, one scene after another, so that the two
-    // cores generate different variants instead of one waiting for the other's.
-    // Each cell's rank: whether it is squeezed, how many cells of its scene and variant come
-    // before it, its scene (one pass, counting as it goes).
+    // cores generate different variants instead of one waiting for the other's. A cell's rank:
+    // squeezed before not, then how many cells of its scene and variant come before it, then
+    // its scene (counted in one pass over the cells).
     let mut seen: std::collections::HashMap<(usize, Option<u64>), usize> = Default::default();
     let ranks: Vec<(bool, usize, usize)> = cells
         .iter()
