@@ -81,6 +81,16 @@ use crate::real::Real;
 /// cannot follow its folds to within a spacing, then lets go of features there and its intact
 /// variants (`fixtures/families/liver.toml`) are cut falsely 5 times in 10 instead of 3; at
 /// half a spacing the live and middle cuts are found late or not at all.
+///
+/// `δ` stays the same however stiff the springs are, so above the default coupling the cap
+/// `k δ` grows with `k`. Shrinking `δ` by `k₀ / k` instead (the cap held at the default's
+/// `k₀ δ`) was tried: every cell of the report's stability grid then ends below the rest
+/// model's target error (the liver at 10⁶ times its coupling 0.28–0.86 of it, against 1.43–5.52),
+/// but the springs become L1 ones with a kink a fraction of a pixel wide, which three Newton
+/// steps cannot resolve: at 10³ and 10⁶ times the coupling no cell of the grid brought its
+/// gradient below 0.07 of its start any more (105 of the 126 had reached 0.001), and the
+/// bands' Dice fell (`band-side-cut` at 10³: 0.988 → 0.946). Shrinking it by `√(k₀ / k)` kept
+/// the liver sane too but converged no better. Neither was kept.
 pub const DEFAULT_SPRING_THRESHOLD: f64 = 2.0;
 
 /// The default of [`SolverConfig::depth_prior`]: a tenth of the rest stiffness.
