@@ -255,14 +255,17 @@ impl DetectionWork {
     /// - pair visits `7 P`: the temporal filter's neighbour lists (`2 P`), differences,
     ///   per-feature lists, levels, outliers, persistence;
     /// - comparisons: the median and MAD of the changes (`2 S(n)`) and of the differences
-    ///   (`2 S(P)`), and each feature's lower tertile (`Σ S(dᵢ) ≤ S(2P)` as `Σ dᵢ = 2P`),
-    ///   with `S(m) = 2 m ⌈log₂ m⌉ + 2 m` heapsort's bound.
+    ///   (`2 S(P)`), and each feature's lower tertile (`Σ S(dᵢ) ≤ S(2P)` as `Σ dᵢ = 2P` and
+    ///   `S(m) / m` grows with `m`), with `S(m) = 2 m ⌈log₂ m⌉` the bound of a selection
+    ///   ([`crate::robust::select_bound`]).
     pub const fn bound(features: u64, pairs: u64) -> DetectionWork {
-        use crate::robust::sort_bound;
+        use crate::robust::select_bound;
         DetectionWork {
             feature_visits: 4 * features,
             pair_visits: 7 * pairs,
-            comparisons: 2 * sort_bound(features) + 2 * sort_bound(pairs) + sort_bound(2 * pairs),
+            comparisons: 2 * select_bound(features)
+                + 2 * select_bound(pairs)
+                + select_bound(2 * pairs),
         }
     }
 

@@ -5,7 +5,7 @@ use super::{DetectionConfig, DetectionReport, DetectionWork};
 use crate::error::{Error, Resource};
 use crate::features::{image_bounds, spacing_px};
 use crate::real::Real;
-use crate::robust::{MAD_TO_SIGMA, median_mad_of, pad, quantile_sorted, sort};
+use crate::robust::{MAD_TO_SIGMA, median_mad_of, quantile_of};
 use crate::storage::{Slab, sum, times};
 
 const STREAK: u32 = 0xff;

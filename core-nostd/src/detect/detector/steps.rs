@@ -220,15 +220,14 @@ impl<'a, T: Real> Detector<'a, T> {
                 }
             }
             work.pair_visits += incident.len() as u64;
-            // As above: the feature's unmeasured pairs sort along as `+∞`.
-            let sorted = self.scratch.get_mut(..incident.len()).unwrap_or_default();
-            pad(sorted, m);
-            work.comparisons += sort(sorted);
-            *slope = if m >= 3 {
-                quantile_sorted(sorted.get(..m).unwrap_or_default(), T::of(1.0 / 3.0))
-            } else {
-                T::zero()
-            };
+            // As above: the feature's unmeasured pairs take part as `+∞`.
+            let (tertile, comparisons) = quantile_of(
+                self.scratch.get_mut(..incident.len()).unwrap_or_default(),
+                m,
+                T::of(1.0 / 3.0),
+            );
+            work.comparisons += comparisons;
+            *slope = if m >= 3 { tertile } else { T::zero() };
         }
         work.pair_visits += self.n_pairs as u64;
         work.feature_visits += n as u64;
