@@ -244,7 +244,7 @@ pub struct DetectionWork {
     pub feature_visits: u64,
     /// Pair visits (differences, thresholds, persistence).
     pub pair_visits: u64,
-    /// Comparisons of the robust statistics' sorts.
+    /// Comparisons of the robust statistics' selections ([`crate::robust::select`]).
     pub comparisons: u64,
 }
 

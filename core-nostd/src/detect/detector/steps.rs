@@ -187,7 +187,7 @@ impl<'a, T: Real> Detector<'a, T> {
             };
         }
         // Every pair in use takes part, an unmeasured one as `+∞` behind the measured ones:
-        // the sorts cost as much in every frame of a topology, however many pairs are
+        // the selections cost as much in every frame of a topology, however many pairs are
         // measured, and the median and MAD are those of the measured pairs.
         let (median, mad, comparisons) = median_mad_of(
             self.scratch.get_mut(..self.n_pairs).unwrap_or_default(),

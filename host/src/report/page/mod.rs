@@ -705,7 +705,9 @@ const STEADY_COUNTERS: &[Counter] = &[
         w.detection.feature_visits
     }),
     ("detection", "pair visits", |w| w.detection.pair_visits),
-    ("detection", "sort comparisons", |w| w.detection.comparisons),
+    ("detection", "selection comparisons", |w| {
+        w.detection.comparisons
+    }),
     ("cut line", "fit tests", |w| w.line.fit_tests),
     ("cut line", "point visits", |w| w.line.point_visits),
     ("cut line", "anchor visits", |w| w.line.anchor_visits),
