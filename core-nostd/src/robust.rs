@@ -31,38 +31,50 @@ pub const fn sort_bound(n: u64) -> u64 {
 pub fn sort<T: Real>(v: &mut [T]) -> u64 {
     let mut comparisons = 0u64;
     let n = v.len();
-    // Moves v[root] down the max-heap v[..end].
-    let sift = |v: &mut [T], mut root: usize, end: usize, comparisons: &mut u64| {
-        loop {
-            let mut child = 2 * root + 1;
-            if child >= end {
-                break;
-            }
-            if let (Some(&a), Some(&b)) = (v.get(child), v.get(child + 1))
-                && child + 1 < end
-            {
-                *comparisons += 1;
-                if less(a, b) {
-                    child += 1;
-                }
-            }
-            *comparisons += 1;
-            match (v.get(root), v.get(child)) {
-                (Some(&r), Some(&c)) if less(r, c) => {}
-                _ => break,
-            }
-            v.swap(root, child);
-            root = child;
-        }
-    };
+    // A max-heap of v[..end], its largest moved behind it one by one.
+    let larger_first = |a: T, b: T| less(b, a);
     for root in (0..n / 2).rev() {
-        sift(v, root, n, &mut comparisons);
+        sift(v, root, n, false, larger_first, &mut comparisons);
     }
     for end in (1..n).rev() {
         v.swap(0, end);
-        sift(v, 0, end, &mut comparisons);
+        sift(v, 0, end, false, larger_first, &mut comparisons);
     }
     comparisons
+}
+
+/// Moves `v[root]` down the heap `v[..end]` whose root is first in `root_first` order; with
+/// `whole`, walks on to a leaf along the children `root_first` prefers even where the heap
+/// already holds (it then swaps nothing). Adds its comparisons to `comparisons`.
+fn sift<T: Real>(
+    v: &mut [T],
+    mut root: usize,
+    end: usize,
+    whole: bool,
+    root_first: impl Fn(T, T) -> bool,
+    comparisons: &mut u64,
+) {
+    loop {
+        let mut child = 2 * root + 1;
+        if child >= end {
+            break;
+        }
+        if let (Some(&a), Some(&b)) = (v.get(child), v.get(child + 1))
+            && child + 1 < end
+        {
+            *comparisons += 1;
+            if root_first(b, a) {
+                child += 1;
+            }
+        }
+        *comparisons += 1;
+        match (v.get(root), v.get(child)) {
+            (Some(&r), Some(&c)) if root_first(c, r) => v.swap(root, child),
+            _ if whole => {}
+            _ => break,
+        }
+        root = child;
+    }
 }
 
 /// Most comparisons [`select`] makes on `n` values, whatever the rank.
@@ -112,33 +124,8 @@ pub fn select<T: Real>(v: &mut [T], k: usize) -> (T, u64) {
 /// 1.7 %).
 fn heap_select<T: Real>(v: &mut [T], h: usize, root_first: impl Fn(T, T) -> bool) -> u64 {
     let mut comparisons = 0u64;
-    // Moves v[root] down the heap v[..h]; with `whole`, walks on to a leaf along the children
-    // `root_first` prefers even where the heap already holds.
-    let sift = |v: &mut [T], mut root: usize, whole: bool, comparisons: &mut u64| {
-        loop {
-            let mut child = 2 * root + 1;
-            if child >= h {
-                break;
-            }
-            if let (Some(&a), Some(&b)) = (v.get(child), v.get(child + 1))
-                && child + 1 < h
-            {
-                *comparisons += 1;
-                if root_first(b, a) {
-                    child += 1;
-                }
-            }
-            *comparisons += 1;
-            match (v.get(root), v.get(child)) {
-                (Some(&r), Some(&c)) if root_first(c, r) => v.swap(root, child),
-                _ if whole => {}
-                _ => break,
-            }
-            root = child;
-        }
-    };
     for root in (0..h / 2).rev() {
-        sift(v, root, false, &mut comparisons);
+        sift(v, root, h, false, &root_first, &mut comparisons);
     }
     for i in h..v.len() {
         comparisons += 1;
@@ -147,7 +134,7 @@ fn heap_select<T: Real>(v: &mut [T], h: usize, root_first: impl Fn(T, T) -> bool
         {
             v.swap(0, i);
         }
-        sift(v, 0, true, &mut comparisons);
+        sift(v, 0, h, true, &root_first, &mut comparisons);
     }
     comparisons
 }
