@@ -181,6 +181,48 @@ fn a_lost_track_pulls_with_a_bounded_force() {
     assert!((0.8..1.25).contains(&ratio), "{h} against {q}: {ratio}");
 }
 
+/// Springs stiffer than the default coupling pull no harder than its springs (issue 14's
+/// stability envelope): Huber's threshold shrinks by as much as the stiffness grows, so their
+/// largest force `k δ` is the default coupling's, whether the coupling is given relative to
+/// the material or as a stiffness; at or below the default the threshold is the default's.
+#[test]
+fn stiffer_springs_pull_no_harder_than_the_default_coupling() {
+    use incise_core::solve::{DEFAULT_COUPLING, DEFAULT_SPRING_THRESHOLD};
+    let beam = Cantilever::new([40, 4, 4]);
+    let input = beam.input();
+    let springs = |coupling: Coupling<f64>| {
+        let mut cfg = config(beam.cam, 1.0, Strategy::Refactor, 0.0);
+        cfg.solver.coupling = coupling;
+        cfg.solver.spring_threshold = DEFAULT_SPRING_THRESHOLD;
+        let mut storage = ModelStorage::with_features(&input, 64).unwrap();
+        let mut model = storage.model(&input, &cfg).unwrap();
+        model.embed_features(&beam.frame0).unwrap();
+        (model.spring_stiffness(), model.spring_threshold_px())
+    };
+    let (k0, delta) = springs(Coupling::Relative(DEFAULT_COUPLING));
+    assert!(k0 > 0.0 && delta.is_finite() && delta > 0.0, "{k0} {delta}");
+    for scale in [1e-6, 1e-3, 0.5] {
+        let (k, d) = springs(Coupling::Relative(DEFAULT_COUPLING * scale));
+        assert!((k / (k0 * scale) - 1.0).abs() < 1e-12, "{scale}: {k}");
+        assert_eq!(d, delta, "{scale}");
+    }
+    for scale in [1.0, 2.0, 1e3, 1e6] {
+        for coupling in [
+            Coupling::Relative(DEFAULT_COUPLING * scale),
+            Coupling::Stiffness(k0 * scale),
+        ] {
+            let (k, d) = springs(coupling);
+            assert!((k / (k0 * scale) - 1.0).abs() < 1e-12, "{coupling:?}: {k}");
+            assert!(
+                (k * d / (k0 * delta) - 1.0).abs() < 1e-9,
+                "{coupling:?}: k δ = {} against {}",
+                k * d,
+                k0 * delta
+            );
+        }
+    }
+}
+
 #[test]
 fn cantilever_tip_deflection_matches_euler_bernoulli() {
     let mut errors = vec![];

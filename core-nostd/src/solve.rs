@@ -54,6 +54,9 @@
 //!   ratio to the springs keeps those frames as well posed as at the default; at or below it
 //!   nothing changes.
 //!
+//! Above the default coupling the springs' Huber threshold shrinks by `k₀ / k`, so each
+//! spring's largest force stays the default's ([`DEFAULT_SPRING_THRESHOLD`] says why).
+//!
 //! Every loop runs a number of times fixed by the configuration and the scene's sizes, so a
 //! frame's cost does not depend on the data.
 
@@ -82,15 +85,26 @@ use crate::real::Real;
 /// variants (`fixtures/families/liver.toml`) are cut falsely 5 times in 10 instead of 3; at
 /// half a spacing the live and middle cuts are found late or not at all.
 ///
-/// `δ` stays the same however stiff the springs are, so above the default coupling the cap
-/// `k δ` grows with `k`. Shrinking `δ` by `k₀ / k` instead (the cap held at the default's
-/// `k₀ δ`) was tried: every cell of the report's stability grid then ends below the rest
-/// model's target error (the liver at 10⁶ times its coupling 0.28–0.86 of it, against 1.43–5.52),
-/// but the springs become L1 ones with a kink a fraction of a pixel wide, which three Newton
-/// steps cannot resolve: at 10³ and 10⁶ times the coupling no cell of the grid brought its
-/// gradient below 0.07 of its start any more (105 of the 126 had reached 0.001), and the
-/// bands' Dice fell (`band-side-cut` at 10³: 0.988 → 0.946). Shrinking it by `√(k₀ / k)` kept
-/// the liver sane too but converged no better. Neither was kept.
+/// Above the default coupling `δ` shrinks as the springs stiffen, `δ k₀ / k` (`k₀` the
+/// default coupling's stiffness for the scene, [`DEFAULT_COUPLING`]), so the force a spring
+/// can pull with stays the default's `k₀ δ` however stiff the springs are: stiffer springs hold
+/// a feature the model can follow more tightly, and one it cannot follow pulls no harder. The
+/// default already caps it generously: taken to the object, `k₀ δ` is 200 times the force that
+/// would squeeze the cube of material one feature spacing wide to nothing
+/// ([`DEFAULT_COUPLING`]), so a larger force could only tear the model toward features it
+/// cannot match. With `δ` fixed instead, the cap grew with `k`, and the coarse liver, which
+/// cannot follow its folds, was pulled out of shape by its own features: at 10⁴, 10⁵ and 10⁶
+/// times the coupling its targets ended 1.1, 1.4 and 2.1 times the rest model's distance from
+/// the truth (`incise report`'s stability section had 15 cells of 699 above 1.2 times, all the
+/// liver's at 10⁶); with the force held the liver's end at 0.3–0.9 of it at 10⁶, and no cell
+/// of the grid is above 1.2. The price is convergence: above the default the springs become
+/// L1 ones with a kink a fraction of a pixel wide, which Newton's method resolves slowly, so at
+/// 10³ and 10⁶ times the coupling no cell of the grid brings its gradient (the median over its
+/// frames) below 0.01 of its start, even with 8 Newton steps (at the default nothing changes),
+/// and the bands follow their cuts a little less
+/// closely (`band-side-cut` at 10³: Dice 0.988 → 0.946, its targets 3.1 → 4.2 mm from the
+/// truth, the rest model's 21.2 mm). Shrinking `δ` by `√(k₀ / k)` kept the liver sane too but
+/// converged no better and lost more on the bands (0.929 at 10³).
 pub const DEFAULT_SPRING_THRESHOLD: f64 = 2.0;
 
 /// The default of [`SolverConfig::depth_prior`]: a tenth of the rest stiffness.

@@ -170,7 +170,8 @@ impl<T: Real, F: Real> Model<'_, T, F> {
         Ok(report)
     }
 
-    /// The springs' stiffness `k` ([`crate::Coupling`]), robust threshold (pixels) and the depth
+    /// The springs' stiffness `k` ([`crate::Coupling`]), robust threshold (pixels, shrunk by
+    /// the depth prior's scale so that `k δ` stays the default coupling's) and the depth
     /// prior's scale ([`Model::depth_scale`](crate::Model)) for the embedded features: the
     /// feature spacing from the bounding box of their frame-0 pixels, the image scale from the
     /// projection's Jacobian at their virtual points.
@@ -190,8 +191,11 @@ impl<T: Real, F: Real> Model<'_, T, F> {
                     spacing,
                     self.image_scale()?,
                 )?;
-                // Exactly 1 at the default coupling.
-                Ok((k, threshold, (beta / default).max(T::one())))
+                // `k / k₀`, exactly 1 at the default coupling. Above it the threshold shrinks
+                // by as much, so a spring pulls no harder than the default's `k₀ δ`
+                // (`DEFAULT_SPRING_THRESHOLD`), and the depth prior grows with the springs.
+                let scale = (beta / default).max(T::one());
+                Ok((k, threshold / scale, scale))
             }
             Coupling::Stiffness(k) => {
                 let k = Coupling::Stiffness(k).stiffness(k, T::one(), T::one())?;
@@ -213,7 +217,7 @@ impl<T: Real, F: Real> Model<'_, T, F> {
                             T::one()
                         }
                     });
-                Ok((k, threshold, depth_scale))
+                Ok((k, threshold / depth_scale, depth_scale))
             }
         }
     }

@@ -402,7 +402,9 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
 
     /// The residual, pixels, beyond which the springs pull with a constant force (Huber's
     /// loss): [`SolverConfig::spring_threshold`] times the feature spacing measured when the
-    /// features were embedded (`∞` before, or for quadratic springs).
+    /// features were embedded, divided by `k / k₀` for springs stiffer than the default
+    /// coupling's `k₀`, so that their largest force stays the default's (`∞` before, or for
+    /// quadratic springs).
     pub fn spring_threshold_px(&self) -> T {
         self.spring_threshold_px
     }
