@@ -261,9 +261,21 @@ pub(super) fn cost_growth(scaling: &super::scaling::Scaling, path: &Path) -> Res
             |p| p.features,
         ),
     ];
-    for (area, (name, points, b, x)) in [left, right].iter().zip(panels) {
-        let xs: Vec<f64> = points.iter().map(|p| x(p) as f64).collect();
-        let ys: Vec<f64> = points.iter().map(cost).filter(|v| v.is_finite()).collect();
+    // The largest model of the mesh-resolution axis carries the node axis past the band
+    // variants (counted only: its wall time is measured under another load).
+    let largest = scaling
+        .largest
+        .as_ref()
+        .filter(|_| counted)
+        .map(|l| (l.nodes as f64, l.instructions / 1e6, l));
+    for (panel, (area, (name, points, b, x))) in [left, right].iter().zip(panels).enumerate() {
+        let beyond = largest.filter(|_| panel == 0);
+        let mut xs: Vec<f64> = points.iter().map(|p| x(p) as f64).collect();
+        let mut ys: Vec<f64> = points.iter().map(cost).filter(|v| v.is_finite()).collect();
+        if let Some((lx, ly, _)) = beyond {
+            xs.push(lx);
+            ys.push(ly);
+        }
         let (x_lo, x_hi) = (
             xs.iter().copied().fold(f64::INFINITY, f64::min) * 0.8,
             xs.iter().copied().fold(1.0, f64::max) * 1.25,
@@ -275,9 +287,12 @@ pub(super) fn cost_growth(scaling: &super::scaling::Scaling, path: &Path) -> Res
         if !(x_lo.is_finite() && y_lo.is_finite() && x_lo > 0.0 && y_lo > 0.0) {
             continue;
         }
-        let title = match b {
-            Some(b) => format!("cost against {name}: exponent {b:.2}"),
-            None => format!("cost against {name}"),
+        let title = match (b, beyond.and(scaling.nodes_exponent_with_largest)) {
+            (Some(b), Some(with)) => {
+                format!("cost against {name}: exponent {b:.2} ({with:.2} with the liver)")
+            }
+            (Some(b), None) => format!("cost against {name}: exponent {b:.2}"),
+            _ => format!("cost against {name}"),
         };
         let mut chart = ChartBuilder::on(area)
             .caption(title, ("sans-serif", 16))
@@ -298,15 +313,34 @@ pub(super) fn cost_growth(scaling: &super::scaling::Scaling, path: &Path) -> Res
             .draw()
             .map_err(|x| e(&x))?;
         let series: Vec<(f64, f64)> = points.iter().map(|p| (x(p) as f64, cost(p))).collect();
+        let blue = RGBColor(31, 119, 180);
         chart
-            .draw_series(LineSeries::new(series.clone(), RGBColor(31, 119, 180)))
+            .draw_series(LineSeries::new(series.clone(), blue))
             .map_err(|x| e(&x))?;
         chart
-            .draw_series(
-                series
-                    .into_iter()
-                    .map(|p| Circle::new(p, 4, RGBColor(31, 119, 180).filled())),
-            )
+            .draw_series(series.into_iter().map(|p| Circle::new(p, 4, blue.filled())))
+            .map_err(|x| e(&x))?
+            .label(format!("{} variants", super::scaling::BASE))
+            .legend(move |(x, y)| Circle::new((x + 10, y), 4, blue.filled()));
+        if let Some((lx, ly, l)) = beyond {
+            let orange = RGBColor(255, 127, 14);
+            chart
+                .draw_series(std::iter::once(TriangleMarker::new(
+                    (lx, ly),
+                    7,
+                    orange.filled(),
+                )))
+                .map_err(|x| e(&x))?
+                .label(format!("{}, {} mesh", l.scene, l.mesh))
+                .legend(move |(x, y)| TriangleMarker::new((x + 10, y), 6, orange.filled()));
+        }
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::UpperLeft)
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK)
+            .label_font(("sans-serif", 12))
+            .draw()
             .map_err(|x| e(&x))?;
     }
     root.present().map_err(|x| e(&x))
