@@ -119,6 +119,9 @@ pub enum Command {
         /// PCG steps.
         #[arg(long)]
         pcg: u32,
+        /// Line-search trials per Newton step (the scene's own when not given).
+        #[arg(long)]
+        line_search: Option<u32>,
         /// Frames to step after frame 0.
         #[arg(long)]
         frames: usize,
@@ -366,9 +369,10 @@ pub fn run(cli: Cli) -> i32 {
             strategy,
             newton,
             pcg,
+            line_search,
             frames,
             real,
-        } => count_frames_command(&scene, &strategy, newton, pcg, frames, real),
+        } => count_frames_command(&scene, &strategy, [newton, pcg], line_search, frames, real),
     };
     match result {
         Ok(()) => 0,

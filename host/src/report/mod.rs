@@ -288,7 +288,13 @@ pub struct SweepSetting {
     pub pcg: u32,
     /// The scalar type the core computes in.
     pub precision: Precision,
+    /// Trial steps of each Newton step's line search.
+    pub line_search: u32,
 }
+
+/// The line-search trials of the sweep's settings but those of its line-search axis: the
+/// committed scenes' own.
+pub const SWEEP_LINE_SEARCH: u32 = 4;
 
 impl SweepSetting {
     /// The strategy name as a setting holds it, or `None` for a name that is none of the three.
@@ -306,6 +312,7 @@ impl SweepSetting {
             newton: solver.newton_iterations,
             pcg: solver.pcg_iterations,
             precision: Precision::F64,
+            line_search: solver.line_search_steps,
         }
     }
 
@@ -315,6 +322,7 @@ impl SweepSetting {
         solver.strategy = self.strategy.to_string();
         solver.newton_iterations = self.newton;
         solver.pcg_iterations = self.pcg;
+        solver.line_search_steps = self.line_search;
         scene.precision = self.precision;
     }
 
@@ -325,6 +333,11 @@ impl SweepSetting {
             "factor-once" => format!("factor once, {} Newton, {} PCG", self.newton, self.pcg),
             _ => format!("refactor, {} Newton", self.newton),
         };
+        let label = match self.line_search {
+            SWEEP_LINE_SEARCH => label,
+            1 => format!("{label}, 1 line-search trial"),
+            n => format!("{label}, {n} line-search trials"),
+        };
         match self.precision {
             Precision::F64 => label,
             Precision::F32 => format!("{label}, f32"),
@@ -333,37 +346,37 @@ impl SweepSetting {
     }
 }
 
-/// The settings a sweep tries: `Refactor` with 1 to 4 Newton steps, `Frozen` with 1 to 3
-/// Newton steps of 3, 10 or 30 PCG steps, `FactorOnce` with 2 or 3 Newton steps of 3 or 10 PCG
-/// steps after the first.
+/// The settings a sweep tries, with [`SWEEP_LINE_SEARCH`] line-search trials: `Refactor` with
+/// 1 to 4 Newton steps, `Frozen` with 1 to 3 Newton steps of 3, 10 or 30 PCG steps,
+/// `FactorOnce` with 2 or 3 Newton steps of 3 or 10 PCG steps after the first; and the
+/// line-search axis: `Refactor` with 1 Newton step (the setting most scenes' reports
+/// recommend) of 1 or 2 trials.
 pub fn sweep_settings() -> Vec<SweepSetting> {
+    let setting = |strategy, newton, pcg| SweepSetting {
+        strategy,
+        newton,
+        pcg,
+        precision: Precision::F64,
+        line_search: SWEEP_LINE_SEARCH,
+    };
     let mut v: Vec<SweepSetting> = (1..=4)
-        .map(|newton| SweepSetting {
-            strategy: "refactor",
-            newton,
-            pcg: 10,
-            precision: Precision::F64,
-        })
+        .map(|newton| setting("refactor", newton, 10))
         .collect();
     for newton in 1..=3 {
         for pcg in [3, 10, 30] {
-            v.push(SweepSetting {
-                strategy: "frozen",
-                newton,
-                pcg,
-                precision: Precision::F64,
-            });
+            v.push(setting("frozen", newton, pcg));
         }
     }
     for newton in 2..=3 {
         for pcg in [3, 10] {
-            v.push(SweepSetting {
-                strategy: "factor-once",
-                newton,
-                pcg,
-                precision: Precision::F64,
-            });
+            v.push(setting("factor-once", newton, pcg));
         }
+    }
+    for trials in [1, 2] {
+        v.push(SweepSetting {
+            line_search: trials,
+            ..setting("refactor", 1, 10)
+        });
     }
     v
 }

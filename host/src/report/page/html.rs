@@ -323,18 +323,19 @@ fn stability_table(h: &mut String, scene: &SceneReport, block: Block) {
 
 fn error_vs_cost_csv(report: &Report) -> String {
     let mut s = String::from(
-        "scene,setting,strategy,newton,pcg,precision,own,on_front,recommended,dice_final,dice_mean_after_cut,tre_mm_final,surface_mm_final,ms_median,ms_max,instructions_median,instructions_frames\n",
+        "scene,setting,strategy,newton,pcg,line_search,precision,own,on_front,recommended,dice_final,dice_mean_after_cut,tre_mm_final,surface_mm_final,ms_median,ms_max,instructions_median,instructions_frames\n",
     );
     for scene in &report.scenes {
         for (i, r) in scene.settings.iter().enumerate() {
             let _ = writeln!(
                 s,
-                "{},\"{}\",{},{},{},{},{},{},{},{:.5},{:.5},{:.4},{:.4},{:.4},{:.4},{},{}",
+                "{},\"{}\",{},{},{},{},{},{},{},{},{:.5},{:.5},{:.4},{:.4},{:.4},{:.4},{},{}",
                 scene.name,
                 r.label,
                 r.strategy,
                 r.newton,
                 r.pcg,
+                r.line_search,
                 r.precision.name(),
                 r.own,
                 scene.front.contains(&i),

@@ -39,6 +39,7 @@ pub fn per_frame(
         .args(["--strategy", setting.strategy])
         .args(["--newton", &setting.newton.to_string()])
         .args(["--pcg", &setting.pcg.to_string()])
+        .args(["--line-search", &setting.line_search.to_string()])
         .args(["--frames", &frames.to_string()])
         .args(["--real", setting.precision.name()])
         .output();
