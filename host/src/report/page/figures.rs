@@ -226,6 +226,27 @@ pub(super) fn instructions_per_frame(
     root.present().map_err(|x| e(&x))
 }
 
+/// The values 1, 2 and 5 times a power of ten within `lo..=hi` (`0 < lo`): a logarithmic
+/// axis's ticks, labelled even where the range lies within one decade (plotters' own log ticks
+/// start at the first power of ten inside the range, and a range of 15 to 94 has none).
+fn one_two_five(lo: f64, hi: f64) -> Vec<f64> {
+    let mut ticks = vec![];
+    if !(lo > 0.0 && hi >= lo && hi.is_finite()) {
+        return ticks;
+    }
+    let mut exponent = lo.log10().floor() as i32;
+    while 10f64.powi(exponent) <= hi {
+        for m in [1.0, 2.0, 5.0] {
+            let v = m * 10f64.powi(exponent);
+            if (lo..=hi).contains(&v) {
+                ticks.push(v);
+            }
+        }
+        exponent += 1;
+    }
+    ticks
+}
+
 /// The cost of a steady frame against the model's nodes and against the features, on
 /// logarithmic axes, with the fitted exponents in the titles.
 ///
@@ -299,15 +320,22 @@ pub(super) fn cost_growth(scaling: &super::scaling::Scaling, path: &Path) -> Res
             .margin(12)
             .x_label_area_size(40)
             .y_label_area_size(60)
-            .build_cartesian_2d((x_lo..x_hi).log_scale(), (y_lo..y_hi).log_scale())
+            .build_cartesian_2d(
+                (x_lo..x_hi)
+                    .log_scale()
+                    .with_key_points(one_two_five(x_lo, x_hi)),
+                (y_lo..y_hi)
+                    .log_scale()
+                    .with_key_points(one_two_five(y_lo, y_hi)),
+            )
             .map_err(|x| e(&x))?;
         chart
             .configure_mesh()
             .light_line_style(WHITE)
-            .x_labels(8)
-            .y_labels(8)
-            .x_label_formatter(&|v| format!("{v:.0}"))
-            .y_label_formatter(&|v| format!("{v:.0}"))
+            .x_labels(20)
+            .y_labels(20)
+            .x_label_formatter(&|v| format!("{v}"))
+            .y_label_formatter(&|v| format!("{v}"))
             .x_desc(format!("{name} (logarithmic)"))
             .y_desc(y_desc)
             .draw()
@@ -344,4 +372,58 @@ pub(super) fn cost_growth(scaling: &super::scaling::Scaling, path: &Path) -> Res
             .map_err(|x| e(&x))?;
     }
     root.present().map_err(|x| e(&x))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::scaling::{LargestModel, Point, Scaling};
+    use super::*;
+
+    fn point(nodes: usize, features: usize, millions: f64) -> Point {
+        Point {
+            nodes,
+            features,
+            instructions: Some(millions * 1e6),
+            ms_median: 1.0,
+        }
+    }
+
+    /// The cost-growth figure labels its axes inside one decade too (the feature axis of the
+    /// committed scenes' report spans 22 to 67 million instructions), and marks the largest
+    /// model apart, in its legend.
+    #[test]
+    fn cost_growth_labels_ticks_within_a_decade_and_the_largest_model() {
+        let scaling = Scaling {
+            nodes: vec![point(204, 300, 26.3), point(2132, 300, 598.0)],
+            features: vec![point(204, 100, 21.9), point(204, 2000, 66.9)],
+            nodes_exponent: Some(1.31),
+            largest: Some(LargestModel {
+                scene: "liver-lobe".into(),
+                mesh: "the real object's".into(),
+                nodes: 4293,
+                instructions: 4.867e9,
+            }),
+            nodes_exponent_with_largest: Some(1.64),
+            features_exponent: Some(0.37),
+            cost: "instructions",
+        };
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("growth.svg");
+        cost_growth(&scaling, &path).unwrap();
+        let svg = std::fs::read_to_string(&path).unwrap();
+        // plotters writes a text element's content on a line of its own.
+        let labelled = |text: &str| svg.contains(&format!(">\n{text}\n</text>"));
+        // The feature panel's cost axis (15 to 94 million) and its feature axis.
+        for tick in ["20", "50", "100", "200", "500", "1000", "2000"] {
+            assert!(labelled(tick), "no tick labelled {tick}");
+        }
+        assert!(
+            svg.contains("liver-lobe, the real object"),
+            "no legend entry"
+        );
+        assert!(
+            svg.contains("1.64 with the liver"),
+            "no exponent with the liver"
+        );
+    }
 }
