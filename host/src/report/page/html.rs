@@ -515,8 +515,7 @@ fn page(
              generated at four model resolutions (300 features) and four feature counts (the \
              committed resolution), run with the scene's own setting: the {} against the \
              model's nodes and the features, with the exponent of a power law fitted to the \
-             logarithms (nodes: {}, features: {}). The fine liver (4293 nodes) is not among \
-             them yet.</p>",
+             logarithms (nodes: {}, features: {}).{}</p>",
             super::scaling::BASE,
             esc(scaling.cost),
             scaling
@@ -524,7 +523,18 @@ fn page(
                 .map_or("–".into(), |b| format!("{b:.2}")),
             scaling
                 .features_exponent
-                .map_or("–".into(), |b| format!("{b:.2}"))
+                .map_or("–".into(), |b| format!("{b:.2}")),
+            match (&scaling.largest, scaling.nodes_exponent_with_largest) {
+                (Some(l), Some(b)) => format!(
+                    " Beyond them on the node axis (the triangle): <code>{}</code> modelled by \
+                     {} mesh, {} nodes, the largest model of the mesh-resolution table; with \
+                     it the fitted exponent is {b:.2}.",
+                    esc(&l.scene),
+                    esc(&l.mesh),
+                    l.nodes
+                ),
+                _ => String::new(),
+            }
         );
         h.push_str(&inline_svg(path)?);
         h.push_str(
