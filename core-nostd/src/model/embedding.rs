@@ -184,24 +184,21 @@ impl<T: Real, F: Real> Model<'_, T, F> {
         let spacing = spacing_px(hi[0] - lo[0], hi[1] - lo[1], n);
         let threshold = self.config.solver.spring_threshold * spacing;
         let default = T::of(crate::solve::DEFAULT_COUPLING);
-        match self.config.solver.coupling {
+        // `k` and `k / k₀` (at least 1, exactly 1 at the default coupling).
+        let (k, scale) = match self.config.solver.coupling {
             Coupling::Relative(beta) => {
                 let k = Coupling::Relative(beta).stiffness(
                     self.config.material.young,
                     spacing,
                     self.image_scale()?,
                 )?;
-                // `k / k₀`, exactly 1 at the default coupling. Above it the threshold shrinks
-                // by as much, so a spring pulls no harder than the default's `k₀ δ`
-                // (`DEFAULT_SPRING_THRESHOLD`), and the depth prior grows with the springs.
-                let scale = (beta / default).max(T::one());
-                Ok((k, threshold / scale, scale))
+                (k, (beta / default).max(T::one()))
             }
             Coupling::Stiffness(k) => {
                 let k = Coupling::Stiffness(k).stiffness(k, T::one(), T::one())?;
                 // A given `k` against the default coupling's for this scene; a scene whose
                 // features cannot all be projected keeps the prior as it is.
-                let depth_scale = self
+                let scale = self
                     .image_scale()
                     .and_then(|scale| {
                         Coupling::Relative(default).stiffness(
@@ -217,9 +214,13 @@ impl<T: Real, F: Real> Model<'_, T, F> {
                             T::one()
                         }
                     });
-                Ok((k, threshold / depth_scale, depth_scale))
+                (k, scale)
             }
-        }
+        };
+        // Above the default coupling the threshold shrinks by `k / k₀`, so a spring pulls no
+        // harder than the default's `k₀ δ` (`DEFAULT_SPRING_THRESHOLD`), and the depth prior
+        // grows with the springs.
+        Ok((k, threshold / scale, scale))
     }
 
     /// The image scale at the features, pixels per metre: the mean over the virtual features of

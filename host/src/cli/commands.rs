@@ -174,22 +174,12 @@ pub(super) fn count_frames_command(
     dir: &Path,
     strategy: &str,
     [newton, pcg]: [u32; 2],
-    line_search: Option<u32>,
+    line_search: u32,
     frames: usize,
     real: Precision,
 ) -> Result<(), Failure> {
     let strategy = crate::report::SweepSetting::strategy_name(strategy)
         .ok_or_else(|| format!("unknown strategy {strategy:?}"))?;
-    let line_search = match line_search {
-        Some(n) => n,
-        None => {
-            Scene::load(dir)
-                .map_err(|e| e.to_string())?
-                .file
-                .solver
-                .line_search_steps
-        }
-    };
     let setting = crate::report::SweepSetting {
         strategy,
         newton,

@@ -119,9 +119,9 @@ pub enum Command {
         /// PCG steps.
         #[arg(long)]
         pcg: u32,
-        /// Line-search trials per Newton step (the scene's own when not given).
+        /// Line-search trials per Newton step.
         #[arg(long)]
-        line_search: Option<u32>,
+        line_search: u32,
         /// Frames to step after frame 0.
         #[arg(long)]
         frames: usize,

@@ -308,10 +308,12 @@ pub(super) fn cost_growth(scaling: &super::scaling::Scaling, path: &Path) -> Res
         if !(x_lo.is_finite() && y_lo.is_finite() && x_lo > 0.0 && y_lo > 0.0) {
             continue;
         }
-        let title = match (b, beyond.and(scaling.nodes_exponent_with_largest)) {
-            (Some(b), Some(with)) => {
-                format!("cost against {name}: exponent {b:.2} ({with:.2} with the liver)")
-            }
+        let with_largest = beyond.zip(scaling.nodes_exponent_with_largest);
+        let title = match (b, with_largest) {
+            (Some(b), Some(((_, _, l), with))) => format!(
+                "cost against {name}: exponent {b:.2} ({with:.2} with {})",
+                l.scene
+            ),
             (Some(b), None) => format!("cost against {name}: exponent {b:.2}"),
             _ => format!("cost against {name}"),
         };
@@ -422,8 +424,8 @@ mod tests {
             "no legend entry"
         );
         assert!(
-            svg.contains("1.64 with the liver"),
-            "no exponent with the liver"
+            svg.contains("1.64 with liver-lobe"),
+            "no exponent with the largest model"
         );
     }
 }
