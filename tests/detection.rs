@@ -202,15 +202,15 @@ fn detection_work_stays_within_its_formula_on_every_frame() {
                 "{name} frame {f}: {l:?} > {line_bound:?}"
             );
             assert!(
-                d.pair_visits > 0 && d.comparisons > 0,
+                d.pair_visits > 0 && d.selection_steps > 0,
                 "{name}: work is counted"
             );
             started |= l.fit_tests > 0;
-            most = most.max(d.comparisons);
+            most = most.max(d.selection_steps);
         }
         eprintln!(
-            "{name}: most comparisons {most} of {} allowed; line started: {started}",
-            detect_bound.comparisons
+            "{name}: most selection steps {most} of {} allowed; line started: {started}",
+            detect_bound.selection_steps
         );
         if name != "block-extreme" {
             assert!(started, "{name}: the line's start was counted");

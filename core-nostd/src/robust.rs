@@ -4,11 +4,22 @@
 //! The detector calibrates its thresholds from the data of each frame (see
 //! [`crate::detect`]); the median and the median absolute deviation (MAD) ignore the few large
 //! values a cut or a tracking failure produces, where the mean and the standard deviation
-//! follow them. Both need one value of known rank, not the whole order: [`select`] finds it
-//! with a heap of the `h` values nearest that end (`h` at most half the values), bounded by
-//! `2 n ⌈log₂ n⌉` comparisons whatever the data: for a median about half of [`sort`]'s
-//! heapsort (`2 n ⌈log₂ n⌉ + 2 n`), since the heap is half as large and no value is taken
-//! out of it again. Neither recursion nor extra storage.
+//! follow them. Both need one value of known rank, not the whole order, and [`select_in`]
+//! finds it in one of two ways, each doing the same work whatever the data:
+//! - on fewer than [`RADIX_MIN`] values (a feature's few neighbour pairs), or without room for
+//!   keys, with a heap of the `h` values nearest that end (`h` at most half the values): at
+//!   most `2 n ⌈log₂ n⌉` comparisons, about half of [`sort`]'s heapsort
+//!   (`2 n ⌈log₂ n⌉ + 2 n`), since the heap is half as large and no value is taken out of it
+//!   again;
+//! - on more (all the pairs of a frame), by radix: each value's [`Real::order_key`] is written
+//!   once to the caller's key storage ([`KEY_WORDS`] per value), then read a digit of
+//!   [`RADIX_BITS`] bits at a time from the top, one pass over the keys per digit counting
+//!   those that share the digits found so far, and one pass fetches the value: `n` visits per
+//!   pass and [`RADIX_BINS`] per digit. On the liver's 4,600 pairs it takes a third of the
+//!   heap's instructions.
+//!
+//! Neither recursion nor storage beyond the caller's and one array of [`RADIX_BINS`] counts on
+//! the stack.
 
 use crate::real::Real;
 
@@ -77,30 +88,68 @@ fn sift<T: Real>(
     }
 }
 
-/// Most comparisons [`select`] makes on `n` values, whatever the rank.
+/// Values from which [`select_in`] finds a rank by radix instead of with a heap: from here on
+/// the radix's fixed steps stay below the heap's bound (from 257 values on), and it takes fewer
+/// instructions than the heap (a frame's 400 feature changes: about a third); below it the
+/// per-digit count of [`RADIX_BINS`] would weigh.
+pub const RADIX_MIN: usize = 300;
+
+/// Bits of the key read per radix pass.
+pub const RADIX_BITS: u32 = 8;
+
+/// Counts per radix pass, one per digit value.
+pub const RADIX_BINS: usize = 1 << RADIX_BITS;
+
+/// Key storage per value of the radix selection: a key's high and low 32 bits.
+pub const KEY_WORDS: usize = 2;
+
+/// Most steps [`select_in`] makes on `n` values with room for their keys, whatever the rank
+/// and the scalar type: comparisons of the heap (`2 n ⌈log₂ n⌉`) below [`RADIX_MIN`] values,
+/// and from there the radix's visits: `n` to write the keys, `n + RADIX_BINS` per digit of a
+/// 64-bit key and `n` to fetch the value (an `f32` key has half as many digits). Never above
+/// `2 n ⌈log₂ n⌉`.
 pub const fn select_bound(n: u64) -> u64 {
+    if n < RADIX_MIN as u64 {
+        heap_select_bound(n)
+    } else {
+        radix_steps(n, 64)
+    }
+}
+
+/// Most comparisons of the heap selection on `n` values ([`select`]), and so a bound on
+/// [`select_in`]'s steps too. `m ↦ heap_select_bound(m) / m` grows with `m`, so it also bounds
+/// the sum of selections on parts of `n` values ([`select_bound`] is lower, but not monotone
+/// that way).
+pub const fn heap_select_bound(n: u64) -> u64 {
     2 * n * ceil_log2(n)
+}
+
+/// Steps of the radix selection on `n` values with keys of `key_bits` bits.
+const fn radix_steps(n: u64, key_bits: u32) -> u64 {
+    (key_bits / RADIX_BITS) as u64 * (n + RADIX_BINS as u64) + 2 * n
 }
 
 /// Whether `a` orders before `b`: ascending, with every non-finite value (`±∞`, NaN) after
 /// every finite one, so that a NaN cannot stall an ordering.
 fn less<T: Real>(a: T, b: T) -> bool {
-    a < b || (!b.finite() && a.finite())
+    // `a < b` alone would put `-∞` first, and also after every finite value by the second
+    // clause: no order at all.
+    a.finite() && (!b.finite() || a < b)
 }
 
-/// The value of rank `k` (0-based, ascending as [`sort`] orders) of `v`, and the comparisons
-/// made; zero (and none) when `k` is out of range. `v` is reordered.
-///
-/// A heap holds the `h = min(k + 1, n − k)` values nearest the nearer end, the rank-`k` one at
-/// its root (a max-heap of the `k + 1` smallest, or a min-heap of the `n − k` largest); each
-/// other value is compared with the root once and enters only if it belongs nearer that end.
-/// Building the heap takes at most `2 h` comparisons and each later value `1 + 2 ⌊log₂ h⌋`,
-/// so with `h ≤ ⌈n/2⌉` the total stays within [`select_bound`].
+/// The value of rank `k` (0-based, ascending as [`sort`] orders) of `v` by the heap
+/// selection (see the module's docs), and the comparisons made (within
+/// [`heap_select_bound`]); zero (and none) when `k` is out of range. `v` is reordered.
 pub fn select<T: Real>(v: &mut [T], k: usize) -> (T, u64) {
     let n = v.len();
     if k >= n {
         return (T::zero(), 0);
     }
+    // A heap holds the `h = min(k + 1, n − k)` values nearest the nearer end, the rank-`k`
+    // one at its root (a max-heap of the `k + 1` smallest, or a min-heap of the `n − k`
+    // largest); each other value is compared with the root once and enters only if it belongs
+    // nearer that end. Building the heap takes at most `2 h` comparisons and each later value
+    // `1 + 2 ⌊log₂ h⌋`, so with `h ≤ ⌈n/2⌉` the total stays within `2 n ⌈log₂ n⌉`.
     let comparisons = if k < n - k {
         // Keeps the `k + 1` smallest; the largest of them at the root.
         heap_select(v, k + 1, |a, b| less(b, a))
@@ -109,6 +158,97 @@ pub fn select<T: Real>(v: &mut [T], k: usize) -> (T, u64) {
         heap_select(v, n - k, less)
     };
     (v.first().copied().unwrap_or_else(T::zero), comparisons)
+}
+
+/// The value of rank `k` of `v` as [`select`], by radix when there are at least
+/// [`RADIX_MIN`] values and `keys` holds [`KEY_WORDS`] per value (its contents are
+/// overwritten), otherwise by the heap; and the steps made (within [`select_bound`] in the
+/// first case). `v` may be reordered.
+pub fn select_in<T: Real>(v: &mut [T], k: usize, keys: &mut [u32]) -> (T, u64) {
+    let n = v.len();
+    match keys.get_mut(..KEY_WORDS.saturating_mul(n)) {
+        Some(keys) if n >= RADIX_MIN && k < n => radix_select(v, k, keys),
+        _ => select(v, k),
+    }
+}
+
+/// The value of rank `k < v.len()` by radix on [`Real::order_key`], most significant digit
+/// first, and its steps ([`radix_steps`]); `keys` holds two words per value. Every pass visits
+/// every key, so the work is the same for any data. Equal keys are equal values (or both
+/// non-finite), so the value fetched at the end, the first with the rank's key, is the rank's
+/// value.
+fn radix_select<T: Real>(v: &[T], k: usize, keys: &mut [u32]) -> (T, u64) {
+    let n = v.len();
+    let (high, low) = keys.split_at_mut(n);
+    for ((x, h), l) in v.iter().zip(high.iter_mut()).zip(low.iter_mut()) {
+        let key = x.order_key();
+        *h = (key >> 32) as u32;
+        *l = key as u32;
+    }
+    // The key's digits found so far, and the rank still to find among the keys that share
+    // them. An `f32` key has no high word (it is zero): its passes start on the low one.
+    let mut prefix = [0u32; 2];
+    let mut rank = k;
+    let mut counts = [0u32; RADIX_BINS];
+    let words: &[usize] = if T::KEY_BITS > 32 { &[0, 1] } else { &[1] };
+    for &word in words {
+        let mut shift = 32;
+        while shift >= RADIX_BITS {
+            // The bits of this word above the digit this pass reads.
+            let known = if shift >= 32 { 0 } else { u32::MAX << shift };
+            shift -= RADIX_BITS;
+            let [high_prefix, low_prefix] = prefix;
+            counts.fill(0);
+            if word == 0 {
+                for &h in high.iter() {
+                    if h & known == high_prefix {
+                        count(&mut counts, h >> shift);
+                    }
+                }
+            } else {
+                for (&h, &l) in high.iter().zip(low.iter()) {
+                    if h == high_prefix && l & known == low_prefix {
+                        count(&mut counts, l >> shift);
+                    }
+                }
+            }
+            // The digit whose keys hold the rank: the counts before it are ranks below.
+            // Every count is read, found or not: the instructions do not follow the data.
+            let mut found = false;
+            for (digit, &c) in counts.iter().enumerate() {
+                let c = c as usize;
+                if found {
+                    continue;
+                }
+                if rank < c {
+                    if let Some(p) = prefix.get_mut(word) {
+                        *p |= (digit as u32) << shift;
+                    }
+                    found = true;
+                } else {
+                    rank -= c;
+                }
+            }
+        }
+    }
+    let mut value = None;
+    for ((&x, &h), &l) in v.iter().zip(high.iter()).zip(low.iter()) {
+        if value.is_none() && [h, l] == prefix {
+            value = Some(x);
+        }
+    }
+    (
+        value.unwrap_or_else(T::zero),
+        radix_steps(n as u64, T::KEY_BITS),
+    )
+}
+
+/// Counts one key whose digit is the low [`RADIX_BITS`] bits of `digit`.
+#[inline(always)]
+fn count(counts: &mut [u32; RADIX_BINS], digit: u32) {
+    if let Some(c) = counts.get_mut((digit & (RADIX_BINS as u32 - 1)) as usize) {
+        *c += 1;
+    }
 }
 
 /// Arranges `v[..h]` as a heap whose root is first in `root_first` order among them, then
@@ -156,13 +296,13 @@ pub fn quantile_sorted<T: Real>(v: &[T], q: T) -> T {
 }
 
 /// The value at fraction `q` of the first `count` values of `v` (as [`quantile_sorted`] of
-/// them sorted), and the comparisons made; zero for `count` 0. The values from `count` on are
-/// overwritten with `+∞` and take part, so that the work depends on `v.len()`, not on `count`
-/// (see [`median_mad_of`]); `v` is reordered.
-pub fn quantile_of<T: Real>(v: &mut [T], count: usize, q: T) -> (T, u64) {
+/// them sorted), and the steps made ([`select_in`], with `keys` its key storage); zero for
+/// `count` 0. The values from `count` on are overwritten with `+∞` and take part, so that the
+/// work depends on `v.len()`, not on `count` (see [`median_mad_of`]); `v` may be reordered.
+pub fn quantile_of<T: Real>(v: &mut [T], count: usize, q: T, keys: &mut [u32]) -> (T, u64) {
     let count = count.min(v.len());
     pad(v, count);
-    let (value, comparisons) = select(v, quantile_index(count, q));
+    let (value, comparisons) = select_in(v, quantile_index(count, q), keys);
     if count == 0 {
         (T::zero(), comparisons)
     } else {
@@ -175,7 +315,7 @@ pub fn quantile_of<T: Real>(v: &mut [T], count: usize, q: T) -> (T, u64) {
 /// standard deviations.
 pub fn median_mad<T: Real>(v: &mut [T]) -> (T, T, u64) {
     let n = v.len();
-    median_mad_of(v, n)
+    median_mad_of(v, n, &mut [])
 }
 
 /// Median and MAD of the first `count` values of `v`, as [`median_mad`]; the values after them
@@ -184,15 +324,15 @@ pub fn median_mad<T: Real>(v: &mut [T]) -> (T, T, u64) {
 /// frame select among as many, however many of them it measured. The `+∞`s order after every
 /// finite value, and their deviations from a finite median are `+∞` again (from any other
 /// median, NaN: still after every finite value), so the result is [`median_mad`] of
-/// `v[..count]`.
-pub fn median_mad_of<T: Real>(v: &mut [T], count: usize) -> (T, T, u64) {
+/// `v[..count]`. `keys` is the selections' key storage ([`select_in`]).
+pub fn median_mad_of<T: Real>(v: &mut [T], count: usize, keys: &mut [u32]) -> (T, T, u64) {
     let count = count.min(v.len());
-    let (median, mut comparisons) = quantile_of(v, count, T::of(0.5));
+    let (median, mut comparisons) = quantile_of(v, count, T::of(0.5), keys);
     // Every slot, not only the first `count`: `select` has moved the values about.
     for x in v.iter_mut() {
         *x = (*x - median).abs();
     }
-    let (mad, more) = select(v, quantile_index(count, T::of(0.5)));
+    let (mad, more) = select_in(v, quantile_index(count, T::of(0.5)), keys);
     comparisons += more;
     if count == 0 {
         (T::zero(), T::zero(), comparisons)
@@ -281,22 +421,99 @@ mod tests {
 
     #[test]
     fn select_costs_less_than_a_sort_and_the_same_whatever_the_order() {
-        // 4001 values scrambled (as the detector's differences come), ascending and
-        // descending: the median's comparisons against the heapsort's on the same values.
-        let scrambled: [f64; 4001] = core::array::from_fn(|k| ((k * 2_654_435_761) % 4001) as f64);
-        let ascending: [f64; 4001] = core::array::from_fn(|k| k as f64);
-        let descending: [f64; 4001] = core::array::from_fn(|k| (4000 - k) as f64);
-        let mut w = scrambled;
-        let sorted = sort(&mut w);
-        let counts = [scrambled, ascending, descending].map(|mut v| {
-            let (median, comparisons) = select(&mut v, 2000);
-            assert_eq!(median, 2000.0);
-            comparisons
-        });
-        let (lo, hi) = (counts.iter().min().unwrap(), counts.iter().max().unwrap());
-        assert!(*hi < sorted * 3 / 5, "{counts:?} against {sorted}");
-        // Only the heap's build depends on the order.
-        assert!(hi - lo <= 2 * 2001, "{counts:?}");
+        // Values scrambled (as the detector's differences come), ascending and descending:
+        // the median's steps (the radix's from `RADIX_MIN` on) against the heapsort's
+        // comparisons on the same values.
+        fn check<const N: usize>(radix: bool) {
+            let scrambled: [f64; N] = core::array::from_fn(|k| ((k * 2_654_435_761) % N) as f64);
+            let ascending: [f64; N] = core::array::from_fn(|k| k as f64);
+            let descending: [f64; N] = core::array::from_fn(|k| (N - 1 - k) as f64);
+            let mut w = scrambled;
+            let sorted = sort(&mut w);
+            let mut keys = [0u32; 8002];
+            let counts = [scrambled, ascending, descending].map(|mut v| {
+                let (median, steps) = select_in(&mut v, N / 2, &mut keys);
+                assert_eq!(median, (N / 2) as f64);
+                assert!(steps <= select_bound(N as u64));
+                steps
+            });
+            let (lo, hi) = (counts.iter().min().unwrap(), counts.iter().max().unwrap());
+            if radix {
+                // The same steps whatever the order, and at a few thousand values (the pairs
+                // of a frame) fewer than the heap's comparisons on the same values; near
+                // `RADIX_MIN` it is a radix step, a count, that is cheaper than a heap's
+                // comparison and swap.
+                let mut v = scrambled;
+                let (_, heap) = select(&mut v, N / 2);
+                assert!(
+                    N < 2000 || *hi < heap,
+                    "{counts:?} against the heap's {heap}"
+                );
+                assert_eq!(lo, hi, "{counts:?}");
+            } else {
+                assert!(*hi < sorted, "{counts:?} against {sorted}");
+                // Only the heap's build (at most `2 h`) and the depth of the leaf each later
+                // value's walk ends on (one level, two comparisons) depend on the order.
+                assert!(hi - lo <= 2 * N as u64, "{counts:?}");
+            }
+        }
+        check::<4001>(true);
+        check::<RADIX_MIN>(true);
+        check::<{ RADIX_MIN - 1 }>(false);
+    }
+
+    fn sorted_without_non_finite(value: impl Fn(usize) -> f64) -> [f64; 700] {
+        let mut v: [f64; 700] = core::array::from_fn(value);
+        sort(&mut v);
+        v
+    }
+
+    #[test]
+    fn radix_selection_finds_the_sorted_value_of_every_rank() {
+        // Values across signs and magnitudes (tiny, huge, subnormal, both zeros), with
+        // duplicates, then with a NaN and infinities among them.
+        let n = 700;
+        let value = |k: usize| {
+            let m = ((k * 7919) % 97) as f64 - 48.0;
+            match k % 7 {
+                0 => m * 1e-300,
+                1 => m * 1e300,
+                2 => m * f64::MIN_POSITIVE * 1e-3,
+                3 => -0.0,
+                4 => 0.0,
+                _ => m / 3.0,
+            }
+        };
+        for non_finite in [false, true] {
+            let mut v: [f64; 700] = core::array::from_fn(value);
+            if non_finite {
+                v[10] = f64::NAN;
+                v[20] = f64::INFINITY;
+                v[30] = f64::NEG_INFINITY;
+            }
+            let mut sorted = v;
+            sort(&mut sorted);
+            for k in (0..n).step_by(7).chain([n - 3, n - 2, n - 1]) {
+                let mut w = v;
+                let mut keys = [0u32; 2 * 700];
+                let (got, steps) = select_in(&mut w, k, &mut keys);
+                let expected = sorted[k];
+                assert!(
+                    got == expected || !(got.is_finite() || expected.is_finite()),
+                    "rank {k}: {got} against {expected}"
+                );
+                assert_eq!(steps, select_bound(n as u64));
+            }
+        }
+        // Without room for the keys, the heap does it.
+        let mut w: [f64; 700] = core::array::from_fn(value);
+        let (got, steps) = select_in(&mut w, 350, &mut [0u32; 1399]);
+        assert_eq!(got, sorted_without_non_finite(value)[350]);
+        assert!(steps <= heap_select_bound(700) && steps != select_bound(700));
+        // The bound stays under the heap's, from the radix's first size on.
+        for n in (RADIX_MIN as u64..100_000).chain([1 << 20, 1 << 30]) {
+            assert!(select_bound(n) <= heap_select_bound(n), "{n}");
+        }
     }
 
     #[test]
@@ -307,7 +524,7 @@ mod tests {
             let expected = median_mad(&mut alone[..count]);
             let mut padded = [0.0f64; 20];
             padded[..count].copy_from_slice(&values[..count]);
-            let got = median_mad_of(&mut padded, count);
+            let got = median_mad_of(&mut padded, count, &mut []);
             assert_eq!(got.0.to_bits(), expected.0.to_bits(), "{count}");
             assert_eq!(got.1.to_bits(), expected.1.to_bits(), "{count}");
             assert!(got.2 <= 2 * select_bound(20), "{count}");
@@ -316,7 +533,7 @@ mod tests {
             sort(&mut sorted[..count]);
             let mut padded = [0.0f64; 20];
             padded[..count].copy_from_slice(&values[..count]);
-            let third = quantile_of(&mut padded, count, 1.0 / 3.0);
+            let third = quantile_of(&mut padded, count, 1.0 / 3.0, &mut []);
             assert_eq!(
                 third.0,
                 quantile_sorted(&sorted[..count], 1.0 / 3.0),

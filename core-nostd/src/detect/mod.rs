@@ -244,8 +244,9 @@ pub struct DetectionWork {
     pub feature_visits: u64,
     /// Pair visits (differences, thresholds, persistence).
     pub pair_visits: u64,
-    /// Comparisons of the robust statistics' selections ([`crate::robust::select`]).
-    pub comparisons: u64,
+    /// Steps of the robust statistics' selections ([`crate::robust::select`]: comparisons of
+    /// its heap on few values, visits of its radix passes on many).
+    pub selection_steps: u64,
 }
 
 impl DetectionWork {
@@ -254,18 +255,19 @@ impl DetectionWork {
     /// - feature visits `4 n`: the temporal filter's three passes and the per-feature levels;
     /// - pair visits `7 P`: the temporal filter's neighbour lists (`2 P`), differences,
     ///   per-feature lists, levels, outliers, persistence;
-    /// - comparisons: the median and MAD of the changes (`2 S(n)`) and of the differences
-    ///   (`2 S(P)`), and each feature's lower tertile (`Σ S(dᵢ) ≤ S(2P)` as `Σ dᵢ = 2P` and
-    ///   `S(m) / m` grows with `m`), with `S(m) = 2 m ⌈log₂ m⌉` the bound of a selection
-    ///   ([`crate::robust::select_bound`]).
+    /// - selection steps: the median and MAD of the changes (`2 S(n)`) and of the differences
+    ///   (`2 S(P)`), with `S(m)` the bound of one selection ([`crate::robust::select_bound`]),
+    ///   and each feature's lower tertile (`Σ H(dᵢ) ≤ H(2P)` as `Σ dᵢ = 2P` and `H(m) / m`
+    ///   grows with `m`, where `H(m) = 2 m ⌈log₂ m⌉ ≥ S(m)`,
+    ///   [`crate::robust::heap_select_bound`]).
     pub const fn bound(features: u64, pairs: u64) -> DetectionWork {
-        use crate::robust::select_bound;
+        use crate::robust::{heap_select_bound, select_bound};
         DetectionWork {
             feature_visits: 4 * features,
             pair_visits: 7 * pairs,
-            comparisons: 2 * select_bound(features)
+            selection_steps: 2 * select_bound(features)
                 + 2 * select_bound(pairs)
-                + select_bound(2 * pairs),
+                + heap_select_bound(2 * pairs),
         }
     }
 
@@ -273,7 +275,7 @@ impl DetectionWork {
     pub fn within(&self, other: &DetectionWork) -> bool {
         self.feature_visits <= other.feature_visits
             && self.pair_visits <= other.pair_visits
-            && self.comparisons <= other.comparisons
+            && self.selection_steps <= other.selection_steps
     }
 }
 

@@ -5,7 +5,7 @@ use super::{DetectionConfig, DetectionReport, DetectionWork};
 use crate::error::{Error, Resource};
 use crate::features::{image_bounds, spacing_px};
 use crate::real::Real;
-use crate::robust::{MAD_TO_SIGMA, median_mad_of, quantile_of};
+use crate::robust::{KEY_WORDS, MAD_TO_SIGMA, median_mad_of, quantile_of};
 use crate::storage::{Slab, sum, times};
 
 const STREAK: u32 = 0xff;
@@ -46,6 +46,9 @@ pub struct Detector<'a, T> {
     length: &'a mut [T],
     /// Sort space for the robust statistics.
     scratch: &'a mut [T],
+    /// Key space of their radix selections ([`crate::robust::select_in`]): as many values as
+    /// `scratch`, [`KEY_WORDS`] words each.
+    keys: &'a mut [u32],
     points: &'a mut [[T; 2]],
     /// Per point: the frame its pair (last) became split.
     point_since: &'a mut [u32],
@@ -118,6 +121,11 @@ fn ends_to_starts(start: &mut [u32]) {
     }
 }
 
+/// The larger of two sizes (`const`, for the storage sizes).
+const fn larger(a: usize, b: usize) -> usize {
+    if a > b { a } else { b }
+}
+
 fn norm<T: Real>(a: [T; 2], b: [T; 2]) -> T {
     ((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1])).sqrt()
 }
@@ -125,8 +133,7 @@ fn norm<T: Real>(a: [T; 2], b: [T; 2]) -> T {
 impl<'a, T: Real> Detector<'a, T> {
     /// Scalars of storage for `features` features and `pairs` pairs.
     pub const fn real_len(features: usize, pairs: usize) -> usize {
-        let larger = if pairs > features { pairs } else { features };
-        sum(&[times(5, features), times(4, pairs), larger])
+        sum(&[times(5, features), times(4, pairs), larger(features, pairs)])
     }
 
     /// Indices of storage.
@@ -139,6 +146,7 @@ impl<'a, T: Real> Detector<'a, T> {
             features,
             1,
             times(2, pairs),
+            times(KEY_WORDS, larger(features, pairs)),
         ])
     }
 
@@ -167,6 +175,7 @@ impl<'a, T: Real> Detector<'a, T> {
             slope: reals.take(features)?,
             length: reals.take(pairs)?,
             scratch: reals.take(pairs.max(features))?,
+            keys: indices.take(times(KEY_WORDS, pairs.max(features)))?,
             points: reals.take(times(2, pairs))?.as_chunks_mut::<2>().0,
             point_since: indices.take(pairs)?,
             split_since: indices.take(pairs)?,

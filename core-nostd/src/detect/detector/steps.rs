@@ -43,9 +43,12 @@ impl<'a, T: Real> Detector<'a, T> {
         if filtering {
             // Every feature takes part, an ineligible one as `+∞` (as the pairs below): the
             // sort costs as much in every frame, the median and MAD are the eligible ones'.
-            let (median, mad, comparisons) =
-                median_mad_of(self.scratch.get_mut(..n).unwrap_or_default(), count);
-            work.comparisons += comparisons;
+            let (median, mad, steps) = median_mad_of(
+                self.scratch.get_mut(..n).unwrap_or_default(),
+                count,
+                self.keys,
+            );
+            work.selection_steps += steps;
             let limit = (median + config.temporal_sigmas * T::of(MAD_TO_SIGMA) * mad)
                 .max(config.min_difference_px);
             // A feature jumps alone, a tracking failure, when no neighbour's residual changed
@@ -189,11 +192,12 @@ impl<'a, T: Real> Detector<'a, T> {
         // Every pair in use takes part, an unmeasured one as `+∞` behind the measured ones:
         // the selections cost as much in every frame of a topology, however many pairs are
         // measured, and the median and MAD are those of the measured pairs.
-        let (median, mad, comparisons) = median_mad_of(
+        let (median, mad, steps) = median_mad_of(
             self.scratch.get_mut(..self.n_pairs).unwrap_or_default(),
             active,
+            self.keys,
         );
-        work.comparisons += comparisons;
+        work.selection_steps += steps;
         // `incident_start` holds `n + 1` ascending starts into `incident`, whose entries
         // are pair indices below `n_pairs`.
         let starts = self
@@ -221,12 +225,13 @@ impl<'a, T: Real> Detector<'a, T> {
             }
             work.pair_visits += incident.len() as u64;
             // As above: the feature's unmeasured pairs take part as `+∞`.
-            let (tertile, comparisons) = quantile_of(
+            let (tertile, steps) = quantile_of(
                 self.scratch.get_mut(..incident.len()).unwrap_or_default(),
                 m,
                 T::of(1.0 / 3.0),
+                self.keys,
             );
-            work.comparisons += comparisons;
+            work.selection_steps += steps;
             *slope = if m >= 3 { tertile } else { T::zero() };
         }
         work.pair_visits += self.n_pairs as u64;

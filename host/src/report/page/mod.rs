@@ -720,8 +720,8 @@ const STEADY_COUNTERS: &[Counter] = &[
         w.detection.feature_visits
     }),
     ("detection", "pair visits", |w| w.detection.pair_visits),
-    ("detection", "selection comparisons", |w| {
-        w.detection.comparisons
+    ("detection", "selection steps", |w| {
+        w.detection.selection_steps
     }),
     ("cut line", "fit tests", |w| w.line.fit_tests),
     ("cut line", "point visits", |w| w.line.point_visits),
