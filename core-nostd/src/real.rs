@@ -32,7 +32,7 @@ pub trait Real: nalgebra::RealField + Copy + Default {
     /// `a.order_key() < b.order_key()` for finite `a`, `b` (`-0.0` and `+0.0` share a key),
     /// and every non-finite value (`±∞`, NaN) has the largest key, after every finite one.
     /// The key fits in the low [`Real::KEY_BITS`] bits. What the radix selection of
-    /// [`crate::robust::select`] sorts by.
+    /// [`crate::robust::select_in`] sorts by.
     fn order_key(self) -> u64;
 }
 

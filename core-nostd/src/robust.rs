@@ -328,7 +328,7 @@ pub fn median_mad<T: Real>(v: &mut [T]) -> (T, T, u64) {
 pub fn median_mad_of<T: Real>(v: &mut [T], count: usize, keys: &mut [u32]) -> (T, T, u64) {
     let count = count.min(v.len());
     let (median, mut comparisons) = quantile_of(v, count, T::of(0.5), keys);
-    // Every slot, not only the first `count`: `select` has moved the values about.
+    // Every slot, not only the first `count`: the heap selection moves the values about.
     for x in v.iter_mut() {
         *x = (*x - median).abs();
     }

@@ -244,7 +244,7 @@ pub struct DetectionWork {
     pub feature_visits: u64,
     /// Pair visits (differences, thresholds, persistence).
     pub pair_visits: u64,
-    /// Steps of the robust statistics' selections ([`crate::robust::select`]: comparisons of
+    /// Steps of the robust statistics' selections ([`crate::robust::select_in`]: comparisons of
     /// its heap on few values, visits of its radix passes on many).
     pub selection_steps: u64,
 }
