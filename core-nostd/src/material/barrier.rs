@@ -26,7 +26,7 @@
 
 use nalgebra::{Matrix3, Vector3};
 
-use super::{ElementEval, Lame, TangentProjection};
+use super::{ElementEval, Lame, PAIRS, TangentProjection, UpperEval, full_tangent};
 use crate::real::Real;
 
 /// The barrier's floor `J₀` and stiffness `κ` (Pa); see the module documentation.
@@ -120,6 +120,30 @@ impl<T: Real> InversionBarrier<T> {
         projection: TangentProjection,
         eval: &mut ElementEval<T>,
     ) {
+        let mut upper = UpperEval {
+            energy: eval.energy,
+            gradient: eval.gradient,
+            blocks: [Matrix3::zeros(); 10],
+        };
+        self.add_upper_tangent(volume, g, h, projection, &mut upper);
+        eval.energy = upper.energy;
+        eval.gradient = upper.gradient;
+        for (row, added) in eval.tangent.iter_mut().zip(full_tangent(&upper.blocks)) {
+            for (k, block) in row.iter_mut().zip(added) {
+                *k += block;
+            }
+        }
+    }
+
+    /// [`InversionBarrier::add_element_tangent`] on the upper blocks the assembly reads.
+    pub(crate) fn add_upper_tangent(
+        &self,
+        volume: T,
+        g: &[Vector3<T>; 4],
+        h: &Matrix3<T>,
+        projection: TangentProjection,
+        eval: &mut UpperEval<T>,
+    ) {
         let Strained {
             f,
             psi,
@@ -135,26 +159,16 @@ impl<T: Real> InversionBarrier<T> {
         let exact = projection == TangentProjection::Exact;
         // `V ψ'' C g_a`, so that each block is one outer product.
         let scaled = cg.map(|v| v * (volume * d2psi));
-        // The blocks `b ≥ a`, and their transposes below the diagonal.
-        for a in 0..4 {
-            for b in a..4 {
-                let (Some(sa), Some(cgb), Some(ga), Some(gb)) =
-                    (scaled.get(a), cg.get(b), g.get(a), g.get(b))
-                else {
-                    continue;
-                };
-                let mut block = sa * cgb.transpose();
-                if exact {
-                    block += (f * ga.cross(gb)).cross_matrix().transpose() * (volume * dpsi);
-                }
-                if let Some(k_ab) = eval.tangent.get_mut(a).and_then(|row| row.get_mut(b)) {
-                    *k_ab += block;
-                }
-                if b != a
-                    && let Some(k_ba) = eval.tangent.get_mut(b).and_then(|row| row.get_mut(a))
-                {
-                    *k_ba += block.transpose();
-                }
+        for (&(a, b), k_ab) in PAIRS.iter().zip(eval.blocks.iter_mut()) {
+            // `a`, `b` < 4 (the pairs of a tetrahedron's nodes).
+            let (Some(sa), Some(cgb), Some(ga), Some(gb)) =
+                (scaled.get(a), cg.get(b), g.get(a), g.get(b))
+            else {
+                continue;
+            };
+            *k_ab += sa * cgb.transpose();
+            if exact {
+                *k_ab += (f * ga.cross(gb)).cross_matrix().transpose() * (volume * dpsi);
             }
         }
     }

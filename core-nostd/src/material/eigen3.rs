@@ -24,15 +24,28 @@ pub(crate) fn symmetric_eigen3<T: Real>(a: &Matrix3<T>) -> (Vector3<T>, Matrix3<
 
 /// [`symmetric_eigen3`] with `sweeps` cyclic sweeps.
 pub(crate) fn jacobi<T: Real>(a: &Matrix3<T>, sweeps: usize) -> (Vector3<T>, Matrix3<T>) {
-    // Column-major, as nalgebra stores them: `m[k][i]` is `M_ik`.
-    let mut m: [[T; 3]; 3] = (*a).into();
+    // The symmetric matrix by its six entries: the diagonal and `M_01`, `M_02`, `M_12` (read
+    // from the upper triangle). A rotation changes only the entries of its rows and columns,
+    // and by symmetry each of them once.
+    let mut sym = Symmetric {
+        diag: [a.m11, a.m22, a.m33],
+        off: [a.m12, a.m13, a.m23],
+    };
+    // Column-major, as nalgebra stores them: `q[k][i]` is `Q_ik`.
     let mut q: [[T; 3]; 3] = Matrix3::<T>::identity().into();
     for _ in 0..sweeps {
         for pair in [Pair::P01, Pair::P02, Pair::P12] {
-            rotate_pair(&mut m, &mut q, pair);
+            rotate_pair(&mut sym, &mut q, pair);
         }
     }
-    (Vector3::new(m[0][0], m[1][1], m[2][2]), Matrix3::from(q))
+    let [d0, d1, d2] = sym.diag;
+    (Vector3::new(d0, d1, d2), Matrix3::from(q))
+}
+
+/// A symmetric 3 × 3 matrix: its diagonal and its entries `(0, 1)`, `(0, 2)`, `(1, 2)`.
+struct Symmetric<T> {
+    diag: [T; 3],
+    off: [T; 3],
 }
 
 /// An index pair `(p, r)`, `p < r`, of a cyclic sweep.
@@ -44,16 +57,6 @@ enum Pair {
 }
 
 impl Pair {
-    /// Entries `p` and `r` of `v`.
-    #[inline(always)]
-    fn of<X: Copy>(self, v: &[X; 3]) -> (X, X) {
-        match self {
-            Pair::P01 => (v[0], v[1]),
-            Pair::P02 => (v[0], v[2]),
-            Pair::P12 => (v[1], v[2]),
-        }
-    }
-
     /// Entries `p` and `r` of `v`, mutable.
     #[inline(always)]
     fn of_mut<X>(self, v: &mut [X; 3]) -> (&mut X, &mut X) {
@@ -64,24 +67,34 @@ impl Pair {
             Pair::P12 => (v1, v2),
         }
     }
+
+    /// The off-diagonal entries `M_pr`, `M_po` and `M_ro` of `off` (`o` the third index).
+    #[inline(always)]
+    fn off_mut<X>(self, off: &mut [X; 3]) -> (&mut X, &mut X, &mut X) {
+        let [m01, m02, m12] = off;
+        match self {
+            Pair::P01 => (m01, m02, m12),
+            Pair::P02 => (m02, m01, m12),
+            Pair::P12 => (m12, m01, m02),
+        }
+    }
 }
 
-/// One Jacobi rotation on `(p, r)`: `M ← Jᵀ M J` with `M_pr = M_rp = 0`, `Q ← Q J`; `m` and
-/// `q` by columns.
+/// One Jacobi rotation on `(p, r)`: `M ← Jᵀ M J` with `M_pr = M_rp = 0`, `Q ← Q J`; `q` by
+/// columns.
 #[inline(always)]
-fn rotate_pair<T: Real>(m: &mut [[T; 3]; 3], q: &mut [[T; 3]; 3], pair: Pair) {
+fn rotate_pair<T: Real>(m: &mut Symmetric<T>, q: &mut [[T; 3]; 3], pair: Pair) {
     let one = T::one();
-    // Columns `p` and `r`; `M_pp`, and `M_pr`, `M_rr`.
-    let (col_p, col_r) = pair.of(m);
-    let (mpp, _) = pair.of(&col_p);
-    let (apr, mrr) = pair.of(&col_r);
+    let (mpr, mpo, mro) = pair.off_mut(&mut m.off);
+    let apr = *mpr;
     if apr == T::zero() {
         return;
     }
+    let (mpp, mrr) = pair.of_mut(&mut m.diag);
     // Golub & Van Loan, Algorithm 8.5.1 (sym.schur2): the rotation J with
     // J_pp = J_rr = c, J_pr = s, J_rp = −s zeroes (JᵀMJ)_pr. The smaller root `t`
     // keeps the rotation angle within ±π/4. τ may overflow to ±∞, giving t = 0.
-    let tau = (mrr - mpp) / (T::of(2.0) * apr);
+    let tau = (*mrr - *mpp) / (T::of(2.0) * apr);
     let root = (one + tau * tau).sqrt();
     let t = if tau >= T::zero() {
         one / (tau + root)
@@ -90,22 +103,17 @@ fn rotate_pair<T: Real>(m: &mut [[T; 3]; 3], q: &mut [[T; 3]; 3], pair: Pair) {
     };
     let c = one / (one + t * t).sqrt();
     let s = t * c;
-    // M ← M J (columns p, r), Q ← Q J.
-    for x in [&mut *m, &mut *q] {
-        let (col_p, col_r) = pair.of_mut(x);
-        for (xp, xr) in col_p.iter_mut().zip(col_r.iter_mut()) {
-            rotate(xp, xr, c, s);
-        }
-    }
-    // M ← Jᵀ M (rows p, r).
-    for col in m.iter_mut() {
-        let (xp, xr) = pair.of_mut(col);
+    // The two-sided update in closed form (`M_pp − t M_pr`, `M_rr + t M_pr`: the rotation
+    // zeroes `M_pr` exactly there), and the third row and column rotated once, not twice.
+    *mpp -= t * apr;
+    *mrr += t * apr;
+    *mpr = T::zero();
+    rotate(mpo, mro, c, s);
+    // Q ← Q J (columns p, r).
+    let (col_p, col_r) = pair.of_mut(q);
+    for (xp, xr) in col_p.iter_mut().zip(col_r.iter_mut()) {
         rotate(xp, xr, c, s);
     }
-    // M_pr = M_rp = 0.
-    let (col_p, col_r) = pair.of_mut(m);
-    *pair.of_mut(col_r).0 = T::zero();
-    *pair.of_mut(col_p).1 = T::zero();
 }
 
 /// `(x_p, x_r) ← (c x_p − s x_r, s x_p + c x_r)`.

@@ -146,24 +146,82 @@ pub fn element_energy_gradient_tangent<T: Real>(
     u: &[[T; 3]; 4],
     projection: TangentProjection,
 ) -> ElementEval<T> {
-    element_eval_of_h(
+    let upper = element_eval_upper_of_h(
         lame,
         rest.volume,
         g,
         &displacement_gradient(u, g),
         projection,
-    )
+    );
+    ElementEval {
+        energy: upper.energy,
+        gradient: upper.gradient,
+        tangent: full_tangent(&upper.blocks),
+    }
 }
 
-/// [`element_energy_gradient_tangent`] from the displacement gradient `h`, as
-/// [`element_energy_of_h`].
-pub(crate) fn element_eval_of_h<T: Real>(
+/// The ten node pairs `(a, b)`, `a ≤ b`, of a tetrahedron whose `3 × 3` tangent blocks are
+/// stored: the diagonal blocks first, then the pairs in row order. The stiffness pattern is
+/// symmetric and stored upper, so the assembly needs no other block.
+pub(crate) const PAIRS: [(usize, usize); 10] = [
+    (0, 0),
+    (1, 1),
+    (2, 2),
+    (3, 3),
+    (0, 1),
+    (0, 2),
+    (0, 3),
+    (1, 2),
+    (1, 3),
+    (2, 3),
+];
+
+/// An element's energy, gradient and the tangent blocks `K_ab` of the node pairs [`PAIRS`]
+/// (`a ≤ b`, `K_ba = K_abᵀ`): what the assembly reads, without the six transposed blocks.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct UpperEval<T> {
+    pub energy: T,
+    pub gradient: [Vector3<T>; 4],
+    /// `blocks[k] = K_ab` for `(a, b) = PAIRS[k]`.
+    pub blocks: [Matrix3<T>; 10],
+}
+
+/// The full `4 × 4` array of blocks from the upper ones. A diagonal block is read from its
+/// upper triangle, as the assembly reads it (the upper pattern stores no other entry), and
+/// mirrored: the scaled outer products round each of its two triangles differently.
+pub(crate) fn full_tangent<T: Real>(blocks: &[Matrix3<T>; 10]) -> [[Matrix3<T>; 4]; 4] {
+    let mut tangent = [[Matrix3::zeros(); 4]; 4];
+    for (&(a, b), block) in PAIRS.iter().zip(blocks) {
+        let block = if a == b {
+            block.upper_triangle() + block.upper_triangle().transpose()
+                - Matrix3::from_diagonal(&block.diagonal())
+        } else {
+            *block
+        };
+        // `a`, `b` < 4 (the pairs of a tetrahedron's nodes).
+        if let Some(k_ab) = tangent.get_mut(a).and_then(|row| row.get_mut(b)) {
+            *k_ab = block;
+        }
+        if let Some(k_ba) = tangent.get_mut(b).and_then(|row| row.get_mut(a)) {
+            *k_ba = block.transpose();
+        }
+    }
+    tangent
+}
+
+/// Energy, gradient and the upper tangent blocks ([`UpperEval`]) of one element from its
+/// displacement gradient `h`: the per-frame assembly's element kernel.
+///
+/// The factors that every block shares are scaled once, so that a block costs three outer
+/// products and no further scaling:
+/// `K_ab = (g_a · V S g_b) I + (λV f_a) f_bᵀ + (μV f_b) f_aᵀ + (μV g_a · g_b) F Fᵀ`.
+pub(crate) fn element_eval_upper_of_h<T: Real>(
     lame: &Lame<T>,
     v: T,
     g: &[Vector3<T>; 4],
     h: &Matrix3<T>,
     projection: TangentProjection,
-) -> ElementEval<T> {
+) -> UpperEval<T> {
     let f = Matrix3::identity() + h;
     let e = green_strain_of_displacement(h);
     let energy = v * energy_density_of_strain(lame, &e);
@@ -180,38 +238,37 @@ pub(crate) fn element_eval_of_h<T: Real>(
     };
 
     let fg = g.map(|ga| f * ga);
+    let (lv, mv) = (lambda * v, mu * v);
+    let lfg = fg.map(|x| x * lv);
+    let mfg = fg.map(|x| x * mv);
+    let s_geo = s_geo * v;
     let sg = g.map(|gb| s_geo * gb);
     let ff = f * f.transpose();
-    let mut tangent = [[Matrix3::zeros(); 4]; 4];
-    // The blocks `K_ab`, `b ≥ a`…
-    for (a, ((ga, fa), row)) in g.iter().zip(&fg).zip(&mut tangent).enumerate() {
-        for (((gb, sgb), fb), k_ab) in g.iter().zip(&sg).zip(&fg).zip(row.iter_mut()).skip(a) {
-            let geometric = ga.dot(sgb);
-            let block = Matrix3::from_diagonal_element(geometric)
-                + *fa * fb.transpose() * lambda
-                + *fb * fa.transpose() * mu
-                + ff * (mu * ga.dot(gb));
-            *k_ab = block * v;
-        }
+    let mut blocks = [Matrix3::zeros(); 10];
+    for (&(a, b), block) in PAIRS.iter().zip(blocks.iter_mut()) {
+        // `a`, `b` < 4 (the pairs of a tetrahedron's nodes).
+        let (Some(ga), Some(gb), Some(sgb), Some(fa), Some(fb), Some(lfa), Some(mfb)) = (
+            g.get(a),
+            g.get(b),
+            sg.get(b),
+            fg.get(a),
+            fg.get(b),
+            lfg.get(a),
+            mfg.get(b),
+        ) else {
+            continue;
+        };
+        let mut k = lfa * fb.transpose() + mfb * fa.transpose() + ff * (mv * ga.dot(gb));
+        let geometric = ga.dot(sgb);
+        k.m11 += geometric;
+        k.m22 += geometric;
+        k.m33 += geometric;
+        *block = k;
     }
-    // …and below the diagonal their transposes, `K_ba = K_abᵀ`: row `a` hands its blocks
-    // right of the diagonal to the rows below it.
-    let mut rest: &mut [[Matrix3<T>; 4]] = &mut tangent;
-    let mut a = 0;
-    while let Some((row_a, below)) = rest.split_first_mut() {
-        for (k_ab, row_b) in row_a.iter().skip(a + 1).zip(below.iter_mut()) {
-            // Always there: `a < 4`, the length of a row.
-            if let Some(k_ba) = row_b.get_mut(a) {
-                *k_ba = k_ab.transpose();
-            }
-        }
-        rest = below;
-        a += 1;
-    }
-    ElementEval {
+    UpperEval {
         energy,
         gradient,
-        tangent,
+        blocks,
     }
 }
 

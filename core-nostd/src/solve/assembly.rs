@@ -10,8 +10,8 @@ use crate::embed::Embedding;
 use crate::error::{Error, Resource};
 use crate::features::Features;
 use crate::material::{
-    ElementRest, InversionBarrier, Lame, TangentProjection, displacement_gradient,
-    element_energy_of_h, element_eval_of_h, element_gradient_of_h,
+    ElementRest, InversionBarrier, Lame, PAIRS, TangentProjection, displacement_gradient,
+    element_energy_of_h, element_eval_upper_of_h, element_gradient_of_h,
 };
 use crate::mesh::Mesh;
 use crate::real::Real;
@@ -47,20 +47,6 @@ pub(crate) struct Problem<'p, 'a, T: Real> {
     /// Column pointers of the stiffness pattern (the diagonal ends each column).
     pub col_ptr: &'p [u32],
 }
-
-/// The ten node pairs of a tetrahedron whose `3 × 3` blocks are stored (upper triangle).
-pub(crate) const PAIRS: [(usize, usize); 10] = [
-    (0, 0),
-    (1, 1),
-    (2, 2),
-    (3, 3),
-    (0, 1),
-    (0, 2),
-    (0, 3),
-    (1, 2),
-    (1, 3),
-    (2, 3),
-];
 
 /// Huber's loss of a spring whose residual has squared length `r2` (px²) against threshold
 /// `delta` (px): `(ρ, w)` with `ρ = ½ r²` and `w = 1` up to the threshold, `ρ = δ r − ½ δ²`
@@ -254,7 +240,7 @@ impl<T: Real> Problem<'_, '_, T> {
             let ft = free_of(free, tet);
             let gradient = match hessian.as_deref_mut() {
                 Some(h) => {
-                    let mut eval = element_eval_of_h(
+                    let mut eval = element_eval_upper_of_h(
                         &self.lame,
                         rest.volume,
                         &g,
@@ -262,7 +248,7 @@ impl<T: Real> Problem<'_, '_, T> {
                         TangentProjection::PositiveDefinite,
                     );
                     if let Some(barrier) = &self.barrier {
-                        barrier.add_element_tangent(
+                        barrier.add_upper_tangent(
                             rest.volume,
                             &g,
                             &du,
@@ -272,10 +258,10 @@ impl<T: Real> Problem<'_, '_, T> {
                     }
                     e.elastic += eval.energy;
                     let scatter = self.scatter.get(t).ok_or(Error::SymbolicMismatch)?;
-                    for (&(a, b), starts) in PAIRS.iter().zip(scatter.as_chunks::<3>().0) {
+                    let blocks = eval.blocks.iter().zip(scatter.as_chunks::<3>().0);
+                    for (&(a, b), (m, starts)) in PAIRS.iter().zip(blocks) {
                         // `a`, `b` < 4 (the pairs of a tetrahedron's nodes).
-                        let block = eval.tangent.get(a).and_then(|row| row.get(b));
-                        if let (Some(m), Some(&fa), Some(&fb)) = (block, ft.get(a), ft.get(b)) {
+                        if let (Some(&fa), Some(&fb)) = (ft.get(a), ft.get(b)) {
                             add_block(h, starts, a == b, fa >= fb, m);
                         }
                     }
