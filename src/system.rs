@@ -11,6 +11,18 @@ use incise_core::{Error, Real};
 use crate::rng::Rng;
 use crate::testmesh::TetMesh;
 
+/// Entries of the strictly lower factor (exact: no explicit zeros of relaxed supernodes) under
+/// each of the core's orderings, from [`StiffnessPattern::ordering_fills`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct OrderingFills {
+    /// Under [`minimum_degree`].
+    pub minimum_degree: usize,
+    /// Under [`nested_dissection`].
+    pub nested_dissection: usize,
+    /// Under [`fill_reducing_order`], the ordering the core factors under.
+    pub kept: usize,
+}
+
 /// The stiffness pattern of a mesh (3 unknowns per free node) with the fill-reducing ordering of
 /// its unknowns computed on the node graph.
 #[derive(Clone, Debug)]
@@ -62,8 +74,8 @@ impl StiffnessPattern {
     }
 
     /// Entries of the strictly lower factor (scalars) under each of the two orderings
-    /// `fill_reducing_order` chooses between: `(minimum degree, nested dissection)`.
-    pub fn ordering_fills(&self, mesh: &TetMesh) -> Result<(usize, usize), Error> {
+    /// `fill_reducing_order` chooses between, and under the one it keeps.
+    pub fn ordering_fills(&self, mesh: &TetMesh) -> Result<OrderingFills, Error> {
         let n_free = self.n() / 3;
         let mut work = vec![0u32; tet_graph_work_len(n_free, mesh.tets.len())];
         let nnz_g = Graph::tets_nnz(&mesh.tets, &self.free, &mut work)?;
@@ -76,10 +88,16 @@ impl StiffnessPattern {
             elimination_fill(&graph, perm, work).map(|f| 9 * f as usize + 3 * n_free)
         };
         minimum_degree(&graph, &mut perm, &mut work)?;
-        let md = scalars(&perm, &mut work)?;
+        let minimum_degree = scalars(&perm, &mut work)?;
         nested_dissection(&graph, &mut perm, &mut work)?;
-        let nd = scalars(&perm, &mut work)?;
-        Ok((md, nd))
+        let nested_dissection = scalars(&perm, &mut work)?;
+        fill_reducing_order(&graph, &mut perm, &mut work)?;
+        let kept = scalars(&perm, &mut work)?;
+        Ok(OrderingFills {
+            minimum_degree,
+            nested_dissection,
+            kept,
+        })
     }
 
     /// Dimension.

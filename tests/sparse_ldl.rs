@@ -2,8 +2,9 @@
 //! tetrahedral meshes, and its behaviour on the small and broken systems a user will hand it.
 
 use incise_core::sparse::{
-    Graph, LdlFactor, Symbolic, UpperCsc, analyse_work_len, block_upper_pattern, elimination_fill,
-    elimination_fill_work_len, relative_residual, tet_graph_work_len,
+    Graph, LdlFactor, NONE, Symbolic, UpperCsc, analyse_work_len, block_upper_pattern,
+    elimination_fill, elimination_fill_work_len, minimum_degree, minimum_degree_work_len,
+    postorder, postorder_work_len, relative_residual, tet_graph_work_len,
 };
 use incise_core::{Error, Resource};
 use incise_validation::oracle::{faer_amd_nnz_l, faer_solve};
@@ -110,7 +111,7 @@ fn fill_is_within_5_percent_of_faer_amd_at_every_size() {
         let pat = StiffnessPattern::new(&mesh, &fixed).unwrap();
         let a = pat.upper();
         let mut work = vec![0u32; analyse_work_len(a.n(), a.nnz())];
-        let ours = Symbolic::size(&a, &pat.perm, &mut work).unwrap().nnz_l;
+        let ours = Symbolic::exact_nnz_l(&a, &pat.perm, &mut work).unwrap();
         let faer = faer_amd_nnz_l(&a);
         let ratio = ours as f64 / faer as f64;
         eprintln!(
@@ -139,9 +140,81 @@ fn the_node_graph_fill_counts_the_factor_entries() {
         let mut fwork = vec![0u32; elimination_fill_work_len(n)];
         let nodes = elimination_fill(&graph, &node_perm, &mut fwork).unwrap() as usize;
         let mut awork = vec![0u32; analyse_work_len(a.n(), a.nnz())];
-        let scalars = Symbolic::size(&a, &pat.perm, &mut awork).unwrap().nnz_l;
+        let scalars = Symbolic::exact_nnz_l(&a, &pat.perm, &mut awork).unwrap();
         assert_eq!(9 * nodes + 3 * n, scalars);
     }
+}
+
+#[test]
+fn the_postorder_keeps_the_fill_and_makes_every_subtree_a_run_of_columns() {
+    for (mesh, fixed) in meshes() {
+        let pat = StiffnessPattern::new(&mesh, &fixed).unwrap();
+        let n = pat.n() / 3;
+        let mut work = vec![0u32; tet_graph_work_len(n, mesh.tets.len())];
+        let nnz_g = Graph::tets_nnz(&mesh.tets, &pat.free, &mut work).unwrap();
+        let (mut gp, mut ga) = (vec![0u32; n + 1], vec![0u32; nnz_g]);
+        let graph = Graph::from_tets(&mesh.tets, &pat.free, &mut gp, &mut ga, &mut work).unwrap();
+        let mut perm = vec![0u32; n];
+        minimum_degree(
+            &graph,
+            &mut perm,
+            &mut vec![0u32; minimum_degree_work_len(n, nnz_g)],
+        )
+        .unwrap();
+        let mut fwork = vec![0u32; elimination_fill_work_len(n)];
+        let before = elimination_fill(&graph, &perm, &mut fwork).unwrap();
+        let mut post = perm.clone();
+        postorder(&graph, &mut post, &mut vec![0u32; postorder_work_len(n)]).unwrap();
+        let mut sorted = post.clone();
+        sorted.sort_unstable();
+        assert!(sorted.iter().copied().eq(0..n as u32), "not a permutation");
+        assert_eq!(elimination_fill(&graph, &post, &mut fwork).unwrap(), before);
+        // The model's ordering is postordered: in the elimination tree of its unknowns, the
+        // columns between a column and its parent all descend from that parent.
+        let a = pat.upper();
+        let mut awork = vec![0u32; analyse_work_len(a.n(), a.nnz())];
+        let size = Symbolic::size(&a, &pat.perm, &mut awork).unwrap();
+        let mut store = vec![0u32; size.index_len()];
+        let sym = Symbolic::new(&a, &pat.perm, &mut store, &mut awork).unwrap();
+        let parent = sym.etree();
+        for (j, &p) in parent.iter().enumerate() {
+            if p == NONE {
+                continue;
+            }
+            for i in j + 1..p as usize {
+                let mut up = i;
+                while up < p as usize {
+                    up = parent[up] as usize;
+                }
+                assert_eq!(up, p as usize, "column {i} between {j} and its parent {p}");
+            }
+        }
+    }
+}
+
+#[test]
+fn relaxed_supernodes_store_explicit_zeros_that_factor_to_exactly_zero() {
+    let mut rng = Rng::new(5);
+    let mut relaxed_somewhere = false;
+    for (mesh, fixed) in meshes() {
+        let pat = StiffnessPattern::new(&mesh, &fixed).unwrap();
+        let a = pat.upper();
+        let mut work = vec![0u32; analyse_work_len(a.n(), a.nnz())];
+        let stored = Symbolic::size(&a, &pat.perm, &mut work).unwrap().nnz_l;
+        let exact = Symbolic::exact_nnz_l(&a, &pat.perm, &mut work).unwrap();
+        assert!(stored >= exact);
+        relaxed_somewhere |= stored > exact;
+        let values: Vec<f64> = pat.random_spd(&mesh, &mut rng, 0.05);
+        let b: Vec<f64> = (0..a.n()).map(|_| rng.range(-1.0, 1.0)).collect();
+        for method in [Method::Simplicial, Method::Supernodal] {
+            let solved = factor_and_solve_with(method, &a, &pat.perm, &values, &b).unwrap();
+            assert_eq!(solved.l.len(), stored);
+            // Random values leave no entry of the factor's own pattern at zero.
+            let zeros = solved.l.iter().filter(|&&v| v == 0.0).count();
+            assert_eq!(zeros, stored - exact, "{method:?}");
+        }
+    }
+    assert!(relaxed_somewhere, "no supernode was merged");
 }
 
 /// A small dense symmetric matrix as an upper pattern with all entries stored.

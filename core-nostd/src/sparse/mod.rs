@@ -67,6 +67,7 @@ pub use ldl::{LdlFactor, relative_residual, sym_matvec};
 pub use order::{
     DISSECTION_FROM, elimination_fill, elimination_fill_work_len, expand_block_permutation,
     fill_reducing_order, fill_reducing_order_work_len, minimum_degree, minimum_degree_work_len,
+    postorder, postorder_work_len,
 };
 pub use pattern::{Graph, UpperCsc, block_upper_len, block_upper_pattern, tet_graph_work_len};
 pub use precomputed::{PrecomputedAnalysis, check_work_len};

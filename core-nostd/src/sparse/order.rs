@@ -545,13 +545,103 @@ pub fn fill_reducing_order(
     let other = slab.take(n)?;
     let scratch = slab.take(nested_dissection_work_len(n, graph.nnz()))?;
     minimum_degree(graph, perm, scratch)?;
-    if n <= DISSECTION_FROM {
-        return Ok(());
+    if n > DISSECTION_FROM {
+        nested_dissection(graph, other, scratch)?;
+        if elimination_fill(graph, other, scratch)? < elimination_fill(graph, perm, scratch)? {
+            perm.copy_from_slice(other);
+        }
     }
-    nested_dissection(graph, other, scratch)?;
-    if elimination_fill(graph, other, scratch)? < elimination_fill(graph, perm, scratch)? {
-        perm.copy_from_slice(other);
+    postorder(graph, perm, scratch)
+}
+
+/// Length of the `u32` workspace [`postorder`] needs for `n` vertices.
+pub const fn postorder_work_len(n: usize) -> usize {
+    times(5, n)
+}
+
+/// Renumbers the ordering `perm` in a postorder of its elimination tree: each subtree's
+/// vertices consecutive, a parent right after its children, the children in the order `perm`
+/// had them. The factor has the same pattern up to that renumbering (the same fill, the same
+/// tree), and the last child of every vertex comes just before it, so chains of the tree
+/// are runs of consecutive columns: what the relaxed supernodes of the symbolic analysis
+/// merge. `work` needs [`postorder_work_len`]`(n)` entries.
+///
+/// # Errors
+/// As [`elimination_fill`].
+pub fn postorder(graph: &Graph<'_>, perm: &mut [u32], work: &mut [u32]) -> Result<(), Error> {
+    let n = graph.n();
+    ensure_exact_len(perm, n, Resource::Permutation)?;
+    let mut slab = Slab::new(work, Resource::Workspace);
+    let (position, parent, mark) = (slab.take(n)?, slab.take(n)?, slab.take(n)?);
+    let (stack, post) = (slab.take(n)?, slab.take(n)?);
+    position.fill(NONE);
+    for (k, &v) in perm.iter().enumerate() {
+        let p = position.get_mut(ux(v)).ok_or(Error::IndexOutOfRange {
+            resource: Resource::Permutation,
+            position: k,
+            index: ux(v),
+            bound: n,
+        })?;
+        if *p != NONE {
+            return Err(Error::NotAPermutation { position: k });
+        }
+        *p = k as u32;
     }
+    // The elimination tree, as `elimination_fill` builds it.
+    for (k, &v) in perm.iter().enumerate() {
+        *at_mut(parent, k)? = NONE;
+        *at_mut(mark, k)? = k as u32;
+        for &w in graph.neighbours(ux(v)) {
+            let mut j = ux(at(position, ux(w))?);
+            if j >= k {
+                continue;
+            }
+            while at(mark, j)? != k as u32 {
+                *at_mut(mark, j)? = k as u32;
+                let p = at_mut(parent, j)?;
+                if *p == NONE {
+                    *p = k as u32;
+                }
+                j = ux(*p);
+            }
+        }
+    }
+    // Children lists (`head`, `next`: in `position`'s and `mark`'s room), each in increasing
+    // order, then a depth-first walk from every root in increasing order.
+    let (head, next) = (position, mark);
+    head.fill(NONE);
+    for j in (0..n).rev() {
+        let p = at(parent, j)?;
+        if p != NONE {
+            *at_mut(next, j)? = at(head, ux(p))?;
+            *at_mut(head, ux(p))? = j as u32;
+        }
+    }
+    let mut k = 0;
+    for root in 0..n {
+        if at(parent, root)? != NONE {
+            continue;
+        }
+        let mut top = 0;
+        *at_mut(stack, top)? = root as u32;
+        loop {
+            let v = ux(at(stack, top)?);
+            let child = at(head, v)?;
+            if child == NONE {
+                *at_mut(post, k)? = at(perm, v)?;
+                k += 1;
+                if top == 0 {
+                    break;
+                }
+                top -= 1;
+            } else {
+                *at_mut(head, v)? = at(next, ux(child))?;
+                top += 1;
+                *at_mut(stack, top)? = child;
+            }
+        }
+    }
+    perm.copy_from_slice(post);
     Ok(())
 }
 

@@ -43,17 +43,24 @@ pub const fn analyse_work_len(n: usize, nnz_a: usize) -> usize {
 /// values directly), the elimination tree, the column pattern of `L` (strictly lower, rows
 /// increasing) and its row pattern (columns increasing).
 ///
-/// It also partitions the columns into *supernodes*: maximal runs of consecutive columns `f,
-/// f+1, …, f+w−1`, each the parent of the one before in the elimination tree, whose patterns
-/// nest, `struct(L(:, j)) = {j+1} ∪ struct(L(:, j+1))` (Liu, Ng and Peyton's supernodes,
-/// without the one-child condition of fundamental ones, which a left-looking factorization does
-/// not need). A supernode's row list is its first column's, `f` and then
-/// [`Symbolic::l_row`] of column `f`; its columns are stored one after the other in `L`'s
-/// column layout, so the supernodal factorization ([`crate::sparse::LdlFactor::
-/// factorize_supernodal`]) writes exactly the values the column-by-column one does, and needs
-/// no storage beyond `nnz(L) + n`. (Relaxed supernodes, which admit explicit zeros, would need
-/// more and are not built.) For each entry of `C` the analysis also stores where it lands in
-/// `L` ([`Symbolic::c_dst`]), so the numeric phase loads `C` into `L` in one pass.
+/// It also partitions the columns into *supernodes*: runs of consecutive columns `f, f+1, …,
+/// f+w−1`, each the parent of the one before in the elimination tree, whose patterns nest,
+/// `struct(L(:, j)) = {j+1} ∪ struct(L(:, j+1))` (Liu, Ng and Peyton's supernodes, without the
+/// one-child condition of fundamental ones, which a left-looking factorization does not
+/// need). The supernodes are *relaxed*, as CHOLMOD's and faer's are: where a chain of the
+/// tree runs over consecutive columns (an ordering from [`super::fill_reducing_order`] is
+/// postordered, so it does), small supernodes are merged while the explicit zeros this adds
+/// stay a small share of the merged panel ([`relax_counts`]). `L`'s stored pattern then holds
+/// those zeros: it is still closed under elimination, with the same elimination tree, so the
+/// column-by-column factorization and the solves work on it unchanged and compute exact zeros
+/// there, while the supernodal one ([`crate::sparse::LdlFactor::factorize_supernodal`]) gets
+/// wider panels for its dense kernels. [`Symbolic::size`] counts the stored entries,
+/// [`Symbolic::exact_nnz_l`] the factor's own. A supernode's row list is its first column's,
+/// `f` and then [`Symbolic::l_row`] of column `f`; its columns are stored one after the other
+/// in `L`'s column layout, so the supernodal factorization writes exactly the values the
+/// column-by-column one does, and needs no storage beyond `nnz(L) + n`. For each entry of `C`
+/// the analysis also stores where it lands in `L` ([`Symbolic::c_dst`]), so the numeric phase
+/// loads `C` into `L` in one pass.
 ///
 /// The storage is sized once for a *capacity* ([`Symbolic::with_capacity`]) and the analysis
 /// can be rebuilt in it for any pattern that fits ([`Symbolic::analyse`]), which is what a mesh
@@ -90,6 +97,26 @@ impl<'a> Symbolic<'a> {
     /// [`Error::Length`] / [`Error::NotAPermutation`] / [`Error::IndexOutOfRange`] for a bad
     /// `perm`, [`Error::Capacity`] if `work` is too short.
     pub fn size(a: &UpperCsc<'_>, perm: &[u32], work: &mut [u32]) -> Result<SymbolicSize, Error> {
+        Self::counted(a, perm, work, true)
+    }
+
+    /// The entries of the strictly lower factor of `A` under `perm`, without the explicit zeros
+    /// of relaxed supernodes that [`Symbolic::size`] counts: the ordering's fill. `work` as
+    /// there.
+    ///
+    /// # Errors
+    /// As [`Symbolic::size`].
+    pub fn exact_nnz_l(a: &UpperCsc<'_>, perm: &[u32], work: &mut [u32]) -> Result<usize, Error> {
+        Ok(Self::counted(a, perm, work, false)?.nnz_l)
+    }
+
+    /// [`Symbolic::size`], the counts relaxed or not.
+    fn counted(
+        a: &UpperCsc<'_>,
+        perm: &[u32],
+        work: &mut [u32],
+        relax: bool,
+    ) -> Result<SymbolicSize, Error> {
         let n = a.n();
         ensure_len(work, analyse_work_len(n, a.nnz()), Resource::Workspace)?;
         let mut slab = Slab::new(work, Resource::Workspace);
@@ -104,6 +131,9 @@ impl<'a> Symbolic<'a> {
         elimination_tree(c_ptr, c_row, parent, mark);
         let counts = slab.take(n)?;
         row_and_column_counts(c_ptr, c_row, parent, mark, counts, None)?;
+        if relax {
+            relax_counts(parent, counts);
+        }
         let nnz_l = counts.iter().map(|&c| ux(c)).sum::<usize>();
         if nnz_l > MAX_INDEX {
             return Err(Error::Pattern {
@@ -235,25 +265,20 @@ impl<'a> Symbolic<'a> {
         let mut wslab = Slab::new(work, Resource::Workspace);
         let mark = wslab.take(n)?;
         let col_count = wslab.take(n)?;
+        let relaxed = wslab.take(n)?;
         permute_upper(a, iperm, c_ptr, c_row, c_src, mark)?;
         elimination_tree(c_ptr, c_row, etree, mark);
         row_and_column_counts(c_ptr, c_row, etree, mark, col_count, Some(lt_ptr))?;
+        relaxed.copy_from_slice(col_count);
+        relax_counts(etree, relaxed);
+        let merged = relaxed != col_count;
 
-        // Column pointers of L from the column counts; the flop count of the up-looking
-        // numeric phase follows from them: row k of column j costs one multiply-add per entry
-        // of column j above row k.
-        if let Some((first, rest)) = l_ptr.split_first_mut() {
-            *first = 0;
-            let mut start = 0;
-            for (end, &count) in rest.iter_mut().zip(col_count.iter()) {
-                *end = start + count;
-                start = *end;
-            }
-        }
-        let flops = factor_flops(l_ptr);
-        // Row patterns (sorted), then the column patterns by scattering rows in increasing
-        // order, so every column comes out sorted too. Row k's walks fill its slots
-        // `lt_ptr[k]..lt_ptr[k + 1]` exactly, as they did when they were counted.
+        // The exact pattern first: column pointers from the exact counts, the row patterns
+        // (sorted) by walking the elimination tree from each entry of `C`, then the column
+        // patterns by scattering rows in increasing order, so every column comes out sorted
+        // too. Row k's walks fill its slots `lt_ptr[k]..lt_ptr[k + 1]` exactly, as they did
+        // when they were counted. The storage holds the relaxed pattern, which is no smaller.
+        column_pointers(col_count, l_ptr);
         for (k, ((cs, ce), (ls, le))) in pairs(c_ptr).zip(pairs(lt_ptr)).enumerate() {
             let row = segment_mut(lt_col, ls, le, k, Resource::FactorEntries)?;
             let mut slots = row.iter_mut();
@@ -276,37 +301,27 @@ impl<'a> Symbolic<'a> {
             }
             row.sort_unstable();
         }
-        let supernodes = find_supernodes(etree, l_ptr, sn_ptr, col_sn);
-        // Column patterns; on the way, where each entry C(j, k) (j < k, that is L(k, j)) lands
-        // in L's values: row k's entries are placed in increasing column order, `mark[j]` keeps
-        // the place of L(k, j) while row k is open.
-        for (cursor, &start) in col_count.iter_mut().zip(l_ptr.iter()) {
-            *cursor = start;
-        }
-        for (k, ((cs, ce), (ls, le))) in pairs(c_ptr).zip(pairs(lt_ptr)).enumerate() {
-            for &j in segment(lt_col, ls, le, k, Resource::FactorEntries)? {
-                let j = ux(j);
-                let cursor = at_mut(col_count, j, k)?;
-                let place = *cursor;
-                *cursor += 1;
-                *at_mut(mark, j, k)? = place;
-                *l_row.get_mut(ux(place)).ok_or(Error::IndexOutOfRange {
-                    resource: Resource::FactorEntries,
-                    position: k,
-                    index: ux(place),
-                    bound: size.nnz_l,
-                })? = k as u32;
-            }
-            let rows = segment(c_row, cs, ce, k, Resource::MatrixEntries)?;
-            let dsts = segment_mut(c_dst, cs, ce, k, Resource::MatrixEntries)?;
-            for (dst, &j) in dsts.iter_mut().zip(rows) {
-                *dst = if ux(j) == k {
-                    NONE
-                } else {
-                    at(mark, ux(j), k)?
-                };
-            }
-        }
+        let mut places = Places {
+            c_ptr,
+            c_row,
+            c_dst,
+        };
+        columns_from_rows(&mut places, lt_ptr, lt_col, l_ptr, l_row, col_count, mark)?;
+        // Then the relaxed pattern, where supernodes were merged ([`relax_counts`]): the
+        // columns moved to their relaxed places, those of a merged supernode given its rows,
+        // and the row patterns and the places of `C` redone from them.
+        let supernodes = if merged {
+            // `col_count` now holds where each exact column ends.
+            column_pointers(relaxed, l_ptr);
+            let supernodes = find_supernodes(etree, l_ptr, sn_ptr, col_sn);
+            relax_columns(l_ptr, l_row, col_count, sn_ptr, col_sn)?;
+            rows_from_columns(l_ptr, l_row, lt_ptr, lt_col, mark)?;
+            columns_from_rows(&mut places, lt_ptr, lt_col, l_ptr, l_row, col_count, mark)?;
+            supernodes
+        } else {
+            find_supernodes(etree, l_ptr, sn_ptr, col_sn)
+        };
+        let flops = factor_flops(l_ptr);
         self.size = size;
         self.supernodes = supernodes;
         self.factor_flops = flops;
@@ -428,7 +443,8 @@ impl<'a> Symbolic<'a> {
     pub fn n(&self) -> usize {
         self.size.n
     }
-    /// Entries of the strictly lower triangle of `L`.
+    /// Entries stored for the strictly lower triangle of `L` (the explicit zeros of relaxed
+    /// supernodes included).
     pub fn nnz_l(&self) -> usize {
         self.size.nnz_l
     }
@@ -489,7 +505,8 @@ impl<'a> Symbolic<'a> {
     pub fn col_sn(&self) -> &[u32] {
         live(self.col_sn, self.size.n)
     }
-    /// Multiply-adds (and divisions) of one numeric factorization: a data-independent count.
+    /// Multiply-adds (and divisions) of one numeric factorization over the stored pattern (the
+    /// explicit zeros included: the kernels multiply them too): a data-independent count.
     pub fn factor_flops(&self) -> u64 {
         self.factor_flops
     }
@@ -574,6 +591,245 @@ fn at_mut(x: &mut [u32], i: usize, k: usize) -> Result<&mut u32, Error> {
         index: i,
         bound,
     })
+}
+
+/// Column pointers (`n + 1`) from column counts (`n`).
+fn column_pointers(counts: &[u32], ptr: &mut [u32]) {
+    if let Some((first, rest)) = ptr.split_first_mut() {
+        *first = 0;
+        let mut start = 0;
+        for (end, &count) in rest.iter_mut().zip(counts) {
+            *end = start + count;
+            start = *end;
+        }
+    }
+}
+
+/// The upper pattern of `C` and, per entry, where its value lands in `L`
+/// ([`Symbolic::c_dst`]), which [`columns_from_rows`] writes.
+struct Places<'p> {
+    c_ptr: &'p [u32],
+    c_row: &'p [u32],
+    c_dst: &'p mut [u32],
+}
+
+/// The column patterns of `L` (`l_row`, under `l_ptr`) from its row patterns (`lt_ptr`,
+/// `lt_col`), and where each entry `C(j, k)` (`j < k`, that is `L(k, j)`) lands in `L`. Row
+/// `k`'s entries are placed in increasing column order, so every column comes out sorted;
+/// `cursor` (`n`) ends with where each column ends, and `mark[j]` keeps the place of
+/// `L(k, j)` while row `k` is open.
+///
+/// # Errors
+/// [`Error::IndexOutOfRange`] for an index outside the lists (never for the analysis's own).
+fn columns_from_rows(
+    places: &mut Places<'_>,
+    lt_ptr: &[u32],
+    lt_col: &[u32],
+    l_ptr: &[u32],
+    l_row: &mut [u32],
+    cursor: &mut [u32],
+    mark: &mut [u32],
+) -> Result<(), Error> {
+    for (c, &start) in cursor.iter_mut().zip(l_ptr.iter()) {
+        *c = start;
+    }
+    let nnz_l = l_row.len();
+    for (k, ((cs, ce), (ls, le))) in pairs(places.c_ptr).zip(pairs(lt_ptr)).enumerate() {
+        for &j in segment(lt_col, ls, le, k, Resource::FactorEntries)? {
+            let j = ux(j);
+            let c = at_mut(cursor, j, k)?;
+            let place = *c;
+            *c += 1;
+            *at_mut(mark, j, k)? = place;
+            *l_row.get_mut(ux(place)).ok_or(Error::IndexOutOfRange {
+                resource: Resource::FactorEntries,
+                position: k,
+                index: ux(place),
+                bound: nnz_l,
+            })? = k as u32;
+        }
+        let rows = segment(places.c_row, cs, ce, k, Resource::MatrixEntries)?;
+        let dsts = segment_mut(places.c_dst, cs, ce, k, Resource::MatrixEntries)?;
+        for (dst, &j) in dsts.iter_mut().zip(rows) {
+            *dst = if ux(j) == k {
+                NONE
+            } else {
+                at(mark, ux(j), k)?
+            };
+        }
+    }
+    Ok(())
+}
+
+/// The row patterns of `L` (`lt_ptr`, `lt_col`) as the transpose of its column patterns,
+/// columns in increasing order within each row; `count` (`n`) is workspace.
+///
+/// # Errors
+/// [`Error::IndexOutOfRange`] for an index outside the lists (never for the analysis's own).
+fn rows_from_columns(
+    l_ptr: &[u32],
+    l_row: &[u32],
+    lt_ptr: &mut [u32],
+    lt_col: &mut [u32],
+    count: &mut [u32],
+) -> Result<(), Error> {
+    count.fill(0);
+    for (j, (s, e)) in pairs(l_ptr).enumerate() {
+        for &r in segment(l_row, s, e, j, Resource::FactorEntries)? {
+            *at_mut(count, ux(r), j)? += 1;
+        }
+    }
+    column_pointers(count, lt_ptr);
+    for (c, &start) in count.iter_mut().zip(lt_ptr.iter()) {
+        *c = start;
+    }
+    for (j, (s, e)) in pairs(l_ptr).enumerate() {
+        for &r in segment(l_row, s, e, j, Resource::FactorEntries)? {
+            let c = at_mut(count, ux(r), j)?;
+            *at_mut(lt_col, ux(*c), j)? = j as u32;
+            *c += 1;
+        }
+    }
+    Ok(())
+}
+
+/// Widths up to which a chain of supernodes is merged whatever explicit zeros it adds, and
+/// up to which it is merged while the zeros stay below a share of the merged panel: the
+/// thresholds of CHOLMOD's relaxed amalgamation (`nrelax`, `zrelax`), which serve its
+/// supernodal factorization on meshes like ours.
+const RELAX_ALWAYS: u64 = 4;
+const RELAX_WIDTHS: [u64; 2] = [16, 48];
+/// Zero shares (per mille) allowed up to each of [`RELAX_WIDTHS`], and beyond.
+const RELAX_ZEROS_PER_MILLE: [u64; 3] = [800, 100, 50];
+
+/// Relaxed supernodes: the column counts of `L` (exact on entry) raised to those of merged
+/// supernodes. Scanning the columns in order, a supernode is merged into the next one when
+/// that one's first column is the parent of its last (a chain in the elimination tree, so
+/// the merged columns nest: each takes the rows of the merged supernode below it), and the
+/// merged panel is narrow or gains few explicit zeros ([`RELAX_ALWAYS`], [`RELAX_WIDTHS`],
+/// [`RELAX_ZEROS_PER_MILLE`]). The pattern stays closed under elimination and the
+/// elimination tree is unchanged, so every numeric phase works on it as on the exact one;
+/// the factor's values there are exact zeros. Wider panels make the supernodal kernels' fixed
+/// costs (packing, the scatter through relative rows) smaller per multiply-add.
+///
+/// Only a supernode's last column keeps its exact count, so a column's count within a
+/// merged supernode `[f, e)` is `(e − 1 − j) + count(e − 1)`.
+fn relax_counts(parent: &[u32], counts: &mut [u32]) {
+    let n = counts.len();
+    // The supernode being grown: columns `f..e`, its explicit zeros so far.
+    let (mut f, mut e, mut zeros) = (0usize, 0usize, 0u64);
+    let count = |counts: &[u32], j: usize| counts.get(j).map_or(0, |&c| u64::from(c));
+    while e < n {
+        // The fundamental supernode `e..next` ([`find_supernodes`]' rule on exact counts).
+        let mut next = e + 1;
+        while next < n
+            && parent.get(next - 1).is_some_and(|&p| ux(p) == next)
+            && count(counts, next - 1) == count(counts, next) + 1
+        {
+            next += 1;
+        }
+        // Merged when the next one's first column is the parent of the grown one's last.
+        let chained = e > f && parent.get(e - 1).is_some_and(|&p| ux(p) == e);
+        // Rows of the grown supernode and of the next (their columns and those below), and
+        // the explicit zeros merging adds: each grown column gains `m − mc` rows (`m ≥ mc`,
+        // the grown one's rows being in the next one's when the two chain).
+        let (wc, wp) = ((e - f) as u64, (next - e) as u64);
+        let last = |j: usize| count(counts, j.saturating_sub(1));
+        let (mc, mp) = (wc + last(e), wp + last(next));
+        let (w, m) = (wc + wp, wc + mp);
+        let total = zeros.saturating_add(wc.saturating_mul(m.saturating_sub(mc)));
+        let entries = w
+            .saturating_mul(m)
+            .saturating_sub(w.saturating_mul(w.saturating_sub(1)) / 2);
+        let share_below =
+            |per_mille: u64| total.saturating_mul(1000) < per_mille.saturating_mul(entries);
+        let merge = chained
+            && (w <= RELAX_ALWAYS
+                || (w <= RELAX_WIDTHS[0] && share_below(RELAX_ZEROS_PER_MILLE[0]))
+                || (w <= RELAX_WIDTHS[1] && share_below(RELAX_ZEROS_PER_MILLE[1]))
+                || share_below(RELAX_ZEROS_PER_MILLE[2]));
+        if merge {
+            zeros = total;
+        } else {
+            finish_supernode(counts, f, e);
+            f = e;
+            zeros = 0;
+        }
+        e = next;
+    }
+    finish_supernode(counts, f, e);
+}
+
+/// Gives the columns of supernode `f..e` the counts of its nested pattern.
+fn finish_supernode(counts: &mut [u32], f: usize, e: usize) {
+    if e == 0 {
+        return;
+    }
+    let last = counts.get(e - 1).copied().unwrap_or(0);
+    if let Some(columns) = counts.get_mut(f..e) {
+        for (above_last, c) in columns.iter_mut().rev().enumerate() {
+            *c = last + above_last as u32;
+        }
+    }
+}
+
+/// Moves the exact column patterns of `L` (column `j` ending at `exact_end[j]` in `l_row`)
+/// to the relaxed places `l_ptr`, and gives each column of a supernode whose pattern is not
+/// exact the supernode's rows below it: `{j + 1, …, e − 1}` and the last column's pattern.
+/// Columns are visited from the last: a relaxed place starts at or after the exact one, so
+/// nothing not yet moved is overwritten.
+///
+/// # Errors
+/// [`Error::IndexOutOfRange`] for an index outside the lists (never for the analysis's own).
+fn relax_columns(
+    l_ptr: &[u32],
+    l_row: &mut [u32],
+    exact_end: &[u32],
+    sn_ptr: &[u32],
+    col_sn: &[u32],
+) -> Result<(), Error> {
+    let outside = |j: usize, index: usize, bound: usize| Error::IndexOutOfRange {
+        resource: Resource::FactorEntries,
+        position: j,
+        index,
+        bound,
+    };
+    let n = col_sn.len();
+    for j in (0..n).rev() {
+        let start = ux(at(l_ptr, j, j)?);
+        let end = ux(at(l_ptr, j + 1, j)?);
+        let s = ux(at(col_sn, j, j)?);
+        let last = ux(at(sn_ptr, s + 1, j)?) - 1;
+        if j == last {
+            let exact_start = if j == 0 {
+                0
+            } else {
+                ux(at(exact_end, j - 1, j)?)
+            };
+            let exact_stop = ux(at(exact_end, j, j)?);
+            if exact_stop - exact_start != end - start || end > l_row.len() {
+                return Err(outside(j, end, l_row.len()));
+            }
+            l_row.copy_within(exact_start..exact_stop, start);
+        } else {
+            let inside = last - j;
+            let below_start = ux(at(l_ptr, last, j)?);
+            let below_end = ux(at(l_ptr, last + 1, j)?);
+            if start + inside + (below_end - below_start) != end || below_end > l_row.len() {
+                return Err(outside(j, end, l_row.len()));
+            }
+            for (slot, row) in l_row
+                .get_mut(start..start + inside)
+                .ok_or(outside(j, start + inside, 0))?
+                .iter_mut()
+                .zip(j + 1..)
+            {
+                *slot = row as u32;
+            }
+            l_row.copy_within(below_start..below_end, start + inside);
+        }
+    }
+    Ok(())
 }
 
 /// Multiply-adds (and divisions) of the up-looking numeric factorization with the column
