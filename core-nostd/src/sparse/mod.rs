@@ -6,11 +6,12 @@
 //!
 //! 1. **Pattern** ([`pattern`]): the node adjacency [`Graph`] of a mesh, and the upper triangle
 //!    of the matrix in compressed-column form ([`UpperCsc`]) with `3 × 3` blocks per node pair.
-//! 2. **Ordering** ([`order`]): a fill-reducing minimum-degree permutation computed on the
-//!    quotient graph, inside a fixed workspace.
+//! 2. **Ordering** ([`order`]): a fill-reducing permutation (minimum degree on the quotient
+//!    graph, or nested dissection on large meshes) inside a fixed workspace, postordered so
+//!    that every subtree of its elimination tree is a run of columns.
 //! 3. **Symbolic** ([`symbolic`]): the permuted pattern, the elimination tree, the column counts,
-//!    the full row and column patterns of `L` and its supernodes, stored so that the numeric
-//!    phase is a straight pass.
+//!    the full row and column patterns of `L` and its relaxed supernodes (small ones merged,
+//!    storing a few explicit zeros), stored so that the numeric phase is a straight pass.
 //! 4. **Numeric** ([`ldl`], [`supernodal`]): the LDLᵀ factorization into fixed buffers, either
 //!    up-looking column by column or left-looking supernode by supernode with dense
 //!    register-blocked kernels (same storage, same layout; the model uses the supernodal one,
