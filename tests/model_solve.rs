@@ -844,7 +844,16 @@ fn mixed_precision_reaches_the_f64_residual_where_f32_does_not() {
         let mut cfg = config(beam.cam, 0.0, strategy, 0.0);
         cfg.material.young = 3.0e9;
         cfg.solver.coupling = Coupling::Relative(beta);
-        let frames = 20;
+        // `Frozen` converges linearly, at the rate its frozen factor sets; in mixed precision
+        // that factor is `f32`, and where 20 frames leave it depends on rounding: 5·10⁻¹³
+        // to 4·10⁻¹⁰ of the rest residual for the same arithmetic with the spring blocks'
+        // two projections applied in either order. After 60 frames it is at `f64`'s floor,
+        // which is what this test claims mixed precision reaches.
+        let frames = if matches!(strategy, Strategy::Frozen { .. }) {
+            60
+        } else {
+            20
+        };
 
         // The judge: an f64 model whose gradient measures any positions.
         let mut judge_storage = ModelStorage::<f64>::with_features(&input, 64).unwrap();

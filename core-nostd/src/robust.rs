@@ -10,7 +10,8 @@
 //!   keys, with a heap of the `h` values nearest that end (`h` at most half the values): at
 //!   most `2 n ⌈log₂ n⌉` comparisons, about half of [`sort`]'s heapsort
 //!   (`2 n ⌈log₂ n⌉ + 2 n`), since the heap is half as large and no value is taken out of it
-//!   again;
+//!   again; up to [`KEYED_HEAP_MAX`] values the heap holds their order keys (on the stack),
+//!   whose comparisons are single integer ones;
 //! - on more (all the pairs of a frame), by radix: each value's [`Real::order_key`] is written
 //!   once to the caller's key storage ([`KEY_WORDS`] per value), then read a digit of
 //!   [`RADIX_BITS`] bits at a time from the top, one pass over the keys per digit counting
@@ -57,12 +58,12 @@ pub fn sort<T: Real>(v: &mut [T]) -> u64 {
 /// Moves `v[root]` down the heap `v[..end]` whose root is first in `root_first` order; with
 /// `whole`, walks on to a leaf along the children `root_first` prefers even where the heap
 /// already holds (it then swaps nothing). Adds its comparisons to `comparisons`.
-fn sift<T: Real>(
-    v: &mut [T],
+fn sift<X: Copy>(
+    v: &mut [X],
     mut root: usize,
     end: usize,
     whole: bool,
-    root_first: impl Fn(T, T) -> bool,
+    root_first: impl Fn(X, X) -> bool,
     comparisons: &mut u64,
 ) {
     loop {
@@ -139,11 +140,15 @@ fn less<T: Real>(a: T, b: T) -> bool {
 
 /// The value of rank `k` (0-based, ascending as [`sort`] orders) of `v` by the heap
 /// selection (see the module's docs), and the comparisons made (within
-/// [`heap_select_bound`]); zero (and none) when `k` is out of range. `v` is reordered.
+/// [`heap_select_bound`]); zero (and none) when `k` is out of range. `v` may be reordered
+/// (above [`KEYED_HEAP_MAX`] values, where the heap runs on the values themselves).
 pub fn select<T: Real>(v: &mut [T], k: usize) -> (T, u64) {
     let n = v.len();
     if k >= n {
         return (T::zero(), 0);
+    }
+    if n <= KEYED_HEAP_MAX {
+        return keyed_select(v, k);
     }
     // A heap holds the `h = min(k + 1, n − k)` values nearest the nearer end, the rank-`k`
     // one at its root (a max-heap of the `k + 1` smallest, or a min-heap of the `n − k`
@@ -158,6 +163,44 @@ pub fn select<T: Real>(v: &mut [T], k: usize) -> (T, u64) {
         heap_select(v, n - k, less)
     };
     (v.first().copied().unwrap_or_else(T::zero), comparisons)
+}
+
+/// Values up to which [`select`] runs its heap on the values' order keys
+/// ([`Real::order_key`], in an array of this many on the stack) instead of on the values: the
+/// same comparisons with the same outcomes (the keys order as the values' comparison does),
+/// each one integer comparison instead of that comparison's tests for finite values. The
+/// liver's per-feature tertiles (about 23 pairs each) took about a tenth fewer instructions
+/// so: the heap's walk, not its comparisons, is most of its cost.
+pub const KEYED_HEAP_MAX: usize = 64;
+
+/// [`select`] on the order keys of `v` (at most [`KEYED_HEAP_MAX`] values, `k` below their
+/// count): the heap runs on the keys, then the first value with the rank's key is fetched.
+/// Values with equal keys are equal (or both non-finite, as for [`select`]), so the value is
+/// the rank's; `v` is left as it was.
+fn keyed_select<T: Real>(v: &[T], k: usize) -> (T, u64) {
+    let n = v.len();
+    let mut keys = [0u64; KEYED_HEAP_MAX];
+    let keys = match keys.get_mut(..n) {
+        Some(keys) => keys,
+        None => return (T::zero(), 0),
+    };
+    for (key, x) in keys.iter_mut().zip(v) {
+        *key = x.order_key();
+    }
+    let comparisons = if k < n - k {
+        heap_select(keys, k + 1, |a, b| b < a)
+    } else {
+        heap_select(keys, n - k, |a, b| a < b)
+    };
+    let rank_key = keys.first().copied().unwrap_or(u64::MAX);
+    // Every value is visited, found or not: the instructions do not follow the data.
+    let mut value = None;
+    for &x in v {
+        if value.is_none() && x.order_key() == rank_key {
+            value = Some(x);
+        }
+    }
+    (value.unwrap_or_else(T::zero), comparisons)
 }
 
 /// The value of rank `k` of `v` as [`select`], by radix when there are at least
@@ -262,7 +305,7 @@ fn count(counts: &mut [u32; RADIX_BINS], digit: u32) {
 /// liver's steady frame 4 % cheaper (42.0 against 43.8 million instructions) but let its
 /// steady frames vary by 2.1 % instead of 1.4 % (issue 14 asks for at most 2 %; heapsort's
 /// 1.7 %).
-fn heap_select<T: Real>(v: &mut [T], h: usize, root_first: impl Fn(T, T) -> bool) -> u64 {
+fn heap_select<X: Copy>(v: &mut [X], h: usize, root_first: impl Fn(X, X) -> bool) -> u64 {
     let mut comparisons = 0u64;
     for root in (0..h / 2).rev() {
         sift(v, root, h, false, &root_first, &mut comparisons);
@@ -414,6 +457,34 @@ mod tests {
                     sort(&mut after[..n]);
                     let same = |(a, b): (&f64, &f64)| a == b || !(a.is_finite() || b.is_finite());
                     assert!(after[..n].iter().zip(&sorted[..n]).all(same));
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn the_keyed_heap_compares_as_the_value_heap_does() {
+        // Up to `KEYED_HEAP_MAX` values the heap runs on order keys: the same comparisons
+        // with the same outcomes as on the values under `less`, so the same count and value.
+        for n in 1..=KEYED_HEAP_MAX {
+            for seed in 0..4 {
+                for k in 0..n {
+                    let mut v = shuffled(n, seed, seed % 2 == 1);
+                    let (got, comparisons) = select(&mut v[..n], k);
+                    let mut w = shuffled(n, seed, seed % 2 == 1);
+                    let on_values = if k < n - k {
+                        heap_select(&mut w[..n], k + 1, |a, b| less(b, a))
+                    } else {
+                        heap_select(&mut w[..n], n - k, less)
+                    };
+                    assert_eq!(comparisons, on_values, "n {n} seed {seed} rank {k}");
+                    let expected = w[0];
+                    assert!(
+                        got.to_bits() == expected.to_bits()
+                            || got == expected
+                            || !(got.is_finite() || expected.is_finite()),
+                        "n {n} seed {seed} rank {k}: {got} against {expected}"
+                    );
                 }
             }
         }

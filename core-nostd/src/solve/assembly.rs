@@ -2,7 +2,7 @@
 //! (elastic energy, feature springs through the camera, damping and depth prior), element by
 //! element into the stiffness pattern through the scatter map.
 
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::{Matrix2x3, Matrix3, Vector3};
 
 use super::{Energies, WorkCount};
 use crate::camera::Camera;
@@ -317,22 +317,22 @@ impl<T: Real> Problem<'_, '_, T> {
                 add_gradient(grad, f, &across(e_a, &(-jr * wa)));
             }
             if let Some(h) = hessian.as_deref_mut() {
-                let jtj = j.transpose() * j * k;
+                // The block of nodes `a`, `b` is `k w_a w_b P_a JᵀJ P_b` with `P_a = I − e_a
+                // e_aᵀ` (the spring acts across the rays): `(J P_a)ᵀ (J P_b)`, each `J P_a` (2 × 3)
+                // formed once per node rather than projecting every block from both sides.
+                let jp = rays.map(|e| across_rays(&j, &e));
                 let scatter = self.scatter.get(t).ok_or(Error::SymbolicMismatch)?;
                 for (&(a, b), starts) in PAIRS.iter().zip(scatter.as_chunks::<3>().0) {
                     // `a`, `b` < 4 (the pairs of a tetrahedron's nodes).
-                    if let (Some(&wa), Some(&wb), Some(&fa), Some(&fb), Some(ea), Some(eb)) = (
+                    if let (Some(&wa), Some(&wb), Some(&fa), Some(&fb), Some(ja), Some(jb)) = (
                         w.get(a),
                         w.get(b),
                         ft.get(a),
                         ft.get(b),
-                        rays.get(a),
-                        rays.get(b),
+                        jp.get(a),
+                        jp.get(b),
                     ) {
-                        let m = jtj * (wa * wb);
-                        // `(I − e_a e_aᵀ) m (I − e_b e_bᵀ)`.
-                        let m = m - (m * eb) * eb.transpose();
-                        let m = m - ea * (ea.transpose() * m);
+                        let m = ja.transpose() * jb * (k * wa * wb);
                         add_block(h, starts, a == b, fa >= fb, &m);
                     }
                 }
@@ -417,6 +417,12 @@ fn seen_point<T: Real>(
         p += (now - *ray * ray.dot(&d)) * wa;
     }
     Some((p, rays))
+}
+
+/// `J (I − e eᵀ)`: the projection's Jacobian `J` (2 × 3) for motion across the unit ray `e`.
+/// A spring's Gauss–Newton block of nodes `a`, `b` is `(J P_a)ᵀ (J P_b)` scaled.
+fn across_rays<T: Real>(j: &Matrix2x3<T>, e: &Vector3<T>) -> Matrix2x3<T> {
+    j - (j * e) * e.transpose()
 }
 
 /// `g` without its component along the unit vector `e`.
@@ -513,7 +519,38 @@ pub(crate) fn build_scatter<T: Real>(
 // The unit tests compute in `f64`: an `f32`-only build has none.
 #[cfg(all(test, feature = "f64"))]
 mod tests {
-    use super::huber;
+    use super::{across_rays, huber};
+    use nalgebra::{Matrix2x3, Matrix3, Vector3};
+
+    /// The spring block from the rays' projections formed once per node equals `JᵀJ` projected
+    /// from both sides, `(I − e_a e_aᵀ) JᵀJ (I − e_b e_bᵀ)`, to rounding.
+    #[test]
+    fn spring_blocks_from_projected_jacobians_match_the_two_sided_projection() {
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        };
+        for _ in 0..200 {
+            let j = Matrix2x3::from_fn(|_, _| 500.0 * next());
+            let ea = Vector3::new(next(), next(), next()).normalize();
+            let eb = Vector3::new(next(), next(), next()).normalize();
+            let jtj = j.transpose() * j;
+            let (pa, pb) = (
+                Matrix3::identity() - ea * ea.transpose(),
+                Matrix3::identity() - eb * eb.transpose(),
+            );
+            let two_sided = pa * jtj * pb;
+            let ours = across_rays(&j, &ea).transpose() * across_rays(&j, &eb);
+            let err = (ours - two_sided).norm() / jtj.norm();
+            assert!(err < 1e-14, "{err:e}");
+            // Across the rays only: nothing along `e_a` on the left or `e_b` on the right.
+            assert!((ours * eb).norm() < 1e-12 * jtj.norm());
+            assert!((ea.transpose() * ours).norm() < 1e-12 * jtj.norm());
+        }
+    }
 
     /// The weight is the loss's derivative over the residual (checked against central
     /// differences of the loss), the loss is continuous at the threshold, and an infinite

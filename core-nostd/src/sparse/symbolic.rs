@@ -50,7 +50,7 @@ pub const fn analyse_work_len(n: usize, nnz_a: usize) -> usize {
 /// need). The supernodes are *relaxed*, as CHOLMOD's and faer's are: where a chain of the
 /// tree runs over consecutive columns (an ordering from [`super::fill_reducing_order`] is
 /// postordered, so it does), small supernodes are merged while the explicit zeros this adds
-/// stay a small share of the merged panel ([`relax_counts`]). `L`'s stored pattern then holds
+/// stay a small share of the merged panel. `L`'s stored pattern then holds
 /// those zeros: it is still closed under elimination, with the same elimination tree, so the
 /// column-by-column factorization and the solves work on it unchanged and compute exact zeros
 /// there, while the supernodal one ([`crate::sparse::LdlFactor::factorize_supernodal`]) gets
