@@ -574,38 +574,7 @@ pub fn postorder(graph: &Graph<'_>, perm: &mut [u32], work: &mut [u32]) -> Resul
     let mut slab = Slab::new(work, Resource::Workspace);
     let (position, parent, mark) = (slab.take(n)?, slab.take(n)?, slab.take(n)?);
     let (stack, post) = (slab.take(n)?, slab.take(n)?);
-    position.fill(NONE);
-    for (k, &v) in perm.iter().enumerate() {
-        let p = position.get_mut(ux(v)).ok_or(Error::IndexOutOfRange {
-            resource: Resource::Permutation,
-            position: k,
-            index: ux(v),
-            bound: n,
-        })?;
-        if *p != NONE {
-            return Err(Error::NotAPermutation { position: k });
-        }
-        *p = k as u32;
-    }
-    // The elimination tree, as `elimination_fill` builds it.
-    for (k, &v) in perm.iter().enumerate() {
-        *at_mut(parent, k)? = NONE;
-        *at_mut(mark, k)? = k as u32;
-        for &w in graph.neighbours(ux(v)) {
-            let mut j = ux(at(position, ux(w))?);
-            if j >= k {
-                continue;
-            }
-            while at(mark, j)? != k as u32 {
-                *at_mut(mark, j)? = k as u32;
-                let p = at_mut(parent, j)?;
-                if *p == NONE {
-                    *p = k as u32;
-                }
-                j = ux(*p);
-            }
-        }
-    }
+    elimination_tree_of(graph, perm, position, parent, mark)?;
     // Children lists (`head`, `next`: in `position`'s and `mark`'s room), each in increasing
     // order, then a depth-first walk from every root in increasing order.
     let (head, next) = (position, mark);
@@ -665,6 +634,25 @@ pub fn elimination_fill(graph: &Graph<'_>, perm: &[u32], work: &mut [u32]) -> Re
     ensure_exact_len(perm, n, Resource::Permutation)?;
     let mut slab = Slab::new(work, Resource::Workspace);
     let (position, parent, mark) = (slab.take(n)?, slab.take(n)?, slab.take(n)?);
+    elimination_tree_of(graph, perm, position, parent, mark)
+}
+
+/// The elimination tree of `graph` eliminated in the order `perm` into `parent` (by position
+/// in the order, [`NONE`] for a root), built row by row as the rows' subtrees are walked;
+/// returns the strictly lower factor's entries, the walks' length. `position` ends with each
+/// vertex's place in the order, `mark` with no meaning; all three hold `graph.n()` entries.
+///
+/// # Errors
+/// As [`elimination_fill`].
+fn elimination_tree_of(
+    graph: &Graph<'_>,
+    perm: &[u32],
+    position: &mut [u32],
+    parent: &mut [u32],
+    mark: &mut [u32],
+) -> Result<u64, Error> {
+    let n = graph.n();
+    ensure_exact_len(perm, n, Resource::Permutation)?;
     position.fill(NONE);
     for (k, &v) in perm.iter().enumerate() {
         let p = position.get_mut(ux(v)).ok_or(Error::IndexOutOfRange {
