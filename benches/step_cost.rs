@@ -6,11 +6,14 @@
 //!   Hessian measured in the same run (the peer), with the absolute times alongside;
 //! - instructions per frame counted by callgrind (`valgrind --tool=callgrind`, deterministic),
 //!   median, max and max/median over the 100 frames, next to the worst-case work formula the
-//!   model reports.
+//!   model reports, and as a multiple of one triangular-solve pair (forward, diagonal, backward)
+//!   on a factor of the same Hessian, counted the same way (issue 12 sets a `Frozen` frame with
+//!   10 PCG steps against it).
 //!
 //! `cargo bench --bench step_cost` runs both (the second only if valgrind is installed);
 //! `-- --no-callgrind` skips it. The binary re-runs itself under callgrind with
-//! `--instructions <case>` to count one case.
+//! `--instructions <case>` to count one case, and with `--solve-pair <case>` to count one solve
+//! pair.
 
 use std::hint::black_box;
 use std::process::Command;
@@ -22,6 +25,7 @@ use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::sparse::linalg::cholesky::{
     CholeskySymbolicParams, SymmetricOrdering, factorize_symbolic_cholesky,
 };
+use incise_core::sparse::{LdlFactor, Symbolic, analyse_work_len};
 use incise_core::{
     Coupling, Material, MeshInput, Model, ModelConfig, Observation, SolverConfig, StepReport,
     Strategy,
@@ -29,6 +33,7 @@ use incise_core::{
 use incise_validation::callgrind;
 use incise_validation::oracle::to_faer;
 use incise_validation::scene::{ModelStorage, camera, nodes_where, observe};
+use incise_validation::system::StiffnessPattern;
 use incise_validation::testmesh::{TetMesh, box_mesh};
 
 const FRAMES: usize = 100;
@@ -240,6 +245,89 @@ fn instructions_child(case_name: &str, strategy_name: &str) {
     });
 }
 
+/// Solve pairs counted per callgrind run: their mean is the table's "solve pair".
+const SOLVE_PAIRS: usize = 10;
+
+/// `SOLVE_PAIRS` solve pairs on `factor`, the only code callgrind counts in a
+/// `--solve-pair` run.
+#[inline(never)]
+fn bench_solve_pairs(factor: &LdlFactor<'_, f64>, sym: &Symbolic<'_>, b: &[f64], y: &mut [f64]) {
+    let mut x = b.to_vec();
+    for _ in 0..SOLVE_PAIRS {
+        x.copy_from_slice(b);
+        factor
+            .solve_in_place(sym, black_box(&mut x), y)
+            .expect("solve");
+    }
+    black_box(&x);
+}
+
+/// Runs one case for callgrind: two frames (not counted), then a factor of the model's Hessian
+/// under the core's ordering, as the model factors it (supernodal), and [`bench_solve_pairs`]
+/// on it. A solve pair costs the same whatever the values, so one count per mesh serves both
+/// strategies.
+fn solve_pair_child(case_name: &str) {
+    let cells = CASES.iter().find(|c| c.0 == case_name).expect("case").1;
+    let c = case(cells);
+    with_model(&c, Strategy::Refactor, |model| {
+        for frame in &c.frames[1..3] {
+            black_box(bench_frame_step(model, frame));
+        }
+        let lin = model.linearize().expect("linearize");
+        let pat = StiffnessPattern::new(&c.mesh, &c.fixed).expect("pattern");
+        assert_eq!(
+            lin.pattern.col_ptr(),
+            &pat.col_ptr[..],
+            "the model's pattern"
+        );
+        assert_eq!(
+            lin.pattern.row_idx(),
+            &pat.row_idx[..],
+            "the model's pattern"
+        );
+        let a = pat.upper();
+        let n = a.n();
+        let mut awork = vec![0u32; analyse_work_len(n, a.nnz())];
+        let size = Symbolic::size(&a, &pat.perm, &mut awork).expect("size");
+        let mut sstore = vec![0u32; size.index_len()];
+        let sym = Symbolic::new(&a, &pat.perm, &mut sstore, &mut awork).expect("symbolic");
+        let mut fstore = vec![0.0f64; LdlFactor::<f64>::storage_len(&size)];
+        let mut factor = LdlFactor::new(&size, &mut fstore).expect("factor");
+        let mut work = vec![0.0; LdlFactor::<f64>::SUPERNODAL_WORK_LEN];
+        let mut iwork = vec![0u32; LdlFactor::<f64>::supernodal_index_work_len(n)];
+        factor
+            .factorize_supernodal(&sym, lin.hessian, &mut work, &mut iwork)
+            .expect("factor");
+        let b: Vec<f64> = (0..n)
+            .map(|i| ((i * 7919) % 1000) as f64 / 500.0 - 1.0)
+            .collect();
+        let mut y = vec![0.0; n];
+        bench_solve_pairs(&factor, &sym, &b, &mut y);
+    });
+}
+
+/// Instructions of one solve pair on case `name` (the mean over [`SOLVE_PAIRS`]), counted by
+/// callgrind in a child run.
+fn solve_pair_instructions(exe: &std::path::Path, dir: &std::path::Path, name: &str) -> f64 {
+    let out = dir.join(format!("cg-solve-{name}"));
+    callgrind::run(
+        exe,
+        "--toggle-collect=*bench_solve_pairs*",
+        &out,
+        &["--solve-pair", name],
+    );
+    let text = std::fs::read_to_string(&out).expect("callgrind output");
+    let total: f64 = text
+        .lines()
+        .find_map(|l| {
+            l.strip_prefix("summary: ")
+                .or_else(|| l.strip_prefix("totals: "))
+        })
+        .and_then(|t| t.split_whitespace().next()?.parse().ok())
+        .expect("callgrind totals");
+    total / SOLVE_PAIRS as f64
+}
+
 fn instructions() {
     if Command::new("valgrind").arg("--version").output().is_err() {
         println!("valgrind not found: instruction counts skipped\n");
@@ -250,10 +338,11 @@ fn instructions() {
     std::fs::create_dir_all(&dir).expect("tmp dir");
     println!("## Instructions per frame (callgrind, {FRAMES} frames)\n");
     println!(
-        "| nodes | strategy | median | max | max / median | factor flops (formula) | solve flops | matvec flops |"
+        "| nodes | strategy | median | max | max / median | factor flops (formula) | solve flops | matvec flops | one solve pair | median / solve pair |"
     );
-    println!("| ---: | --- | ---: | ---: | ---: | ---: | ---: | ---: |");
+    println!("| ---: | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |");
     for (name, _) in CASES {
+        let solve_pair = solve_pair_instructions(&exe, &dir, name);
         for (sname, _) in STRATEGIES {
             let out = dir.join(format!("cg-{name}-{sname}"));
             let stdout = callgrind::run(
@@ -304,13 +393,15 @@ fn instructions() {
             let max = ir.iter().cloned().fold(0.0, f64::max);
             let median = percentile(&mut ir, 0.5);
             println!(
-                "| {name} | {sname} | {:.3e} | {:.3e} | {:.4} | {:.3e} | {:.3e} | {:.3e} |",
+                "| {name} | {sname} | {:.3e} | {:.3e} | {:.4} | {:.3e} | {:.3e} | {:.3e} | {:.3e} | {:.1} |",
                 median,
                 max,
                 max / median,
                 worst[0] as f64,
                 worst[1] as f64,
-                worst[2] as f64
+                worst[2] as f64,
+                solve_pair,
+                median / solve_pair
             );
         }
     }
@@ -322,6 +413,10 @@ fn main() {
     let args: Vec<String> = std::env::args().collect();
     if let Some(i) = args.iter().position(|a| a == "--instructions") {
         instructions_child(&args[i + 1], &args[i + 2]);
+        return;
+    }
+    if let Some(i) = args.iter().position(|a| a == "--solve-pair") {
+        solve_pair_child(&args[i + 1]);
         return;
     }
     timing();
