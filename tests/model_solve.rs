@@ -953,3 +953,82 @@ fn mixed_precision_reaches_the_f64_residual_where_f32_does_not() {
         );
     }
 }
+
+/// With one line-search trial the last Newton step's trial is assembled (energy and gradient)
+/// and closes the frame, in place of the closing assembly: the report's energies and gradient
+/// at the end are still the model's at its end positions (an assembly there agrees), and the
+/// counted work is the formula's, exactly, in every frame.
+#[test]
+fn a_single_line_search_trial_closes_the_frame() {
+    let size = [0.06, 0.02, 0.02];
+    let mesh = box_mesh([12, 4, 4], size);
+    let fixed = nodes_where(&mesh, 0, 0.0);
+    let cam = camera(
+        [0.03, 0.01, 0.3],
+        [0.03, 0.01, 0.0],
+        [0.0, 1.0, 0.0],
+        2000.0,
+        (640, 480),
+    );
+    let target = target_deformation(&mesh, &fixed, cam, size);
+    let top = nodes_where(&mesh, 2, size[2]);
+    let at = |s: f64| -> Vec<[f64; 3]> {
+        top.iter()
+            .map(|&v| {
+                let (a, b) = (mesh.nodes[v as usize], target[v as usize]);
+                [0, 1, 2].map(|c| a[c] + s * (b[c] - a[c]))
+            })
+            .collect()
+    };
+    let input = MeshInput {
+        rest: &mesh.nodes,
+        tets: &mesh.tets,
+        fixed: &fixed,
+    };
+    for (strategy, newton) in [
+        (Strategy::Refactor, 1),
+        (Strategy::Refactor, 2),
+        (Strategy::FactorOnce { pcg_iterations: 3 }, 2),
+        (Strategy::Frozen { pcg_iterations: 5 }, 1),
+    ] {
+        let mut cfg = config(cam, 2.0e-6, strategy, 1e-3);
+        cfg.solver.newton_iterations = newton;
+        cfg.solver.line_search_steps = 1;
+        let mut storage = ModelStorage::with_features(&input, 256).unwrap();
+        let mut model = storage.model(&input, &cfg).unwrap();
+        model.embed_features(&observe(&cam, &at(0.0))).unwrap();
+        let bound = model.worst_case_work();
+        let tets = mesh.tets.len() as u64;
+        let features = top.len() as u64;
+        // No closing assembly: the elements are evaluated once per trial, the features once
+        // per assembly with tangents and once per trial.
+        assert_eq!(bound.element_evaluations, tets * u64::from(newton));
+        assert_eq!(bound.feature_evaluations, features * 2 * u64::from(newton));
+        for frame in 1..=12 {
+            let s = (frame as f64 / 8.0).min(1.0);
+            let r = model.step(&observe(&cam, &at(s))).unwrap();
+            let w = r.work;
+            let case = format!("{strategy:?}, {newton} Newton, frame {frame}");
+            assert_eq!(w.assemblies, bound.assemblies, "{case}");
+            assert_eq!(w.element_tangents, bound.element_tangents, "{case}");
+            assert_eq!(w.element_evaluations, bound.element_evaluations, "{case}");
+            assert_eq!(w.feature_evaluations, bound.feature_evaluations, "{case}");
+            assert_eq!(w.energy_evaluations, bound.energy_evaluations, "{case}");
+            // The closing energies and gradient against an assembly at the end positions
+            // (with tangents: its elements run another kernel, so they agree to rounding).
+            let lin = model.linearize().unwrap();
+            let norm = lin.gradient.iter().map(|g| g * g).sum::<f64>().sqrt();
+            let (e_report, e_model) = (r.energy_after.total(), lin.energies.total());
+            assert!(
+                (e_report - e_model).abs() <= 1e-12 * e_model.abs(),
+                "{case}: energy {e_report:e} reported, {e_model:e} at the end positions"
+            );
+            assert!(
+                (r.gradient_norm_after - norm).abs() <= 1e-9 * norm,
+                "{case}: gradient {:e} reported, {norm:e} at the end positions",
+                r.gradient_norm_after
+            );
+            assert!(r.gradient_norm_after < r.gradient_norm_before, "{case}");
+        }
+    }
+}

@@ -249,7 +249,9 @@ pub struct SolverConfig<T> {
     pub strategy: Strategy,
     /// Newton steps per frame (fixed: no convergence test).
     pub newton_iterations: u32,
-    /// Trial step lengths `1, ½, ¼, …` evaluated per Newton step (all of them, always).
+    /// Trial step lengths `1, ½, ¼, …` evaluated per Newton step (all of them, always). With
+    /// one, the last Newton step's trial is assembled (energy and gradient) and closes the
+    /// frame, so a frame needs no assembly after its line search.
     pub line_search_steps: u32,
     /// Stiffness of the springs between the features and the model.
     pub coupling: Coupling<T>,

@@ -603,7 +603,10 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
 
     /// The worst-case work of one [`Model::step`]'s steady part (every embedded feature is
     /// evaluated in every frame, observed or not):
-    /// a formula of the scene's sizes and the configuration.
+    /// a formula of the scene's sizes and the configuration. Per frame: an assembly with
+    /// tangents per Newton step, every line-search trial, and an assembly without tangents
+    /// that closes the frame, but with one trial per Newton step, whose last trial is that
+    /// assembly ([`SolverConfig::line_search_steps`](crate::SolverConfig::line_search_steps)).
     pub fn worst_case_work(&self) -> WorkCount {
         let s = &self.config.solver;
         let newton = s.newton_iterations;
@@ -611,12 +614,15 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
         let feats = self.features.len() as u64;
         let nnz = self.live.nnz_a as u64;
         let sym = &self.live.symbolic;
+        // The assembly that closes a frame, but where the last Newton step's single line-search
+        // trial is evaluated by an assembly and gives the closing gradient with it.
+        let closing = u64::from(!(s.line_search_steps == 1 && newton > 0));
         let mut w = WorkCount {
             assemblies: newton + 1,
             element_tangents: u64::from(newton) * tets,
-            element_evaluations: tets * (1 + u64::from(newton * s.line_search_steps)),
+            element_evaluations: tets * (closing + u64::from(newton * s.line_search_steps)),
             feature_evaluations: feats
-                * (1 + u64::from(newton) * (1 + u64::from(s.line_search_steps))),
+                * (closing + u64::from(newton) * (1 + u64::from(s.line_search_steps))),
             energy_evaluations: newton * s.line_search_steps,
             state_copies: 5 * feats + 3 * self.live.mesh.n_nodes() as u64,
             ..WorkCount::default()

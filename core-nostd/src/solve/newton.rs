@@ -42,6 +42,9 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
         let mut energy_before = Energies::default();
         let mut gradient_norm_before = T::zero();
         let mut min_step = T::one();
+        // The energies at the frame's end, when the last line search already gave them (and
+        // the gradient there), so that the closing assembly is not needed.
+        let mut closing = None;
         for it in 0..newton {
             let e = self.assemble(true, &mut work)?;
             let v = &mut self.vectors;
@@ -80,13 +83,22 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
                 prefix(v.gradient, n, Resource::Unknowns)?,
                 prefix(v.step, n, Resource::Unknowns)?,
             );
-            let alpha = self.line_search(&e, slope, trials, &mut work)?;
+            let alpha = if trials == 1 && it + 1 == newton {
+                let (alpha, at_end) = self.single_trial_with_gradient(&e, slope, &mut work)?;
+                closing = Some(at_end);
+                alpha
+            } else {
+                self.line_search(&e, slope, trials, &mut work)?
+            };
             min_step = min_step.min(alpha);
             if alpha > T::zero() {
                 self.move_along(alpha)?;
             }
         }
-        let energy_after = self.assemble(false, &mut work)?;
+        let energy_after = match closing {
+            Some(e) => e,
+            None => self.assemble(false, &mut work)?,
+        };
         let gradient = prefix(self.vectors.gradient, n, Resource::Unknowns)?;
         let gradient_norm_after = dot(gradient, gradient).sqrt();
         if !(gradient_norm_after.finite() && energy_after.total().finite()) {
@@ -284,6 +296,60 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
             alpha *= T::of(0.5);
         }
         Ok(chosen.unwrap_or(best.1))
+    }
+
+    /// The line search of one trial, `α = 1`, for the last Newton step of a frame: the trial is
+    /// evaluated by an assembly (energy and gradient) rather than by an energy evaluation, and
+    /// gives the frame's closing energies and gradient with it. The step is taken on the same
+    /// rule as [`Self::line_search`] with one trial (Armijo's condition, or any decrease);
+    /// taken, the trial's gradient becomes the model's; not taken, the positions stay and so do
+    /// the gradient and the energies `at` assembled there. Either way the assembly that would
+    /// close the frame ([`Self::solve_frame`]) is not needed: one assembly without tangents in
+    /// place of an energy evaluation and an assembly, every frame alike.
+    ///
+    /// Returns the step length (1 or 0) and the energies at the positions the frame ends at.
+    fn single_trial_with_gradient(
+        &mut self,
+        at: &Energies<T>,
+        slope: T,
+        work: &mut WorkCount,
+    ) -> Result<(T, Energies<T>), Error> {
+        let n = self.n_unknowns();
+        let n_nodes = self.live.mesh.n_nodes();
+        let energy = at.total();
+        let slack = T::of(2.0) * at.rounding;
+        self.fill_trial(T::one())?;
+        let problem = problem_of(
+            &self.live,
+            &self.features,
+            self.coefficients(),
+            &self.config,
+        )?;
+        let v = &mut self.vectors;
+        let trial = prefix(v.trial, n_nodes, Resource::Nodes)?;
+        // The PCG residual has no meaning between solves: it holds the trial's gradient.
+        let trial_gradient = prefix_mut(v.residual, n, Resource::Unknowns)?;
+        work.energy_evaluations += 1;
+        let at_trial = match problem.assemble(trial, trial_gradient, None, work) {
+            Ok(e) => Some(e),
+            Err(Error::FeatureBehindCamera { .. }) => None,
+            Err(e) => return Err(e),
+        };
+        match at_trial {
+            Some(e)
+                if e.total().finite()
+                    && (e.total() <= energy + T::of(1e-4) * slope + slack
+                        || e.total() < energy) =>
+            {
+                prefix_mut(v.gradient, n, Resource::Unknowns)?.copy_from_slice(prefix(
+                    v.residual,
+                    n,
+                    Resource::Unknowns,
+                )?);
+                Ok((T::one(), e))
+            }
+            _ => Ok((T::zero(), *at)),
+        }
     }
 
     /// The positions `x + alpha · step` into `trial`, node by node (a fixed node stays).
