@@ -542,6 +542,34 @@ fn target_deformation(
     model.positions().to_vec()
 }
 
+/// The registration tests' camera: 0.3 m above the middle of a 6 cm box's top face, looking
+/// down at it.
+fn registration_camera() -> incise_core::Camera<f64> {
+    camera(
+        [0.03, 0.01, 0.3],
+        [0.03, 0.01, 0.0],
+        [0.0, 1.0, 0.0],
+        2000.0,
+        (640, 480),
+    )
+}
+
+/// Nodes `nodes` of `mesh` the fraction `s` of the way from rest to `target`.
+fn toward(
+    mesh: &incise_validation::testmesh::TetMesh,
+    target: &[[f64; 3]],
+    nodes: &[u32],
+    s: f64,
+) -> Vec<[f64; 3]> {
+    nodes
+        .iter()
+        .map(|&v| {
+            let (a, b) = (mesh.nodes[v as usize], target[v as usize]);
+            [0, 1, 2].map(|c| a[c] + s * (b[c] - a[c]))
+        })
+        .collect()
+}
+
 fn registration(strategy: Strategy) {
     registration_seen_by(strategy, Projection::Perspective);
 }
@@ -550,13 +578,7 @@ fn registration_seen_by(strategy: Strategy, projection: Projection) {
     let size = [0.06, 0.02, 0.02];
     let mesh = box_mesh([12, 4, 4], size);
     let fixed = nodes_where(&mesh, 0, 0.0);
-    let cam = camera(
-        [0.03, 0.01, 0.3],
-        [0.03, 0.01, 0.0],
-        [0.0, 1.0, 0.0],
-        2000.0,
-        (640, 480),
-    );
+    let cam = registration_camera();
     // The orthographic camera at the same pose, at the pinhole's scale on the top face.
     let cam = match projection {
         Projection::Perspective => cam,
@@ -577,14 +599,7 @@ fn registration_seen_by(strategy: Strategy, projection: Projection) {
     // Observed: the nodes of the top face (facing the camera, never occluded), moving from
     // rest to the target over ten frames, then held.
     let top = nodes_where(&mesh, 2, size[2]);
-    let at = |s: f64| -> Vec<[f64; 3]> {
-        top.iter()
-            .map(|&v| {
-                let (a, b) = (mesh.nodes[v as usize], target[v as usize]);
-                [0, 1, 2].map(|c| a[c] + s * (b[c] - a[c]))
-            })
-            .collect()
-    };
+    let at = |s: f64| toward(&mesh, &target, &top, s);
     let input = MeshInput {
         rest: &mesh.nodes,
         tets: &mesh.tets,
@@ -963,23 +978,10 @@ fn a_single_line_search_trial_closes_the_frame() {
     let size = [0.06, 0.02, 0.02];
     let mesh = box_mesh([12, 4, 4], size);
     let fixed = nodes_where(&mesh, 0, 0.0);
-    let cam = camera(
-        [0.03, 0.01, 0.3],
-        [0.03, 0.01, 0.0],
-        [0.0, 1.0, 0.0],
-        2000.0,
-        (640, 480),
-    );
+    let cam = registration_camera();
     let target = target_deformation(&mesh, &fixed, cam, size);
     let top = nodes_where(&mesh, 2, size[2]);
-    let at = |s: f64| -> Vec<[f64; 3]> {
-        top.iter()
-            .map(|&v| {
-                let (a, b) = (mesh.nodes[v as usize], target[v as usize]);
-                [0, 1, 2].map(|c| a[c] + s * (b[c] - a[c]))
-            })
-            .collect()
-    };
+    let at = |s: f64| toward(&mesh, &target, &top, s);
     let input = MeshInput {
         rest: &mesh.nodes,
         tets: &mesh.tets,

@@ -83,13 +83,9 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
                 prefix(v.gradient, n, Resource::Unknowns)?,
                 prefix(v.step, n, Resource::Unknowns)?,
             );
-            let alpha = if trials == 1 && it + 1 == newton {
-                let (alpha, at_end) = self.single_trial_with_gradient(&e, slope, &mut work)?;
-                closing = Some(at_end);
-                alpha
-            } else {
-                self.line_search(&e, slope, trials, &mut work)?
-            };
+            let (alpha, at_end) =
+                self.line_search(&e, slope, trials, it + 1 == newton, &mut work)?;
+            closing = at_end;
             min_step = min_step.min(alpha);
             if alpha > T::zero() {
                 self.move_along(alpha)?;
@@ -258,19 +254,31 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
     /// Armijo is tested with the energy's rounding error as slack: near the minimum the
     /// decrease a Newton step buys falls below what the energy can resolve, and the step must
     /// still be taken for the gradient to keep shrinking.
+    ///
+    /// In a frame's `last` Newton step with a single trial, the trial is assembled (energy and
+    /// gradient, into the PCG residual, which has no meaning between solves) rather than only
+    /// evaluated, and the energies where the frame ends come back with the step: the trial's,
+    /// its gradient then the model's, or `at` if the step is not taken (positions and gradient
+    /// stay). The frame then needs no closing assembly ([`Self::solve_frame`]): one assembly
+    /// without tangents in place of an energy evaluation and an assembly, every frame alike.
+    /// With more trials the step taken need not be the last one evaluated, so they do not.
     fn line_search(
         &mut self,
         at: &Energies<T>,
         slope: T,
         trials: u32,
+        last: bool,
         work: &mut WorkCount,
-    ) -> Result<T, Error> {
+    ) -> Result<(T, Option<Energies<T>>), Error> {
+        let n = self.n_unknowns();
         let n_nodes = self.live.mesh.n_nodes();
+        let closes = last && trials == 1;
         let energy = at.total();
         let slack = T::of(2.0) * at.rounding;
         let mut alpha = T::one();
         let mut chosen: Option<T> = None;
         let mut best = (energy, T::zero());
+        let mut assembled = None;
         for _ in 0..trials {
             self.fill_trial(alpha)?;
             let problem = problem_of(
@@ -279,8 +287,19 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
                 self.coefficients(),
                 &self.config,
             )?;
-            let trial = prefix(self.vectors.trial, n_nodes, Resource::Nodes)?;
-            let e = match problem.energy(trial, work) {
+            let v = &mut self.vectors;
+            let trial = prefix(v.trial, n_nodes, Resource::Nodes)?;
+            let evaluated = if closes {
+                work.energy_evaluations += 1;
+                let gradient = prefix_mut(v.residual, n, Resource::Unknowns)?;
+                problem.assemble(trial, gradient, None, work).map(|e| {
+                    assembled = Some(e);
+                    e
+                })
+            } else {
+                problem.energy(trial, work)
+            };
+            let e = match evaluated {
                 Ok(e) => e.total(),
                 Err(Error::FeatureBehindCamera { .. }) => T::zero() / T::zero(),
                 Err(e) => return Err(e),
@@ -295,60 +314,21 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
             }
             alpha *= T::of(0.5);
         }
-        Ok(chosen.unwrap_or(best.1))
-    }
-
-    /// The line search of one trial, `α = 1`, for the last Newton step of a frame: the trial is
-    /// evaluated by an assembly (energy and gradient) rather than by an energy evaluation, and
-    /// gives the frame's closing energies and gradient with it. The step is taken on the same
-    /// rule as [`Self::line_search`] with one trial (Armijo's condition, or any decrease);
-    /// taken, the trial's gradient becomes the model's; not taken, the positions stay and so do
-    /// the gradient and the energies `at` assembled there. Either way the assembly that would
-    /// close the frame ([`Self::solve_frame`]) is not needed: one assembly without tangents in
-    /// place of an energy evaluation and an assembly, every frame alike.
-    ///
-    /// Returns the step length (1 or 0) and the energies at the positions the frame ends at.
-    fn single_trial_with_gradient(
-        &mut self,
-        at: &Energies<T>,
-        slope: T,
-        work: &mut WorkCount,
-    ) -> Result<(T, Energies<T>), Error> {
-        let n = self.n_unknowns();
-        let n_nodes = self.live.mesh.n_nodes();
-        let energy = at.total();
-        let slack = T::of(2.0) * at.rounding;
-        self.fill_trial(T::one())?;
-        let problem = problem_of(
-            &self.live,
-            &self.features,
-            self.coefficients(),
-            &self.config,
-        )?;
-        let v = &mut self.vectors;
-        let trial = prefix(v.trial, n_nodes, Resource::Nodes)?;
-        // The PCG residual has no meaning between solves: it holds the trial's gradient.
-        let trial_gradient = prefix_mut(v.residual, n, Resource::Unknowns)?;
-        work.energy_evaluations += 1;
-        let at_trial = match problem.assemble(trial, trial_gradient, None, work) {
-            Ok(e) => Some(e),
-            Err(Error::FeatureBehindCamera { .. }) => None,
-            Err(e) => return Err(e),
-        };
-        match at_trial {
-            Some(e)
-                if e.total().finite()
-                    && (e.total() <= energy + T::of(1e-4) * slope + slack
-                        || e.total() < energy) =>
-            {
+        let alpha = chosen.unwrap_or(best.1);
+        if !closes {
+            return Ok((alpha, None));
+        }
+        match assembled {
+            Some(e) if alpha > T::zero() => {
+                let v = &mut self.vectors;
                 prefix_mut(v.gradient, n, Resource::Unknowns)?.copy_from_slice(prefix(
                     v.residual,
                     n,
                     Resource::Unknowns,
                 )?);
-                Ok((T::one(), e))
+                Ok((alpha, Some(e)))
             }
-            _ => Ok((T::zero(), *at)),
+            _ => Ok((alpha, Some(*at))),
         }
     }
 
