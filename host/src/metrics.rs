@@ -179,9 +179,17 @@ fn point_polyline_distance(p: [f64; 2], line: &[[f64; 2]]) -> f64 {
 /// segments (the supremum over a segment is not always at a vertex).
 fn directed_hausdorff(a: &[[f64; 2]], b: &[[f64; 2]], step: f64) -> f64 {
     let mut worst: f64 = 0.0;
-    let mut visit = |p: [f64; 2]| worst = worst.max(point_polyline_distance(p, b));
+    sample_polyline(a, step, |p| {
+        worst = worst.max(point_polyline_distance(p, b))
+    });
+    worst
+}
+
+/// Calls `visit` on the points of polyline `a` every `step` pixels along each segment, both
+/// ends included (on its one point for a single point, on nothing for none).
+fn sample_polyline(a: &[[f64; 2]], step: f64, mut visit: impl FnMut([f64; 2])) {
     match a {
-        [] => return 0.0,
+        [] => {}
         [p] => visit(*p),
         _ => {
             for w in a.windows(2) {
@@ -197,7 +205,6 @@ fn directed_hausdorff(a: &[[f64; 2]], b: &[[f64; 2]], step: f64) -> f64 {
             }
         }
     }
-    worst
 }
 
 /// Symmetric Hausdorff distance between two polylines in the image (pixels), evaluated on
@@ -208,6 +215,35 @@ pub fn hausdorff_polyline(a: &[[f64; 2]], b: &[[f64; 2]]) -> f64 {
         (true, true) => 0.0,
         (true, false) | (false, true) => f64::INFINITY,
         _ => directed_hausdorff(a, b, 0.25).max(directed_hausdorff(b, a, 0.25)),
+    }
+}
+
+/// Symmetric Hausdorff distance between a polyline and a set of polylines taken as one
+/// (pixels, sampled as [`hausdorff_polyline`]): from `a` to the nearest of the parts, and from
+/// every part to `a`. Infinite if exactly one side is empty.
+pub fn hausdorff_to_parts(a: &[[f64; 2]], parts: &[Vec<[f64; 2]>]) -> f64 {
+    let parts: Vec<&[[f64; 2]]> = parts
+        .iter()
+        .map(Vec::as_slice)
+        .filter(|p| !p.is_empty())
+        .collect();
+    match (a.is_empty(), parts.is_empty()) {
+        (true, true) => 0.0,
+        (true, false) | (false, true) => f64::INFINITY,
+        _ => {
+            let mut worst: f64 = 0.0;
+            sample_polyline(a, 0.25, |p| {
+                let nearest = parts
+                    .iter()
+                    .map(|b| point_polyline_distance(p, b))
+                    .fold(f64::INFINITY, f64::min);
+                worst = worst.max(nearest);
+            });
+            parts
+                .iter()
+                .map(|b| directed_hausdorff(b, a, 0.25))
+                .fold(worst, f64::max)
+        }
     }
 }
 
@@ -271,6 +307,30 @@ mod tests {
         assert!((hausdorff_polyline(&a, &tent) - 4.0).abs() < 1e-12);
         assert_eq!(hausdorff_polyline(&[], &[]), 0.0);
         assert!(hausdorff_polyline(&a, &[]).is_infinite());
+    }
+
+    #[test]
+    fn hausdorff_to_parts_takes_the_parts_as_one() {
+        let a = [[0.0, 0.0], [10.0, 0.0]];
+        // Two parts under the line with a gap between them: each part is within 1 of the
+        // line, and the line's point over the gap √2 from the nearer part's end.
+        let parts = vec![vec![[0.0, 1.0], [4.0, 1.0]], vec![[6.0, 1.0], [10.0, 1.0]]];
+        assert!((hausdorff_to_parts(&a, &parts) - 2.0f64.sqrt()).abs() < 1e-12);
+        // A point between the parts: each part counts from its own side, up to its far end
+        // (√(5² + 1)).
+        let mid = [[5.0, 0.0], [5.0, 0.0]];
+        assert!((hausdorff_to_parts(&mid, &parts) - 26.0f64.sqrt()).abs() < 1e-12);
+        // A far part counts from its own side.
+        let far = vec![vec![[0.0, 1.0], [10.0, 1.0]], vec![[0.0, 7.0]]];
+        assert!((hausdorff_to_parts(&a, &far) - 7.0).abs() < 1e-12);
+        // As one part, the same as the polyline distance.
+        let one = vec![vec![[0.0, 1.0], [10.0, 1.0]]];
+        assert_eq!(
+            hausdorff_to_parts(&a, &one),
+            hausdorff_polyline(&a, &one[0])
+        );
+        assert!(hausdorff_to_parts(&a, &[]).is_infinite());
+        assert_eq!(hausdorff_to_parts(&[], &[]), 0.0);
     }
 
     #[test]

@@ -32,7 +32,7 @@ pub struct Overlay<'a> {
     /// The true silhouette, with a ground truth.
     pub truth_mask: Option<&'a Mask>,
     /// The true cut in the image, with a ground truth.
-    pub true_cut: Option<&'a [[f64; 2]]>,
+    pub true_cut: Option<&'a [Vec<[f64; 2]>]>,
     /// The frame's tracked features.
     pub observations: &'a [Observation<f64>],
     /// The detected cut line, pixels.
@@ -74,7 +74,7 @@ pub fn draw(o: &Overlay<'_>) -> Canvas {
     for &uv in o.virtual_features {
         canvas.cross_mark(uv, 1.5, colour::VIRTUAL);
     }
-    if let Some(line) = o.true_cut {
+    for line in o.true_cut.unwrap_or_default() {
         canvas.polyline(line, colour::TRUE_CUT, 1);
     }
     for &p in o.separation_points {

@@ -335,6 +335,7 @@ fn run_pass_in<T: Real, F: Real>(
                 .collect();
             let separation_points: Vec<[f64; 2]> =
                 model.detector().points().iter().map(to_f64).collect();
+            let true_cut = truth.as_ref().and_then(|t| t.cut_at(f));
             let canvas = overlay::draw(&Overlay {
                 scene: &scene.file.name,
                 frame: f,
@@ -346,7 +347,7 @@ fn run_pass_in<T: Real, F: Real>(
                 surface: &surface,
                 model_mask: &measure.model_mask,
                 truth_mask: measure.truth_mask.as_ref(),
-                true_cut: truth.as_ref().and_then(|t| t.cut_at(f)),
+                true_cut: true_cut.as_deref(),
                 observations: &frame.observations,
                 cut_line: &pass.detection.polyline,
                 targets: &measure.targets,
@@ -369,6 +370,9 @@ fn run_pass_in<T: Real, F: Real>(
     detection.hausdorff_px = truth
         .as_ref()
         .and_then(|t| t.cut_distance(&detection.polyline));
+    detection.open_hausdorff_px = truth
+        .as_ref()
+        .and_then(|t| t.open_cut_distance(&detection.polyline));
     Ok(Trace {
         observations: pass.observations,
         detection,

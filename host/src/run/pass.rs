@@ -138,7 +138,7 @@ impl Pass {
         if open.is_none_or(|o| f <= o as usize) {
             return;
         }
-        let Some(line) = truth.cut_at(f).and_then(straight_line) else {
+        let Some(line) = straight_line(&truth.cut_points_at(f)) else {
             return;
         };
         let length = (line[1][0] - line[0][0]).hypot(line[1][1] - line[0][1]);

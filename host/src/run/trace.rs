@@ -36,10 +36,14 @@ pub struct Summary {
     pub cut_detected_frame: Option<u32>,
     /// Frame at which the true cut opens (ground truth), if the scene has one.
     pub cut_open_frame: Option<u32>,
-    /// Hausdorff distance of the final detected polyline to the true cut, pixels.
+    /// Hausdorff distance of the final detected polyline to the true cut (the slit where the
+    /// camera sees it at the last frame), pixels.
     pub cut_hausdorff_px: Option<f64>,
     /// The same, in percent of the image diagonal.
     pub cut_hausdorff_percent: Option<f64>,
+    /// The same to the stretches of the true cut whose lips are a pixel or more apart in the
+    /// image, in percent of the image diagonal.
+    pub cut_open_hausdorff_percent: Option<f64>,
     /// Dice of the last frame with cutting switched off.
     pub dice_final_uncut: f64,
     /// Dice of the last frame.
@@ -173,8 +177,11 @@ pub struct DetectionTrace {
     pub spacing_px: f64,
     /// The cut line at the last frame, pixels.
     pub polyline: Vec<[f64; 2]>,
-    /// Its Hausdorff distance to the true cut at the last frame, pixels.
+    /// Its Hausdorff distance to the true cut at the last frame (the slit where the camera
+    /// sees it), pixels.
     pub hausdorff_px: Option<f64>,
+    /// The same to the stretches of the true cut whose lips are a pixel or more apart.
+    pub open_hausdorff_px: Option<f64>,
 }
 
 /// What cutting the mesh did over a run.
@@ -263,6 +270,8 @@ impl Summary {
             .map(|r| r.dice)
             .collect();
         let camera = &scene.file.camera;
+        let diagonal = f64::from(camera.width).hypot(f64::from(camera.height));
+        let percent = |h: f64| 100.0 * h / diagonal;
         Summary {
             scene: scene.file.name.clone(),
             frames: trace.frames.len(),
@@ -278,10 +287,8 @@ impl Summary {
             cut_detected_frame: trace.detection.detected_frame,
             cut_open_frame: open,
             cut_hausdorff_px: trace.detection.hausdorff_px,
-            cut_hausdorff_percent: trace
-                .detection
-                .hausdorff_px
-                .map(|h| 100.0 * h / f64::from(camera.width).hypot(f64::from(camera.height))),
+            cut_hausdorff_percent: trace.detection.hausdorff_px.map(percent),
+            cut_open_hausdorff_percent: trace.detection.open_hausdorff_px.map(percent),
             dice_final_uncut: uncut.dice_final,
             dice_final: trace.dice_final,
             dice_mean_after_cut: after.iter().sum::<f64>() / after.len().max(1) as f64,

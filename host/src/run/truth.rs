@@ -6,9 +6,9 @@ use std::path::PathBuf;
 use incise_core::{Camera, Model, Real};
 
 use super::to_f64;
-use crate::metrics::{dice, hausdorff_polyline, paired_rms, surface_rms};
+use crate::metrics::{dice, hausdorff_to_parts, paired_rms, surface_rms};
 use crate::render::{Mask, silhouette};
-use crate::scene::{Scene, SceneError, Surface, read_cut_csv, read_obj, read_points_csv};
+use crate::scene::{CutParts, Scene, SceneError, Surface, read_cut_csv, read_obj, read_points_csv};
 
 /// Ground truth of a scene, read once.
 pub(crate) struct Truth {
@@ -16,8 +16,8 @@ pub(crate) struct Truth {
     targets: Vec<Vec<[f64; 3]>>,
     /// The true surface at the last frame, metres.
     surface: Surface,
-    /// The true cut line in the image per frame, pixels.
-    cut: Vec<Vec<[f64; 2]>>,
+    /// The true cut in the image per frame: its parts, pixels.
+    cut: Vec<CutParts>,
 }
 
 impl Truth {
@@ -52,12 +52,23 @@ impl Truth {
         self.targets.first().map(Vec::as_slice)
     }
 
-    /// The true cut in the image at `frame`, if it has one.
-    pub(crate) fn cut_at(&self, frame: usize) -> Option<&[[f64; 2]]> {
+    /// The true cut in the image at `frame` as polylines (its parts), if it has one.
+    pub(crate) fn cut_at(&self, frame: usize) -> Option<Vec<Vec<[f64; 2]>>> {
+        let parts = self.cut.get(frame).filter(|p| !p.is_empty())?;
+        Some(
+            parts
+                .iter()
+                .map(|part| part.iter().map(|p| p.uv).collect())
+                .collect(),
+        )
+    }
+
+    /// Every point of the true cut at `frame`, whichever part it is in.
+    pub(crate) fn cut_points_at(&self, frame: usize) -> Vec<[f64; 2]> {
         self.cut
             .get(frame)
-            .map(Vec::as_slice)
-            .filter(|l| !l.is_empty())
+            .map(|parts| parts.iter().flatten().map(|p| p.uv).collect())
+            .unwrap_or_default()
     }
 
     /// Target registration error of `predicted` at `frame`, metres: NaN for a frame without
@@ -81,13 +92,32 @@ impl Truth {
             .map_or(f64::NAN, |gt| paired_rms(rest, gt))
     }
 
-    /// Hausdorff distance of a detected cut line to the true cut at the last frame, pixels;
-    /// `None` when either is empty.
+    /// Hausdorff distance of a detected cut line to the true cut at the last frame (every
+    /// part of the slit the camera sees), pixels; `None` when either is empty.
     pub(crate) fn cut_distance(&self, polyline: &[[f64; 2]]) -> Option<f64> {
-        match (polyline.is_empty(), self.cut.last()) {
-            (false, Some(line)) if !line.is_empty() => Some(hausdorff_polyline(polyline, line)),
-            _ => None,
+        let parts = self.cut_at(self.cut.len().checked_sub(1)?)?;
+        (!polyline.is_empty()).then(|| hausdorff_to_parts(polyline, &parts))
+    }
+
+    /// The same to the stretches of the true cut whose lips are a pixel or more apart in the
+    /// image at the last frame (the rule of `cut_open_frame`); `None` when either is empty.
+    pub(crate) fn open_cut_distance(&self, polyline: &[[f64; 2]]) -> Option<f64> {
+        let last = self.cut.last()?;
+        let mut open: Vec<Vec<[f64; 2]>> = vec![];
+        for part in last {
+            let mut run: Vec<[f64; 2]> = vec![];
+            for p in part {
+                if p.open {
+                    run.push(p.uv);
+                } else if !run.is_empty() {
+                    open.push(std::mem::take(&mut run));
+                }
+            }
+            if !run.is_empty() {
+                open.push(run);
+            }
         }
+        (!polyline.is_empty() && !open.is_empty()).then(|| hausdorff_to_parts(polyline, &open))
     }
 
     /// RMS distance between the true surface and the model's, both ways (true surface points

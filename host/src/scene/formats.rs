@@ -177,13 +177,33 @@ fn whole(
     }
 }
 
-/// Reads `gt/cut.csv` (`frame,u,v`): the true cut line per frame.
+/// A point of the true cut in the image (`gt/cut.csv`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CutPoint {
+    /// The midpoint of the slit's two lips, pixels.
+    pub uv: [f64; 2],
+    /// Whether the lips there are apart by at least a pixel (the rule of `cut_open_frame`).
+    pub open: bool,
+}
+
+/// The true cut of one frame: its parts (the slit's trace on the surface, split where the
+/// camera does not see it), each a polyline.
+pub type CutParts = Vec<Vec<CutPoint>>;
+
+/// Reads `gt/cut.csv` (`frame,part,u,v,open`: the true cut per frame, each part a polyline in
+/// row order; `open` 1 where the lips are apart by a pixel or more). The older `frame,u,v`
+/// (one part, every point open) is read too.
 ///
 /// # Errors
-/// A [`SceneError`] with the line for a malformed row, or a frame that is not a whole number
-/// below [`limits::MAX_FRAMES`].
-pub fn read_cut_csv(text: &str, file: &Path) -> Result<Vec<Vec<[f64; 2]>>, SceneError> {
-    let mut frames: Vec<Vec<[f64; 2]>> = vec![];
+/// A [`SceneError`] with the line for a malformed row, or a frame or part that is not a whole
+/// number below [`limits::MAX_FRAMES`] or [`limits::MAX_CUT_VERTICES`].
+pub fn read_cut_csv(text: &str, file: &Path) -> Result<Vec<CutParts>, SceneError> {
+    let mut frames: Vec<CutParts> = vec![];
+    let header = text.lines().next().unwrap_or_default();
+    let with_parts = header
+        .split(',')
+        .map(str::trim)
+        .eq(["frame", "part", "u", "v", "open"]);
     for (i, line) in text.lines().enumerate().skip(1) {
         let n = i + 1;
         if line.trim().is_empty() {
@@ -194,14 +214,32 @@ pub fn read_cut_csv(text: &str, file: &Path) -> Result<Vec<Vec<[f64; 2]>>, Scene
             .iter()
             .map(|s| s.parse::<f64>().ok().filter(|v| v.is_finite()))
             .collect();
-        match parsed.as_deref() {
-            Some([_, u, v]) => {
-                let frame = whole(f[0], "frame", limits::MAX_FRAMES, file, n)?;
-                frames.resize_with(frames.len().max(frame + 1), Vec::new);
-                frames[frame].push([*u, *v]);
+        let (part, u, v, open) = match (with_parts, parsed.as_deref()) {
+            (true, Some([_, _, u, v, open])) if *open == 0.0 || *open == 1.0 => (
+                whole(f[1], "part", limits::MAX_CUT_VERTICES, file, n)?,
+                *u,
+                *v,
+                *open == 1.0,
+            ),
+            (false, Some([_, u, v])) => (0, *u, *v, true),
+            _ => {
+                let expected = if with_parts {
+                    "expected frame,part,u,v,open as numbers (open 0 or 1)"
+                } else {
+                    "expected frame,u,v as numbers"
+                };
+                return Err(SceneError::new(file, n, expected));
             }
-            _ => return Err(SceneError::new(file, n, "expected frame,u,v as numbers")),
-        }
+        };
+        let frame = whole(f[0], "frame", limits::MAX_FRAMES, file, n)?;
+        frames.resize_with(frames.len().max(frame + 1), Vec::new);
+        let parts = &mut frames[frame];
+        parts.resize_with(parts.len().max(part + 1), Vec::new);
+        parts[part].push(CutPoint { uv: [u, v], open });
+    }
+    // A part with no row (numbers skipped) is dropped.
+    for parts in &mut frames {
+        parts.retain(|p| !p.is_empty());
     }
     Ok(frames)
 }
@@ -360,8 +398,37 @@ mod tests {
             (2, Path::new("c.csv")),
             "{err}"
         );
+        let err =
+            read_cut_csv("frame,part,u,v,open\n0,1e9,1,2,1\n", Path::new("c.csv")).unwrap_err();
+        assert!(err.message.contains("part"), "{err}");
+        let err =
+            read_cut_csv("frame,part,u,v,open\n0,0,1,2,0.5\n", Path::new("c.csv")).unwrap_err();
+        assert!(err.message.contains("open 0 or 1"), "{err}");
         let ok = read_points_csv("frame,id,x,y,z\n1.0,0.0,1,2,3\n", Path::new("t.csv")).unwrap();
         assert_eq!(ok, vec![vec![], vec![[1.0, 2.0, 3.0]]]);
+    }
+
+    #[test]
+    fn cut_csv_parts_and_the_older_format() {
+        let text = "frame,part,u,v,open\n0,0,1,2,0\n0,0,3,4,1\n0,1,5,6,1\n2,0,7,8,0\n";
+        let frames = read_cut_csv(text, Path::new("c.csv")).unwrap();
+        let p = |u: f64, v: f64, open: bool| CutPoint { uv: [u, v], open };
+        assert_eq!(
+            frames,
+            vec![
+                vec![
+                    vec![p(1.0, 2.0, false), p(3.0, 4.0, true)],
+                    vec![p(5.0, 6.0, true)]
+                ],
+                vec![],
+                vec![vec![p(7.0, 8.0, false)]],
+            ]
+        );
+        let old = read_cut_csv("frame,u,v\n1,1,2\n1,3,4\n", Path::new("c.csv")).unwrap();
+        assert_eq!(
+            old,
+            vec![vec![], vec![vec![p(1.0, 2.0, true), p(3.0, 4.0, true)]]]
+        );
     }
 
     #[test]

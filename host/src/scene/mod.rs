@@ -35,7 +35,8 @@ pub use file::{
     default_depth_prior,
 };
 pub use formats::{
-    Surface, read_cut_csv, read_obj, read_points_csv, read_tracks, write_obj, write_tracks,
+    CutParts, CutPoint, Surface, read_cut_csv, read_obj, read_points_csv, read_tracks, write_obj,
+    write_tracks,
 };
 
 /// An error while reading a scene: the file, the line (0 when the whole file is at fault) and

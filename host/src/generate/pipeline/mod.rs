@@ -5,6 +5,7 @@
 //! (meshes, slit, camera); `write`: the scene's files ([`write_scene`]).
 
 mod prepare;
+mod trace;
 mod write;
 
 pub use prepare::{
@@ -582,6 +583,44 @@ damping = 0.01
             "{:?}",
             g.cut_open_frame
         );
+    }
+
+    /// The true cut follows the slit's trace on the surface in order: within a part, no
+    /// step jumps across the slit (the old order along the image's main direction zig-zagged
+    /// wherever the trace was not straight in the image); closed at rest, open once pulled.
+    #[test]
+    fn the_true_cut_runs_along_the_slit_and_opens_when_pulled() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = side_slit_scenario(dir.path(), "");
+        let sim = simulate(&path, false).unwrap();
+        let out = dir.path().join("scene");
+        write_scene(&sim, &path, &out, false).unwrap();
+        let file = out.join("gt").join("cut.csv");
+        let text = std::fs::read_to_string(&file).unwrap();
+        assert!(text.starts_with("frame,part,u,v,open\n"));
+        let frames = crate::scene::read_cut_csv(&text, &file).unwrap();
+        assert_eq!(frames.len(), 8);
+        for (f, parts) in frames.iter().enumerate() {
+            assert!(!parts.is_empty(), "frame {f}: no true cut");
+            for part in parts {
+                let steps: Vec<f64> = part
+                    .windows(2)
+                    .map(|w| (w[1].uv[0] - w[0].uv[0]).hypot(w[1].uv[1] - w[0].uv[1]))
+                    .collect();
+                let mut sorted = steps.clone();
+                sorted.sort_by(f64::total_cmp);
+                if let Some(&median) = sorted.get(sorted.len() / 2) {
+                    let longest = sorted.last().copied().unwrap_or(0.0);
+                    assert!(
+                        longest <= 3.0 * median.max(1.0),
+                        "frame {f}: a step of {longest:.1} px, median {median:.1}"
+                    );
+                }
+            }
+        }
+        let open = |f: usize| frames[f].iter().flatten().filter(|p| p.open).count();
+        assert_eq!(open(0), 0, "the slit is closed at rest");
+        assert!(open(7) >= 3, "{} open points once pulled", open(7));
     }
 
     #[test]

@@ -3,10 +3,8 @@
 
 use std::path::{Component, Path, PathBuf};
 
-use incise_core::Camera;
 use incise_core::nalgebra::Vector3;
 
-use crate::generate::live::NEVER;
 use crate::generate::object::{TetMesh, interpolate, signed_volume6};
 use crate::generate::scenario::Scenario;
 use crate::generate::tracking::{DepthBuffer, observe_frame, sample_features};
@@ -18,6 +16,7 @@ use crate::scene::{
 };
 
 use super::prepare::rest_silhouette_dice;
+use super::trace::CutTrace;
 use super::{GenError, Progress, Simulation, at_file, write_file};
 
 /// What was generated.
@@ -73,10 +72,10 @@ pub fn rebase_mesh_paths(s: &mut Scenario, from: &Path, to: &Path) {
 }
 
 /// Writes the scene of a simulation into `out`: `scene.toml`, the model mesh, `tracks.csv`
-/// and the ground truth. `gt/cut.csv` holds, each frame, the part of the slit that is open
-/// (all of it for a pre-cut slit, the released pairs of a live cut) and its front, where the
-/// lips still meet (for a live cut, the next pairs to be released); nothing while a live cut
-/// has not started.
+/// and the ground truth. `gt/cut.csv` holds, each frame, the slit's trace on the surface where
+/// the camera sees it ([`CutTrace::rows`]): all of it for a pre-cut slit, the released pairs
+/// of a live cut and its front, where the lips still meet (the next pairs to be released);
+/// nothing while a live cut has not started.
 ///
 /// # Errors
 /// A [`GenError`] naming the file that cannot be written, or the scenario file if its
@@ -115,37 +114,13 @@ pub fn write_scene(
     .map_err(|e| at_file(scenario_path)(&e))?;
     let targets = sample_targets(real, s.object.targets, &mut rng);
 
-    // The true cut line: lips on the original surface, seen at rest, ordered along the slit;
-    // at its front the lips meet, and the front node is its own midpoint.
-    let fine_boundary: std::collections::HashSet<u32> =
-        fine.boundary().iter().flat_map(|b| b.0).collect();
-    let mut lips: Vec<(u32, u32)> = pairs
-        .iter()
-        .copied()
-        .chain(meshes.slit_front.iter().map(|&v| (v, v)))
-        .filter(|&(v, _)| fine_boundary.contains(&v))
-        .filter(|&(v, _)| {
-            depth0
-                .visible(camera, real.nodes[v as usize], tolerance)
-                .is_some()
-        })
-        .collect();
-    order_along_image_line(&mut lips, &real.nodes, camera);
-    // The frame each lip opens; the front never does.
-    let opens: std::collections::HashMap<(u32, u32), u32> = pairs
-        .iter()
-        .copied()
-        .zip(meshes.release.iter().copied())
-        .collect();
-    let lip_release: Vec<u32> = lips
-        .iter()
-        .map(|l| opens.get(l).copied().unwrap_or(NEVER))
-        .collect();
+    // The true cut: the slit's trace on the surface, in chains along it (`trace`).
+    let trace = CutTrace::new(fine, pairs, &meshes.release, &meshes.slit_front);
 
     let mut bar = Progress::new(progress, &s.name, "writing", u64::from(s.frames))?;
     let mut tracks = vec![];
     let mut target_rows = String::from("frame,id,x,y,z\n");
-    let mut cut_rows = String::from("frame,u,v\n");
+    let mut cut_rows = String::from("frame,part,u,v,open\n");
     let mut cut_open_frame = None;
     for frame in 0..s.frames {
         let x = &sim.positions[frame as usize];
@@ -179,22 +154,14 @@ pub fn write_scene(
         if cut_open_frame.is_none() && opening >= 1.0 {
             cut_open_frame = Some(frame);
         }
-        // The open part and its front: the lips that have not opened yet and open next.
-        let started = meshes.release.iter().any(|&r| r <= frame);
-        let front = lip_release
-            .iter()
-            .copied()
-            .filter(|&r| r > frame)
-            .min()
-            .unwrap_or(NEVER);
-        for (&(a, b), &r) in lips.iter().zip(&lip_release) {
-            if !started || (r > frame && r != front) {
-                continue;
-            }
-            let m = [0, 1, 2].map(|k| (x[a as usize][k] + x[b as usize][k]) / 2.0);
-            if let Ok(uv) = camera.project(&Vector3::from(m), 0) {
-                cut_rows.push_str(&format!("{frame},{:.3},{:.3}\n", uv.x, uv.y));
-            }
+        for row in trace.rows(frame, x, camera, depth, tolerance) {
+            cut_rows.push_str(&format!(
+                "{frame},{},{:.3},{:.3},{}\n",
+                row.part,
+                row.uv[0],
+                row.uv[1],
+                u8::from(row.open)
+            ));
         }
         bar.inc();
     }
@@ -295,28 +262,4 @@ fn sample_targets(mesh: &TetMesh, count: usize, rng: &mut Rng) -> Vec<(usize, [f
             (t, e.map(|x| x / sum))
         })
         .collect()
-}
-
-/// Orders lip pairs along the main direction of their projections at rest.
-fn order_along_image_line(lips: &mut [(u32, u32)], nodes: &[[f64; 3]], camera: &Camera<f64>) {
-    let uv: Vec<[f64; 2]> = lips
-        .iter()
-        .map(|&(v, _)| {
-            camera
-                .project(&Vector3::from(nodes[v as usize]), 0)
-                .map_or([0.0, 0.0], |p| [p.x, p.y])
-        })
-        .collect();
-    let Some((mean, dir)) = crate::metrics::principal_axis(&uv) else {
-        return;
-    };
-    let mut keyed: Vec<(f64, (u32, u32))> = lips
-        .iter()
-        .zip(&uv)
-        .map(|(&l, p)| ((p[0] - mean[0]) * dir[0] + (p[1] - mean[1]) * dir[1], l))
-        .collect();
-    keyed.sort_by(|a, b| a.0.total_cmp(&b.0));
-    for (slot, (_, l)) in lips.iter_mut().zip(keyed) {
-        *slot = l;
-    }
 }
