@@ -54,6 +54,7 @@ fn with_model<R>(s: &Scene, f: impl FnOnce(&mut Model<'_, f64>) -> R) -> R {
             young: s.file.model.young,
             poisson: s.file.model.poisson,
             inversion_barrier: s.file.model.inversion_barrier,
+            law: s.file.model.law.core(),
         },
         camera: s.file.camera(&toml).expect("camera"),
         solver: s.file.solver(&toml).expect("solver"),

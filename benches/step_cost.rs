@@ -27,7 +27,7 @@ use faer::sparse::linalg::cholesky::{
 };
 use incise_core::sparse::{LdlFactor, Symbolic, analyse_work_len};
 use incise_core::{
-    Coupling, Material, MeshInput, Model, ModelConfig, Observation, SolverConfig, StepReport,
+    Coupling, Law, Material, MeshInput, Model, ModelConfig, Observation, SolverConfig, StepReport,
     Strategy,
 };
 use incise_validation::callgrind;
@@ -106,6 +106,7 @@ fn config(cam: incise_core::Camera<f64>, strategy: Strategy) -> ModelConfig<f64>
             young: 3.0e4,
             poisson: 0.3,
             inversion_barrier: true,
+            law: Law::SaintVenantKirchhoff,
         },
         camera: cam,
         solver: SolverConfig {

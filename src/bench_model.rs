@@ -4,7 +4,7 @@
 //! set every capacity, down to one too small.
 
 use incise_core::{
-    Camera, Capacities, Coupling, DetectionConfig, Material, MeshCapacity, MeshInput, Model,
+    Camera, Capacities, Coupling, DetectionConfig, Law, Material, MeshCapacity, MeshInput, Model,
     ModelConfig, Observation, SolverConfig, Strategy, analyse_mesh, analyse_mesh_work_len,
 };
 
@@ -97,6 +97,7 @@ impl Bench {
                 young: 3.0e4,
                 poisson: 0.4,
                 inversion_barrier: true,
+                law: Law::SaintVenantKirchhoff,
             },
             camera: self.camera,
             solver: SolverConfig {

@@ -14,7 +14,7 @@ use incise::storage::{ModelStorage, SceneCapacities};
 use incise_core::cut::SNAP_TOLERANCE;
 use incise_core::nalgebra::{Matrix3, Rotation3, Vector3};
 use incise_core::{
-    Camera, Coupling, DetectionConfig, Intrinsics, Material, MeshInput, Model, ModelConfig,
+    Camera, Coupling, DetectionConfig, Intrinsics, Law, Material, MeshInput, Model, ModelConfig,
     Observation, SolverConfig, Strategy as Linear,
 };
 use incise_validation::cutcheck::{
@@ -270,6 +270,7 @@ fn model_config(camera: Camera<f64>) -> ModelConfig<f64> {
             young: 3.0e4,
             poisson: 0.4,
             inversion_barrier: true,
+            law: Law::SaintVenantKirchhoff,
         },
         camera,
         solver: SolverConfig {

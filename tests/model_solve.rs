@@ -3,8 +3,8 @@
 //! solves, and the registration of a box to a deformation made by the same model.
 
 use incise_core::{
-    Coupling, Material, MeshInput, ModelConfig, Observation, Projection, SolverConfig, StepReport,
-    Strategy,
+    Coupling, Law, Material, MeshInput, ModelConfig, Observation, Projection, SolverConfig,
+    StepReport, Strategy,
 };
 use incise_validation::oracle::faer_solve;
 use incise_validation::scene::{ModelStorage, camera, nodes_where, observe};
@@ -25,6 +25,7 @@ fn config(
             young: YOUNG,
             poisson: POISSON,
             inversion_barrier: true,
+            law: Law::SaintVenantKirchhoff,
         },
         camera: cam,
         solver: SolverConfig {
@@ -223,13 +224,21 @@ fn stiffer_springs_pull_no_harder_than_the_default_coupling() {
     }
 }
 
+/// Both laws: they share their Lamé pair at rest, so a small deflection is the same beam.
 #[test]
 fn cantilever_tip_deflection_matches_euler_bernoulli() {
+    for law in [Law::SaintVenantKirchhoff, Law::StableNeoHookean] {
+        cantilever_against_euler_bernoulli(law);
+    }
+}
+
+fn cantilever_against_euler_bernoulli(law: Law) {
     let mut errors = vec![];
     for cells in [[40, 4, 4], [60, 6, 6], [100, 10, 10]] {
         let beam = Cantilever::new(cells);
         let input = beam.input();
         let mut cfg = config(beam.cam, 3.0e-11, Strategy::Refactor, 0.0);
+        cfg.material.law = law;
         cfg.solver.newton_iterations = 3;
         let mut storage = ModelStorage::with_features(&input, 64).unwrap();
         let mut model = storage.model(&input, &cfg).unwrap();
@@ -270,7 +279,7 @@ fn cantilever_tip_deflection_matches_euler_bernoulli() {
             / tip.len() as f64;
         let rel = (measured - predicted).abs() / predicted.abs();
         eprintln!(
-            "cells {cells:?}: tip deflection {measured:.4e} m, Euler–Bernoulli {predicted:.4e} m, relative difference {rel:.3}"
+            "{law:?}, cells {cells:?}: tip deflection {measured:.4e} m, Euler–Bernoulli {predicted:.4e} m, relative difference {rel:.3}"
         );
         assert!(
             predicted.abs() > 1e-4 * beam.length,
@@ -286,6 +295,97 @@ fn cantilever_tip_deflection_matches_euler_bernoulli() {
     // finest mesh must be within 5%.
     assert!(errors.windows(2).all(|w| w[1] < w[0]), "{errors:?}");
     assert!(*errors.last().unwrap() <= 0.05, "{errors:?}");
+}
+
+/// A bar held at one end and pulled by 30 % along its axis at the other narrows as its law
+/// says: at mid-length, away from the clamp, the stretch is uniaxial and the lateral stretch
+/// `t` has a closed form in the axial stretch `λ` measured there. Saint Venant–Kirchhoff:
+/// `S₂₂ = 0` gives `E₂₂ = −λ_L E₁₁ / (2 (λ_L + μ))`, `t² = 1 + 2 E₂₂`; the stable
+/// Neo-Hookean law: `t² = J / λ` with `J = 1 + μ (λ − 1) / (λ (λ_L + μ))`. With `ν = 0.45` the
+/// two differ by 6 %; the mesh and the clamp put both about 1 % above their closed forms.
+#[test]
+fn a_stretched_bar_narrows_as_its_law_says() {
+    let (length, side, poisson) = (0.1, 0.01, 0.45);
+    let mesh = box_mesh([20, 4, 4], [length, side, side]);
+    let fixed = nodes_where(&mesh, 0, 0.0);
+    let cam = camera(
+        [0.065, 0.005, 0.5],
+        [0.065, 0.005, 0.0],
+        [0.0, 1.0, 0.0],
+        2500.0,
+        (1200, 400),
+    );
+    // Features on the last fifth of the top face, pulled along the bar by up to 3 cm
+    // (150 px at 0.2 mm per pixel), in ten frames.
+    let frame0 = observe(&cam, &top_grid(0.08, length, side, side, 6));
+    let pulled = |f: f64| -> Vec<Observation<f64>> {
+        frame0
+            .iter()
+            .map(|o| Observation {
+                id: o.id,
+                uv: [o.uv[0] + 150.0 * f, o.uv[1]],
+            })
+            .collect()
+    };
+    let lame = incise_core::material::Lame::from_young_poisson(YOUNG, poisson).unwrap();
+    let (mu, lambda) = (lame.mu, lame.lambda);
+    for law in [Law::SaintVenantKirchhoff, Law::StableNeoHookean] {
+        let input = MeshInput {
+            rest: &mesh.nodes,
+            tets: &mesh.tets,
+            fixed: &fixed,
+        };
+        let mut cfg = config(cam, 1.0e-6, Strategy::Refactor, 0.0);
+        cfg.material.poisson = poisson;
+        cfg.material.law = law;
+        let mut storage = ModelStorage::with_features(&input, 64).unwrap();
+        let mut model = storage.model(&input, &cfg).unwrap();
+        model.embed_features(&frame0).unwrap();
+        for k in 1..=10 {
+            model.step(&pulled(k as f64 / 10.0)).unwrap();
+        }
+        let last = converge(&mut model, &pulled(1.0));
+        assert!(last.gradient_norm_after < 1e-8, "{law:?}: {last:?}");
+        let x = model.positions();
+        let mean_x = |at: f64| {
+            let v = nodes_where(&mesh, 0, at);
+            v.iter().map(|&n| x[n as usize][0]).sum::<f64>() / v.len() as f64
+        };
+        let stretch = (mean_x(0.06) - mean_x(0.04)) / 0.02;
+        let middle = nodes_where(&mesh, 0, 0.05);
+        let extent = |c: usize| {
+            let (lo, hi) = middle.iter().fold((f64::MAX, f64::MIN), |(lo, hi), &n| {
+                (lo.min(x[n as usize][c]), hi.max(x[n as usize][c]))
+            });
+            (hi - lo) / side
+        };
+        let (ty, tz) = (extent(1), extent(2));
+        let svk = {
+            let e11 = 0.5 * (stretch * stretch - 1.0);
+            (1.0 - lambda * e11 / (lambda + mu)).sqrt()
+        };
+        let snh = {
+            let j = 1.0 + mu * (stretch - 1.0) / (stretch * (lambda + mu));
+            (j / stretch).sqrt()
+        };
+        let (predicted, other) = match law {
+            Law::SaintVenantKirchhoff => (svk, snh),
+            Law::StableNeoHookean => (snh, svk),
+        };
+        eprintln!(
+            "{law:?}: axial stretch {stretch:.4} at mid-length, lateral {ty:.4} (y) {tz:.4} (z), closed form {predicted:.4}"
+        );
+        assert!(stretch > 1.2, "{law:?}: the bar is stretched by {stretch}");
+        // Within 2 % of its own closed form (the clamp and the mesh), and far nearer it than
+        // the other law's.
+        for t in [ty, tz] {
+            assert!(
+                (t - predicted).abs() <= 0.02 * predicted
+                    && (t - predicted).abs() < (t - other).abs() / 3.0,
+                "{law:?}: lateral stretch {t:.4}, closed form {predicted:.4}, the other law's {other:.4}"
+            );
+        }
+    }
 }
 
 /// `Coupling::Relative(β)` sets `k = β·E·s/m³` when the features are embedded: checked
@@ -337,9 +437,18 @@ fn the_coupling_derived_from_the_scene_matches_its_closed_form() {
 
 #[test]
 fn converged_refactor_solve_matches_a_newton_loop_solved_by_faer() {
+    for law in [Law::SaintVenantKirchhoff, Law::StableNeoHookean] {
+        refactor_solve_against_faer(law);
+    }
+}
+
+/// The springs pull the beam's end far (a large deflection, where the two laws differ); each
+/// law's own solve against a plain Newton loop on its linearization, solved by faer.
+fn refactor_solve_against_faer(law: Law) {
     let beam = Cantilever::new([20, 2, 2]);
     let input = beam.input();
-    let cfg = config(beam.cam, 2.0e-7, Strategy::Refactor, 0.0);
+    let mut cfg = config(beam.cam, 2.0e-7, Strategy::Refactor, 0.0);
+    cfg.material.law = law;
 
     let mut storage = ModelStorage::with_features(&input, 64).unwrap();
     let mut ours = storage.model(&input, &cfg).unwrap();
@@ -391,7 +500,7 @@ fn converged_refactor_solve_matches_a_newton_loop_solved_by_faer() {
         .map(|(a, b)| (0..3).map(|c| (a[c] - b[c]).powi(2)).sum::<f64>())
         .sum::<f64>()
         .sqrt();
-    eprintln!("displacement norm {disp:.3e} m, difference to the faer solve {diff:.3e} m");
+    eprintln!("{law:?}: displacement norm {disp:.3e} m, difference to the faer solve {diff:.3e} m");
     assert!(diff <= 1e-8 * disp, "relative difference {:e}", diff / disp);
 }
 
@@ -749,6 +858,7 @@ fn the_model_runs_in_f32() {
             young: YOUNG as f32,
             poisson: POISSON as f32,
             inversion_barrier: true,
+            law: Law::SaintVenantKirchhoff,
         },
         camera: cam32,
         solver: SolverConfig {

@@ -109,6 +109,7 @@ pub use cut::{CutEvent, CutReport, CutWork};
 pub use cutline::LineWork;
 pub use detect::{DetectionConfig, DetectionWork};
 pub use features::{EmbedReport, Observation};
+pub use material::Law;
 pub use mesh::{MeshCapacity, MeshInput};
 pub use model::{
     Capacities, Linearization, MAX_STORAGE_LEN, Material, MeshAnalysis, Model, ModelBuffers,

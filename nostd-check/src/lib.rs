@@ -35,7 +35,7 @@ pub extern "C" fn incise_nostd_check_step() -> i32 {
 fn step() -> Result<bool, incise_core::Error> {
     use incise_core::nalgebra::{Matrix3, Vector3};
     use incise_core::{
-        Camera, Capacities, Coupling, Intrinsics, Material, MeshCapacity, MeshInput, Model, ModelBuffers,
+        Camera, Capacities, Coupling, Intrinsics, Law, Material, MeshCapacity, MeshInput, Model, ModelBuffers,
         ModelConfig, ModelSize, Observation, SolverConfig, Strategy,
     };
     const CX: usize = 4;
@@ -80,6 +80,7 @@ fn step() -> Result<bool, incise_core::Error> {
             young: 3.0e4,
             poisson: 0.3,
             inversion_barrier: true,
+            law: Law::SaintVenantKirchhoff,
         },
         camera,
         solver: SolverConfig {
@@ -223,7 +224,7 @@ pub extern "C" fn incise_nostd_check_cut() -> i32 {
 fn cut() -> Result<bool, incise_core::Error> {
     use incise_core::nalgebra::{Matrix3, Vector3};
     use incise_core::{
-        Camera, Coupling, Intrinsics, Material, MeshInput, Model, ModelBuffers, ModelConfig, Observation,
+        Camera, Coupling, Intrinsics, Law, Material, MeshInput, Model, ModelBuffers, ModelConfig, Observation,
         SolverConfig, Strategy,
     };
     use static_storage::{CELLS, NODES, SIZE, TETS};
@@ -263,6 +264,7 @@ fn cut() -> Result<bool, incise_core::Error> {
             young: 3.0e4,
             poisson: 0.3,
             inversion_barrier: true,
+            law: Law::SaintVenantKirchhoff,
         },
         camera,
         solver: SolverConfig {

@@ -39,7 +39,7 @@ use crate::detect::{DetectionReport, DetectionWork, Detector};
 use crate::embed::{Embedding, locate_at_rest};
 use crate::error::{Error, Resource};
 use crate::features::{EmbedReport, Features, Observation, image_bounds, spacing_px};
-use crate::material::{InversionBarrier, Lame};
+use crate::material::{InversionBarrier, Lame, Law};
 use crate::mesh::{Mesh, MeshInput};
 use crate::real::Real;
 use crate::solve::{Coupling, Energies, MIXED_REFINEMENT_STEPS, SolverConfig, Strategy, WorkCount};
@@ -57,10 +57,14 @@ pub struct Material<T> {
     pub young: T,
     /// Poisson ratio, dimensionless, in `(-1, 0.5)`.
     pub poisson: T,
-    /// Adds [`InversionBarrier::for_material`] to the SVK energy: elements compressed below
+    /// Adds [`InversionBarrier::for_material`] to the energy: elements compressed below
     /// `det F = 1/√3` are pushed back, and inverted ones out again (SVK alone lets strong
-    /// springs turn elements inside out for good). Off, the energy is SVK's alone, bit for bit.
+    /// springs turn elements inside out for good). Off, the energy is the law's alone, bit for
+    /// bit.
     pub inversion_barrier: bool,
+    /// The strain energy law ([`Law::SaintVenantKirchhoff`], the paper's, or
+    /// [`Law::StableNeoHookean`]).
+    pub law: Law,
 }
 
 /// Everything a model needs besides its mesh.
@@ -88,6 +92,7 @@ impl<T: Real> ModelConfig<T> {
                 young: U::of(self.material.young.to_f64()),
                 poisson: U::of(self.material.poisson.to_f64()),
                 inversion_barrier: self.material.inversion_barrier,
+                law: self.material.law,
             },
             camera: self.camera.cast()?,
             solver: self.solver.cast(),

@@ -10,8 +10,7 @@ use crate::embed::Embedding;
 use crate::error::{Error, Resource};
 use crate::features::Features;
 use crate::material::{
-    ElementRest, InversionBarrier, Lame, PAIRS, TangentProjection, displacement_gradient,
-    element_energy_of_h, element_eval_upper_of_h, element_gradient_of_h,
+    ElementRest, InversionBarrier, Lame, Law, PAIRS, TangentProjection, displacement_gradient,
 };
 use crate::mesh::Mesh;
 use crate::real::Real;
@@ -21,6 +20,8 @@ use crate::storage::ensure_len;
 /// Everything the assembly reads, borrowed from the model.
 pub(crate) struct Problem<'p, 'a, T: Real> {
     pub mesh: &'p Mesh<'a, T>,
+    /// The material's strain energy law.
+    pub law: Law,
     pub lame: Lame<T>,
     /// The inversion barrier added to the elastic energy, if the material has one.
     pub barrier: Option<InversionBarrier<T>>,
@@ -121,7 +122,7 @@ impl<T: Real> Problem<'_, '_, T> {
             let rest = self.element_rest(t)?;
             let g = rest.shape_gradients();
             let h = displacement_gradient(&self.element_u(t, tet, x)?, &g);
-            e.elastic += element_energy_of_h(&self.lame, rest.volume, &h);
+            e.elastic += self.law.element_energy_of_h(&self.lame, rest.volume, &h);
             if let Some(barrier) = &self.barrier {
                 e.elastic += barrier.element_energy(rest.volume, &h);
             }
@@ -240,7 +241,7 @@ impl<T: Real> Problem<'_, '_, T> {
             let ft = free_of(free, tet);
             let gradient = match hessian.as_deref_mut() {
                 Some(h) => {
-                    let mut eval = element_eval_upper_of_h(
+                    let mut eval = self.law.element_eval_upper_of_h(
                         &self.lame,
                         rest.volume,
                         &g,
@@ -268,8 +269,10 @@ impl<T: Real> Problem<'_, '_, T> {
                     eval.gradient
                 }
                 None => {
-                    e.elastic += element_energy_of_h(&self.lame, rest.volume, &du);
-                    let mut gradient = element_gradient_of_h(&self.lame, rest.volume, &g, &du);
+                    e.elastic += self.law.element_energy_of_h(&self.lame, rest.volume, &du);
+                    let mut gradient =
+                        self.law
+                            .element_gradient_of_h(&self.lame, rest.volume, &g, &du);
                     if let Some(barrier) = &self.barrier {
                         barrier.add_element_gradient(
                             rest.volume,

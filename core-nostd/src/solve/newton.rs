@@ -430,6 +430,7 @@ fn problem_of<'p, 'a, T: Real>(
     } = coefficients;
     Ok(Problem {
         mesh: &d.mesh,
+        law: config.material.law,
         lame,
         barrier,
         camera: &config.camera,

@@ -8,10 +8,13 @@ pub(super) fn run_command(
     json: bool,
     out: Option<PathBuf>,
     true_cut: bool,
-    real: Precision,
+    (real, law): (Precision, Option<ModelLaw>),
 ) -> Result<(), Failure> {
     let mut scene = Scene::load(dir).map_err(|e| e.to_string())?;
     scene.precision = real;
+    if let Some(law) = law {
+        scene.file.model.law = law;
+    }
     let options = RunOptions {
         out: out.clone(),
         progress: !json,
@@ -44,7 +47,7 @@ pub(super) fn print_summary(
 pub(super) fn table_command(
     dirs: &[PathBuf],
     true_cut: bool,
-    real: Precision,
+    (real, law): (Precision, Option<ModelLaw>),
 ) -> Result<(), Failure> {
     let mut rows = vec![];
     let options = RunOptions {
@@ -54,6 +57,9 @@ pub(super) fn table_command(
     for dir in dirs {
         let mut scene = Scene::load(dir).map_err(|e| e.to_string())?;
         scene.precision = real;
+        if let Some(law) = law {
+            scene.file.model.law = law;
+        }
         let (summary, _) = run_scene(&scene, &options).map_err(|e| e.to_string())?;
         rows.push(summary);
     }

@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use clap::{Parser, Subcommand};
 
 use crate::run::{RunOptions, run_scene};
-use crate::scene::{Precision, Scene};
+use crate::scene::{ModelLaw, Precision, Scene};
 
 /// incise: keeps a pre-operative organ model aligned with endoscopic video while the surgeon
 /// cuts (Paulus et al., MICCAI 2015).
@@ -47,6 +47,9 @@ pub enum Command {
         /// The scalar type the core computes in (the host measures in f64 either way).
         #[arg(long, value_enum, default_value_t = Precision::F64)]
         real: Precision,
+        /// The model's strain energy law, in place of the scene's `[model] law`.
+        #[arg(long, value_enum)]
+        law: Option<ModelLaw>,
         // --- OpenCV video driver (options present in every build; they need `opencv`) ---
         /// Track this video (KLT) instead of reading the scene's tracks.csv, in one streaming
         /// pass (needs the `opencv` feature).
@@ -87,6 +90,9 @@ pub enum Command {
         /// The scalar type the core computes in (the host measures in f64 either way).
         #[arg(long, value_enum, default_value_t = Precision::F64)]
         real: Precision,
+        /// The model's strain energy law, in place of each scene's `[model] law`.
+        #[arg(long, value_enum)]
+        law: Option<ModelLaw>,
     },
     /// Write one page (index.html, with its figures as SVG and its data as CSV and JSON) on
     /// the scenes: error against run time over solver settings with the Pareto front and a
@@ -299,9 +305,10 @@ pub fn run(cli: Cli) -> i32 {
             out,
             true_cut,
             real,
+            law,
             video: None,
             calibration: _,
-        } => run_command(&scene, json, out, true_cut, real),
+        } => run_command(&scene, json, out, true_cut, (real, law)),
         Command::Run {
             scene,
             json,
@@ -356,7 +363,8 @@ pub fn run(cli: Cli) -> i32 {
             scenes,
             true_cut,
             real,
-        } => table_command(&scenes, true_cut, real),
+            law,
+        } => table_command(&scenes, true_cut, (real, law)),
         Command::Sweep { scene, out } => sweep_command(&scene, out.as_deref()),
         Command::Instructions {
             scene,

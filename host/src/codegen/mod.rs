@@ -265,7 +265,7 @@ fn emit(s: &mut String, e: &Emit<'_>) {
          use incise_core::sparse::{PrecomputedAnalysis, SymbolicSize};\n\
          #[allow(unused_imports)]\n\
          use incise_core::{\n    \
-             Camera, Capacities, Coupling, DetectionConfig, Error, Intrinsics, Material, \
+             Camera, Capacities, Coupling, DetectionConfig, Error, Intrinsics, Law, Material, \
              MeshCapacity, MeshInput,\n    ModelConfig, ModelSize, Observation, Projection, SolverConfig, Strategy,\n};\n\n",
     );
     let _ = writeln!(
@@ -372,7 +372,7 @@ fn emit(s: &mut String, e: &Emit<'_>) {
          let camera = Camera::with_projection(\n        Projection::{projection:?},\n        Intrinsics {{\n            fx: {},\n            fy: {},\n            \
          cx: {},\n            cy: {},\n            width: {},\n            height: {},\n        }},\n        \
          Matrix3::new({}, {}, {}, {}, {}, {}, {}, {}, {}),\n        Vector3::new({}, {}, {}),\n        {},\n    )?;\n    \
-         Ok(ModelConfig {{\n        material: Material {{\n            young: {},\n            poisson: {},\n            inversion_barrier: {},\n        }},\n        \
+         Ok(ModelConfig {{\n        material: Material {{\n            young: {},\n            poisson: {},\n            inversion_barrier: {},\n            law: Law::{:?},\n        }},\n        \
          camera,\n        solver: SolverConfig {{\n            strategy: {strategy},\n            \
          newton_iterations: {},\n            line_search_steps: {},\n            coupling: {},\n            \
          spring_threshold: {},\n            damping: {},\n            depth_prior: {},\n            image_margin: {},\n        }},\n        \
@@ -399,6 +399,7 @@ fn emit(s: &mut String, e: &Emit<'_>) {
         real(cfg.material.young),
         real(cfg.material.poisson),
         cfg.material.inversion_barrier,
+        cfg.material.law,
         sv.newton_iterations,
         sv.line_search_steps,
         match sv.coupling {

@@ -249,10 +249,19 @@ pub struct TrackingSection {
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct ModelSpec {
-    /// Young's modulus of the model (SVK), pascals.
+    /// Young's modulus of the model, pascals.
     pub young: f64,
     /// Poisson ratio of the model.
     pub poisson: f64,
+    /// The model's strain energy law (`scene.toml`'s `[model] law`; SVK by default).
+    #[serde(default, skip_serializing_if = "is_svk")]
+    pub law: crate::scene::ModelLaw,
+}
+
+// serde hands the field by reference.
+#[allow(clippy::trivially_copy_pass_by_ref)]
+fn is_svk(law: &crate::scene::ModelLaw) -> bool {
+    *law == crate::scene::ModelLaw::default()
 }
 
 impl Scenario {

@@ -4,13 +4,15 @@
 use incise_core::{CutWork, DetectionWork, LineWork, Observation, WorkCount};
 use serde::Serialize;
 
-use crate::scene::{Precision, Scene};
+use crate::scene::{ModelLaw, Precision, Scene};
 
 /// What `incise run --json` prints.
 #[derive(Clone, Debug, Serialize, PartialEq)]
 pub struct Summary {
     /// The scalar type the core computed in.
     pub precision: Precision,
+    /// The model's strain energy law.
+    pub law: ModelLaw,
     /// Scene name.
     pub scene: String,
     /// Frames, frame 0 included.
@@ -281,6 +283,7 @@ impl Summary {
             pairs_lost: trace.detection.pairs_lost,
             features_filtered: trace.detection.features_filtered,
             precision: scene.precision,
+            law: scene.file.model.law,
             feature_spacing_px: trace.detection.spacing_px,
             spring_stiffness: trace.spring_stiffness,
             spring_threshold_px: Some(trace.spring_threshold_px).filter(|d| d.is_finite()),

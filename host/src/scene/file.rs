@@ -56,6 +56,37 @@ pub struct ModelSection {
     /// ([`incise_core::material::InversionBarrier`]); on unless a scene turns it off.
     #[serde(default = "yes", skip_serializing_if = "is_yes")]
     pub inversion_barrier: bool,
+    /// The model's strain energy law (`"saint-venant-kirchhoff"`, the paper's and the default,
+    /// or `"stable-neo-hookean"`).
+    #[serde(default, skip_serializing_if = "ModelLaw::is_default")]
+    pub law: ModelLaw,
+}
+
+/// `[model] law`: the strain energy law of the model ([`incise_core::Law`]).
+#[derive(Clone, Copy, Debug, Default, Serialize, Deserialize, PartialEq, Eq, clap::ValueEnum)]
+#[serde(rename_all = "kebab-case")]
+pub enum ModelLaw {
+    /// Saint Venant–Kirchhoff, the paper's.
+    #[default]
+    SaintVenantKirchhoff,
+    /// Stable Neo-Hookean (Smith, de Goes and Kim 2018, without its log term).
+    StableNeoHookean,
+}
+
+impl ModelLaw {
+    // serde hands the field by reference.
+    #[allow(clippy::trivially_copy_pass_by_ref)]
+    fn is_default(&self) -> bool {
+        *self == ModelLaw::default()
+    }
+
+    /// The core's law.
+    pub fn core(self) -> incise_core::Law {
+        match self {
+            ModelLaw::SaintVenantKirchhoff => incise_core::Law::SaintVenantKirchhoff,
+            ModelLaw::StableNeoHookean => incise_core::Law::StableNeoHookean,
+        }
+    }
 }
 
 fn yes() -> bool {
@@ -456,5 +487,33 @@ mod tests {
         let missing = "name = \"x\"\n";
         let err = SceneFile::parse(missing, Path::new("scene.toml")).unwrap_err();
         assert!(err.message.contains("model"), "{err}");
+    }
+
+    #[test]
+    fn the_law_is_svk_unless_the_scene_names_another() {
+        let base = include_str!("../../../fixtures/band-side-cut/scene.toml");
+        let with_law =
+            |law: &str| base.replacen("[model]\n", &format!("[model]\nlaw = {law}\n"), 1);
+        let file = SceneFile::parse(base, Path::new("scene.toml")).unwrap();
+        assert_eq!(file.model.law, ModelLaw::SaintVenantKirchhoff);
+        assert_eq!(
+            file.model.law.core(),
+            incise_core::Law::SaintVenantKirchhoff
+        );
+        // Written back, the default stays unwritten (the committed scenes do not change).
+        assert!(!toml::to_string(&file).unwrap().contains("law"));
+        let nh =
+            SceneFile::parse(&with_law("\"stable-neo-hookean\""), Path::new("scene.toml")).unwrap();
+        assert_eq!(nh.model.law.core(), incise_core::Law::StableNeoHookean);
+        assert!(
+            toml::to_string(&nh)
+                .unwrap()
+                .contains("law = \"stable-neo-hookean\"")
+        );
+        let err =
+            SceneFile::parse(&with_law("\"mooney-rivlin\""), Path::new("scene.toml")).unwrap_err();
+        let line = base.lines().position(|l| l == "[model]").unwrap() + 2;
+        assert_eq!(err.line, line, "{err}");
+        assert!(err.message.contains("stable-neo-hookean"), "{err}");
     }
 }

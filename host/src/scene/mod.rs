@@ -31,8 +31,8 @@ mod file;
 mod formats;
 
 pub use file::{
-    CameraSection, DetectionSection, GroundTruthSection, ModelSection, SceneFile, SolverSection,
-    default_depth_prior,
+    CameraSection, DetectionSection, GroundTruthSection, ModelLaw, ModelSection, SceneFile,
+    SolverSection, default_depth_prior,
 };
 pub use formats::{
     CutParts, CutPoint, Surface, read_cut_csv, read_obj, read_points_csv, read_tracks, write_obj,
@@ -133,6 +133,7 @@ impl Scene {
                 young: self.file.model.young,
                 poisson: self.file.model.poisson,
                 inversion_barrier: self.file.model.inversion_barrier,
+                law: self.file.model.law.core(),
             },
             camera: self.file.camera(&toml)?,
             solver: self.file.solver(&toml)?,

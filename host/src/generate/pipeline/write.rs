@@ -73,7 +73,7 @@ pub fn rebase_mesh_paths(s: &mut Scenario, from: &Path, to: &Path) {
 
 /// Writes the scene of a simulation into `out`: `scene.toml`, the model mesh, `tracks.csv`
 /// and the ground truth. `gt/cut.csv` holds, each frame, the slit's trace on the surface where
-/// the camera sees it ([`CutTrace::rows`]): all of it for a pre-cut slit, the released pairs
+/// the camera sees it (`trace::CutTrace::rows`): all of it for a pre-cut slit, the released pairs
 /// of a live cut and its front, where the lips still meet (the next pairs to be released);
 /// nothing while a live cut has not started.
 ///
@@ -191,6 +191,7 @@ pub fn write_scene(
             young: s.model.young,
             poisson: s.model.poisson,
             inversion_barrier: true,
+            law: s.model.law,
         },
         camera: CameraSection {
             fx: camera.intrinsics().fx,
