@@ -161,6 +161,8 @@ pub struct EvalOptions {
     pub fresh: bool,
     /// Show a progress bar.
     pub progress: bool,
+    /// The model's strain energy law in place of each variant's (`None`: the variant's own).
+    pub law: Option<crate::scene::ModelLaw>,
 }
 
 /// Whether `dir` holds the scene of scenario `s` (drawn relative to `base`) already.
@@ -215,7 +217,10 @@ pub fn eval_family(family_path: &Path, options: &EvalOptions) -> Result<FamilySu
             generate_scenario(s, &base, &dir, false).map_err(|e| format!("{}: {e}", s.name))?;
         }
         bar.set_message(format!("{} (running)", s.name));
-        let scene = Scene::load(&dir).map_err(|e| format!("{}: {e}", s.name))?;
+        let mut scene = Scene::load(&dir).map_err(|e| format!("{}: {e}", s.name))?;
+        if let Some(law) = options.law {
+            scene.file.model.law = law;
+        }
         let (summary, _) =
             run_scene(&scene, &RunOptions::default()).map_err(|e| format!("{}: {e}", s.name))?;
         results.push(variant_result(&s.name, kind, summary));

@@ -110,6 +110,7 @@ fn families_meet_the_detection_acceptance() {
         selection: Selection::default(),
         fresh: false,
         progress: false,
+        law: None,
     };
     let done: Vec<_> = families()
         .iter()

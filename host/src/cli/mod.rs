@@ -182,6 +182,9 @@ pub enum Command {
         /// Print JSON (every family with every variant) instead of tables.
         #[arg(long)]
         json: bool,
+        /// The model's strain energy law in place of each variant's `[model] law`.
+        #[arg(long, value_enum)]
+        law: Option<ModelLaw>,
     },
     /// Write one scene as a Rust module for a firmware build (`firmware/`): mesh, camera,
     /// settings, capacities and `const` buffer lengths, the uncut mesh's precomputed ordering
@@ -330,6 +333,7 @@ pub fn run(cli: Cli) -> i32 {
             fresh,
             variants,
             json,
+            law,
         } => eval_command(
             &families,
             &crate::eval::EvalOptions {
@@ -337,6 +341,7 @@ pub fn run(cli: Cli) -> i32 {
                 selection: crate::eval::Selection { per_kind },
                 fresh,
                 progress: true,
+                law,
             },
             variants,
             json,
