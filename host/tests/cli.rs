@@ -48,6 +48,42 @@ fn run_json_is_one_object() {
     assert!(v["cut_detected_frame"].is_null());
 }
 
+/// `--pairs` draws the detector's split pairs (orange) on the overlays: none at frame 0,
+/// many once the side cut is found (frame 7).
+#[test]
+fn run_draws_the_detector_pairs_when_asked() {
+    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/../fixtures/band-side-cut");
+    let tmp = tempfile::tempdir().unwrap();
+    let (plain, pairs) = (tmp.path().join("plain"), tmp.path().join("pairs"));
+    for (out, extra) in [(&plain, None), (&pairs, Some("--pairs"))] {
+        let output = incise()
+            .args(["run", scene, "--json", "--out"])
+            .arg(out)
+            .args(extra)
+            .output()
+            .unwrap();
+        assert!(
+            output.status.success(),
+            "{}",
+            String::from_utf8_lossy(&output.stderr)
+        );
+    }
+    let split = image::Rgb([255u8, 160, 0]);
+    let count = |dir: &std::path::Path, f: &str| {
+        let img = image::open(dir.join(f)).unwrap().to_rgb8();
+        img.pixels().filter(|p| **p == split).count()
+    };
+    // At frame 0 no pair is split: the legend's swatch is the only orange added.
+    let legend = count(&pairs, "frame_0000.png") - count(&plain, "frame_0000.png");
+    assert!((50..200).contains(&legend), "{legend}");
+    let with = count(&pairs, "frame_0009.png") - legend;
+    let without = count(&plain, "frame_0009.png");
+    assert!(
+        with > without + 200,
+        "{with} orange pixels with --pairs, {without} without"
+    );
+}
+
 #[test]
 fn a_missing_scene_is_a_clear_error() {
     let output = incise()

@@ -8,10 +8,11 @@ pub(super) fn run_command(
     json: bool,
     out: Option<PathBuf>,
     true_cut: bool,
-    (real, law): (Precision, Option<ModelLaw>),
+    (real, law, pairs): (Precision, Option<ModelLaw>, bool),
 ) -> Result<(), Failure> {
     let mut scene = Scene::load(dir).map_err(|e| e.to_string())?;
     scene.precision = real;
+    scene.overlay_pairs = pairs;
     if let Some(law) = law {
         scene.file.model.law = law;
     }
@@ -340,7 +341,7 @@ pub(super) fn run_video_command(
     video: &Path,
     _: Option<&Path>,
     _: bool,
-    _: Option<PathBuf>,
+    _: (Option<PathBuf>, bool),
 ) -> Result<(), Failure> {
     Err(format!("--video {}: {NO_OPENCV}", video.display()).into())
 }
@@ -392,12 +393,13 @@ pub(super) fn run_video_command(
     video: &Path,
     calibration: Option<&Path>,
     json: bool,
-    out: Option<PathBuf>,
+    (out, pairs): (Option<PathBuf>, bool),
 ) -> Result<(), Failure> {
     use crate::run::{FrameSink, VideoFrames, run_scene_with};
     use crate::video::VideoSink;
 
-    let (scene, calibration) = video_scene(dir, calibration)?;
+    let (mut scene, calibration) = video_scene(dir, calibration)?;
+    scene.overlay_pairs = pairs;
     let mut frames = VideoFrames::open(video, &scene, calibration).map_err(|e| e.to_string())?;
     let mut sink = match &out {
         Some(dir) => {

@@ -50,6 +50,11 @@ pub enum Command {
         /// The model's strain energy law, in place of the scene's `[model] law`.
         #[arg(long, value_enum)]
         law: Option<ModelLaw>,
+        /// Also draw the detector's evidence on the overlays (with --out or --video): the
+        /// neighbour pairs that are outliers in the frame (magenta) and those counted as split
+        /// (orange), between their features.
+        #[arg(long)]
+        pairs: bool,
         // --- OpenCV video driver (options present in every build; they need `opencv`) ---
         /// Track this video (KLT) instead of reading the scene's tracks.csv, in one streaming
         /// pass (needs the `opencv` feature).
@@ -309,17 +314,19 @@ pub fn run(cli: Cli) -> i32 {
             true_cut,
             real,
             law,
+            pairs,
             video: None,
             calibration: _,
-        } => run_command(&scene, json, out, true_cut, (real, law)),
+        } => run_command(&scene, json, out, true_cut, (real, law, pairs)),
         Command::Run {
             scene,
             json,
             out,
+            pairs,
             video: Some(video),
             calibration,
             ..
-        } => run_video_command(&scene, &video, calibration.as_deref(), json, out),
+        } => run_video_command(&scene, &video, calibration.as_deref(), json, (out, pairs)),
         Command::Track {
             video,
             scene,

@@ -200,6 +200,10 @@ pub mod colour {
     pub const TRUE_CUT: [u8; 3] = [255, 0, 255];
     /// Internal targets.
     pub const TARGET: [u8; 3] = [255, 255, 255];
+    /// Neighbour pairs that are outliers in the frame (`incise run --pairs`).
+    pub const OUTLIER_PAIR: [u8; 3] = [200, 0, 200];
+    /// Neighbour pairs counted as split (`incise run --pairs`).
+    pub const SPLIT_PAIR: [u8; 3] = [255, 160, 0];
 }
 
 impl Canvas {

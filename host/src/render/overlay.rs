@@ -22,6 +22,9 @@ pub struct Overlay<'a> {
     pub virtual_features: &'a [[f64; 2]],
     /// The detector's separation points of the frame, pixels.
     pub separation_points: &'a [[f64; 2]],
+    /// The detector's evidence, if asked for: the neighbour pairs that are outliers in the
+    /// frame and those counted as split, as segments between their features, pixels.
+    pub pairs: Option<&'a DetectorPairs>,
     /// The model's node positions and boundary triangles (copied out of the model by the caller, who
     /// also measures with them).
     pub positions: &'a [[f64; 3]],
@@ -43,6 +46,15 @@ pub struct Overlay<'a> {
     pub dice: f64,
     /// Target error of the frame, millimetres (NaN without a ground truth).
     pub target_error_mm: f64,
+}
+
+/// The neighbour pairs an overlay draws ([`Overlay::pairs`]).
+#[derive(Clone, Debug, Default)]
+pub struct DetectorPairs {
+    /// Outliers in the frame, not (yet) split.
+    pub outliers: Vec<[[f64; 2]; 2]>,
+    /// Counted as split: across the cut.
+    pub split: Vec<[[f64; 2]; 2]>,
 }
 
 /// Draws the overlay: background (picture or true silhouette), the model tinted with its front
@@ -77,6 +89,14 @@ pub fn draw(o: &Overlay<'_>) -> Canvas {
     for line in o.true_cut.unwrap_or_default() {
         canvas.polyline(line, colour::TRUE_CUT, 1);
     }
+    if let Some(pairs) = o.pairs {
+        for &[a, b] in &pairs.outliers {
+            canvas.line(a, b, colour::OUTLIER_PAIR);
+        }
+        for &[a, b] in &pairs.split {
+            canvas.line(a, b, colour::SPLIT_PAIR);
+        }
+    }
     for &p in o.separation_points {
         canvas.dot(p, 1.0, colour::CUT);
     }
@@ -108,6 +128,10 @@ pub fn draw(o: &Overlay<'_>) -> Canvas {
         legend.push((colour::TRUE_CUT, "true cut"));
     }
     legend.push((colour::CUT, "detected cut"));
+    if o.pairs.is_some() {
+        legend.push((colour::OUTLIER_PAIR, "outlier pairs"));
+        legend.push((colour::SPLIT_PAIR, "split pairs"));
+    }
     canvas.legend(&legend);
     canvas
 }

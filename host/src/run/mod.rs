@@ -28,7 +28,7 @@ pub use sources::VideoFrames;
 pub use sources::{FrameSource, SourceFrame, TrackSource, rest_silhouette};
 pub use trace::{CutTrace, DetectionTrace, FrameHealth, FrameRecord, FrameWork, Summary, Trace};
 
-use crate::render::overlay::{self, Overlay};
+use crate::render::overlay::{self, DetectorPairs, Overlay};
 use crate::render::silhouette;
 use crate::scene::{Precision, Scene, SceneError};
 use crate::storage::{ModelStorage, StorageError};
@@ -335,6 +335,7 @@ fn run_pass_in<T: Real, F: Real>(
                 .collect();
             let separation_points: Vec<[f64; 2]> =
                 model.detector().points().iter().map(to_f64).collect();
+            let pairs = scene.overlay_pairs.then(|| detector_pairs(&model));
             let true_cut = truth.as_ref().and_then(|t| t.cut_at(f));
             let canvas = overlay::draw(&Overlay {
                 scene: &scene.file.name,
@@ -343,6 +344,7 @@ fn run_pass_in<T: Real, F: Real>(
                 picture: frame.image.as_ref(),
                 virtual_features: &virtual_features,
                 separation_points: &separation_points,
+                pairs: pairs.as_ref(),
                 positions: &x,
                 surface: &surface,
                 model_mask: &measure.model_mask,
@@ -394,6 +396,26 @@ fn run_pass_in<T: Real, F: Real>(
         spring_threshold_px: model.spring_threshold_px().to_f64(),
         model_bytes,
     })
+}
+
+/// The detector's outlier and split pairs as segments between their features' latest
+/// positions (the overlay's `--pairs`).
+fn detector_pairs<T: Real, F: Real>(model: &Model<'_, T, F>) -> DetectorPairs {
+    let detector = model.detector();
+    let seen = model.features().targets();
+    let mut pairs = DetectorPairs::default();
+    for (k, &[i, j]) in detector.pairs().iter().enumerate() {
+        let (Some(a), Some(b)) = (seen.get(i as usize), seen.get(j as usize)) else {
+            continue;
+        };
+        let segment = [to_f64(a), to_f64(b)];
+        if detector.is_split(k) {
+            pairs.split.push(segment);
+        } else if detector.is_outlier(k) {
+            pairs.outliers.push(segment);
+        }
+    }
+    pairs
 }
 
 /// Runs a scene and summarises it (with cutting on, and, for the `_uncut` figures, off).

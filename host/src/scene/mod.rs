@@ -79,6 +79,10 @@ impl std::error::Error for SceneError {}
 pub struct Scene {
     /// The scalar type the core runs this scene in (`incise run --real`); `f64` as loaded.
     pub precision: Precision,
+    /// Whether a run's overlays also draw the detector's evidence: the neighbour pairs that
+    /// are outliers in the frame and those counted as split (`incise run --pairs`); off as
+    /// loaded.
+    pub overlay_pairs: bool,
     /// The scene directory.
     pub dir: PathBuf,
     /// `scene.toml` as read.
@@ -286,6 +290,7 @@ impl Scene {
         }
         Ok(Scene {
             precision: Precision::F64,
+            overlay_pairs: false,
             dir: dir.to_path_buf(),
             file,
             rest,

@@ -231,6 +231,13 @@ impl<'a, T: Real> Detector<'a, T> {
         self.pair_state.get(k).is_some_and(|s| s & SPLIT != 0)
     }
 
+    /// Whether pair `k` was an outlier in the last frame (its difference beyond what the frame
+    /// explains), split or not: with [`Detector::pairs`], for a caller that draws the
+    /// detector's evidence.
+    pub fn is_outlier(&self, k: usize) -> bool {
+        self.pair_state.get(k).is_some_and(|s| s & OUTLIER != 0)
+    }
+
     /// The pairs counted as split so far, for the cut line to tell the lips apart.
     pub fn split_pairs(&self) -> SplitPairs<'_> {
         SplitPairs {
