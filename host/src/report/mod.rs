@@ -8,12 +8,9 @@ use std::path::Path;
 use image::{RgbImage, imageops};
 use plotters::prelude::*;
 
-use incise_core::{Model, Real};
-
 use crate::render::Canvas;
-use crate::run::{FrameRecord, Summary, Trace};
+use crate::run::{Summary, Trace};
 use crate::scene::{Precision, Scene, SolverSection};
-use crate::vtu;
 
 /// A few lines a person reads after a run.
 pub fn human_summary(s: &Summary) -> String {
@@ -469,58 +466,4 @@ pub fn plot_sweep(scene: &str, rows: &[(SweepSetting, Summary)], out: &Path) -> 
         }
     }
     root.present().map_err(|e| e.to_string())
-}
-
-/// Writes the model as it is (cut, with its lips apart) as a VTU file at `path`, with the
-/// displacement from rest.
-///
-/// # Errors
-/// The I/O error of writing `path`.
-pub fn write_mesh_vtu<T: Real, F: Real>(
-    path: &Path,
-    model: &Model<'_, T, F>,
-) -> std::io::Result<()> {
-    let x: Vec<[f64; 3]> = model.positions().iter().map(|p| p.map(T::to_f64)).collect();
-    let disp: Vec<[f64; 3]> = x
-        .iter()
-        .zip(model.mesh().rest())
-        .map(|(a, b)| {
-            [
-                a[0] - b[0].to_f64(),
-                a[1] - b[1].to_f64(),
-                a[2] - b[2].to_f64(),
-            ]
-        })
-        .collect();
-    vtu::write_vtu(
-        path,
-        &x,
-        model.mesh().tets(),
-        &[("displacement", &disp)],
-        &[],
-    )
-}
-
-/// Writes the per-frame records of a run as CSV (`frames.csv`).
-///
-/// # Errors
-/// The I/O error of writing `path`.
-pub fn write_frames_csv(path: &Path, frames: &[FrameRecord]) -> std::io::Result<()> {
-    let mut csv = String::from(
-        "frame,dice,tre_mm,step_ms,observed,outlier_pairs,separation_points,cut_vertices\n",
-    );
-    for r in frames {
-        csv.push_str(&format!(
-            "{},{:.5},{:.4},{:.3},{},{},{},{}\n",
-            r.frame,
-            r.dice,
-            r.tre_mm,
-            r.ms,
-            r.observed,
-            r.outlier_pairs,
-            r.separation_points,
-            r.cut_vertices
-        ));
-    }
-    std::fs::write(path, csv)
 }

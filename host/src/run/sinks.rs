@@ -1,6 +1,6 @@
 //! Where a run's outputs go: overlay pictures to a [`FrameSink`] (an overlay video) and, with
 //! an output directory, PNG stills, the deformed mesh per frame (VTU, with a `.pvd` series) and
-//! `frames.csv`. The files themselves are written by [`crate::report`] and [`crate::vtu`].
+//! `frames.csv` (the VTU files through [`crate::vtu`]).
 
 use std::path::Path;
 
@@ -8,7 +8,6 @@ use image::RgbImage;
 use incise_core::{Model, Real};
 
 use crate::render::Canvas;
-use crate::report::{write_frames_csv, write_mesh_vtu};
 use crate::run::{FrameRecord, RunError, output};
 use crate::vtu;
 
@@ -85,4 +84,58 @@ impl<'d, 's> Outputs<'d, 's> {
         }
         Ok(())
     }
+}
+
+/// Writes the model as it is (cut, with its lips apart) as a VTU file at `path`, with the
+/// displacement from rest.
+///
+/// # Errors
+/// The I/O error of writing `path`.
+fn write_mesh_vtu<T: Real, F: Real>(
+    path: &Path,
+    model: &Model<'_, T, F>,
+) -> std::io::Result<()> {
+    let x: Vec<[f64; 3]> = model.positions().iter().map(|p| p.map(T::to_f64)).collect();
+    let disp: Vec<[f64; 3]> = x
+        .iter()
+        .zip(model.mesh().rest())
+        .map(|(a, b)| {
+            [
+                a[0] - b[0].to_f64(),
+                a[1] - b[1].to_f64(),
+                a[2] - b[2].to_f64(),
+            ]
+        })
+        .collect();
+    vtu::write_vtu(
+        path,
+        &x,
+        model.mesh().tets(),
+        &[("displacement", &disp)],
+        &[],
+    )
+}
+
+/// Writes the per-frame records of a run as CSV (`frames.csv`).
+///
+/// # Errors
+/// The I/O error of writing `path`.
+fn write_frames_csv(path: &Path, frames: &[FrameRecord]) -> std::io::Result<()> {
+    let mut csv = String::from(
+        "frame,dice,tre_mm,step_ms,observed,outlier_pairs,separation_points,cut_vertices\n",
+    );
+    for r in frames {
+        csv.push_str(&format!(
+            "{},{:.5},{:.4},{:.3},{},{},{},{}\n",
+            r.frame,
+            r.dice,
+            r.tre_mm,
+            r.ms,
+            r.observed,
+            r.outlier_pairs,
+            r.separation_points,
+            r.cut_vertices
+        ));
+    }
+    std::fs::write(path, csv)
 }
