@@ -91,10 +91,7 @@ impl<'d, 's> Outputs<'d, 's> {
 ///
 /// # Errors
 /// The I/O error of writing `path`.
-fn write_mesh_vtu<T: Real, F: Real>(
-    path: &Path,
-    model: &Model<'_, T, F>,
-) -> std::io::Result<()> {
+fn write_mesh_vtu<T: Real, F: Real>(path: &Path, model: &Model<'_, T, F>) -> std::io::Result<()> {
     let x: Vec<[f64; 3]> = model.positions().iter().map(|p| p.map(T::to_f64)).collect();
     let disp: Vec<[f64; 3]> = x
         .iter()
