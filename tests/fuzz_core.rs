@@ -4,7 +4,8 @@
 //!   good and bad input: frames with NaN, ±∞ or huge coordinates, duplicate and unknown ids,
 //!   empty frames, every feature lost, features jumping 50 px, pixels far outside the image;
 //!   hostile positions (`set_positions`), strategies at and beyond their bounds, internal
-//!   targets, cut polylines, new frame-0 features, cuts of the detected line.
+//!   targets, cut polylines, new frame-0 features, cuts of the detected line. Half the
+//!   models run the stable Neo-Hookean law, half SVK (in `meshes` too).
 //! - `meshes`: meshes with degenerate, inverted, duplicated or disconnected elements, bad node
 //!   indices, non-finite coordinates, no fixed node; capacities at and one below what the mesh
 //!   needs; configurations at and beyond every bound. Each mesh the core accepts then takes a
@@ -24,7 +25,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 use incise::storage::OwnedStorage;
 use incise_core::solve::{MAX_LINE_SEARCH_STEPS, MAX_NEWTON_ITERATIONS, MAX_PCG_ITERATIONS};
-use incise_core::{Capacities, Coupling, Error, Model, Observation, Strategy as Linear};
+use incise_core::{Capacities, Coupling, Error, Law, Model, Observation, Strategy as Linear};
 use incise_validation::bench_model::{Bench, SIZE, Snapshot};
 use incise_validation::rng::Rng;
 use proptest::prelude::*;
@@ -174,6 +175,15 @@ fn call() -> impl proptest::strategy::Strategy<Value = Call> {
     ]
 }
 
+/// Either law, each in half the cases.
+fn law_from(rng: &mut Rng) -> Law {
+    if rng.next_u64().is_multiple_of(2) {
+        Law::SaintVenantKirchhoff
+    } else {
+        Law::StableNeoHookean
+    }
+}
+
 fn strategy_from(rng: &mut Rng) -> Linear {
     match rng.next_u64() % 4 {
         0 => Linear::Refactor,
@@ -232,9 +242,12 @@ fn run_sequence(
         }
         s => s,
     };
+    // Half the cases run the stable Neo-Hookean law instead of SVK.
+    let mut config = b.config(strategy);
+    config.material.law = law_from(&mut rng);
     let mut storage = OwnedStorage::<f64>::new(&b.capacities(32, 2000)).unwrap();
     let mut model = storage
-        .model(&b.input(), &b.config(strategy))
+        .model(&b.input(), &config)
         .map_err(|e| TestCaseError::fail(format!("bench refused: {e}")))?;
     let (mut inputs, mut errors) = (0u64, 0u64);
     model
@@ -393,6 +406,7 @@ fn run_mesh(cells: [usize; 3], fault: MeshFault, seed: u64) -> Result<(), TestCa
     let pick = |rng: &mut Rng, n: usize| (rng.next_u64() % n as u64) as usize;
     let mut caps: Capacities = b.capacities(16, 500);
     let mut config = b.config(Linear::Refactor);
+    config.material.law = law_from(&mut rng);
     let features = b.frame0();
     match fault {
         MeshFault::None => {}
