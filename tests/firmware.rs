@@ -109,7 +109,7 @@ fn check_scene(dir: &Path, name: &str, set: &FeatureSet) -> Firmware {
     let module = dir.join(format!("{name}.rs"));
     let generated = codegen::generate(&scene, &CodegenOptions { frames }).unwrap();
     codegen::write(&generated, &module).unwrap();
-    let firmware = footprint::build(&module, set, &dir).unwrap();
+    let firmware = footprint::build(&module, set, generated.law, &dir).unwrap();
     let lib = dir.join("release").join("libincise_firmware.a");
     for file in [&lib, &firmware.exe] {
         let heap = allocator_symbols(file);

@@ -86,6 +86,9 @@ impl fmt::Display for Resource {
 pub enum Parameter {
     /// Young's modulus (must be positive and finite).
     YoungModulus,
+    /// The material's strain energy law: this core was built without it (feature
+    /// `neo-hookean`).
+    Law,
     /// Poisson ratio (must lie in `(-1, 0.5)`).
     PoissonRatio,
     /// Spring stiffness of the feature coupling, given or derived from the scene (positive,
@@ -153,6 +156,9 @@ impl fmt::Display for Parameter {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let s = match self {
             Parameter::YoungModulus => "Young's modulus must be positive and finite",
+            Parameter::Law => {
+                "this material law is not built into the core: enable its feature (neo-hookean)"
+            }
             Parameter::PoissonRatio => "Poisson ratio must lie in (-1, 0.5)",
             Parameter::SpringStiffness => {
                 "spring coupling must be positive and finite (given, or derived from the scene)"

@@ -36,6 +36,7 @@ mod barrier;
 mod eigen3;
 mod element;
 mod law;
+#[cfg(feature = "neo-hookean")]
 mod neohookean;
 
 use nalgebra::{Matrix3, Vector3};
@@ -47,6 +48,7 @@ use law::{energy_density_of_strain, green_strain_of_displacement, stress_from_st
 pub use barrier::InversionBarrier;
 pub use element::{ElementRest, deformation_gradient, displacement_gradient};
 pub use law::{Lame, energy_density, first_piola_kirchhoff, green_strain, second_piola_kirchhoff};
+#[cfg(feature = "neo-hookean")]
 pub use neohookean::{neo_hookean_energy_density, neo_hookean_first_piola_kirchhoff};
 
 /// The strain energy law of the model's material. Both laws take the same Lamé pair and agree
@@ -63,11 +65,21 @@ pub enum Law {
     /// (Smith, de Goes and Kim 2018, without its logarithmic term): the lateral contraction
     /// of rubber under stretch, a restoring volume term under compression and inversion, and
     /// a tangent projected onto its nearest positive semidefinite matrix through the law's
-    /// analytic eigensystem (see [`neo_hookean_energy_density`]).
+    /// analytic eigensystem (the module `neohookean`). Built with the `neo-hookean` feature.
     StableNeoHookean,
 }
 
 impl Law {
+    /// Whether this core was built with the law (SVK always; the stable Neo-Hookean law with
+    /// the `neo-hookean` feature). `Model::new` refuses a law that is not, naming
+    /// [`crate::Parameter::Law`]; the element functions below take it for SVK.
+    pub const fn is_built(self) -> bool {
+        match self {
+            Law::SaintVenantKirchhoff => true,
+            Law::StableNeoHookean => cfg!(feature = "neo-hookean"),
+        }
+    }
+
     /// Element energy `W = V Ψ` (J) from the displacement gradient `h`.
     pub(crate) fn element_energy_of_h<T: Real>(
         self,
@@ -76,8 +88,9 @@ impl Law {
         h: &Matrix3<T>,
     ) -> T {
         match self {
-            Law::SaintVenantKirchhoff => element_energy_of_h(lame, volume, h),
+            #[cfg(feature = "neo-hookean")]
             Law::StableNeoHookean => volume * neohookean::energy_density_of_h(lame, h),
+            _ => element_energy_of_h(lame, volume, h),
         }
     }
 
@@ -90,10 +103,11 @@ impl Law {
         h: &Matrix3<T>,
     ) -> [Vector3<T>; 4] {
         match self {
-            Law::SaintVenantKirchhoff => element_gradient_of_h(lame, volume, g, h),
+            #[cfg(feature = "neo-hookean")]
             Law::StableNeoHookean => {
                 gradient_from_stress(volume, &neohookean::first_piola_of_h(lame, h), g)
             }
+            _ => element_gradient_of_h(lame, volume, g, h),
         }
     }
 
@@ -108,15 +122,17 @@ impl Law {
         projection: TangentProjection,
     ) -> UpperEval<T> {
         match self {
-            Law::SaintVenantKirchhoff => element_eval_upper_of_h(lame, volume, g, h, projection),
+            #[cfg(feature = "neo-hookean")]
             Law::StableNeoHookean => {
                 neohookean::element_eval_upper_of_h(lame, volume, g, h, projection)
             }
+            _ => element_eval_upper_of_h(lame, volume, g, h, projection),
         }
     }
 
     /// Energy, gradient and 12 × 12 tangent of one element under this law (node displacements
-    /// `u` from rest, metres), as [`element_energy_gradient_tangent`] computes them for SVK.
+    /// `u` from rest, metres), as [`element_energy_gradient_tangent`] computes them for SVK;
+    /// a law this core was not built with ([`Law::is_built`]) is taken for SVK.
     pub fn element_energy_gradient_tangent<T: Real>(
         self,
         lame: &Lame<T>,

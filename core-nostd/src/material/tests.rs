@@ -764,228 +764,246 @@ fn works_in_f32() {
     );
 }
 
+/// Which laws this core accepts: SVK always, the stable Neo-Hookean law with its feature (CI
+/// runs the core's tests without it too).
+#[test]
+fn a_law_is_accepted_exactly_when_built() {
+    assert!(Law::SaintVenantKirchhoff.is_built());
+    assert_eq!(
+        Law::StableNeoHookean.is_built(),
+        cfg!(feature = "neo-hookean")
+    );
+}
+
 // The stable Neo-Hookean law.
+#[cfg(feature = "neo-hookean")]
+mod neo_hookean {
+    use super::*;
 
-const SNH: Law = Law::StableNeoHookean;
+    const SNH: Law = Law::StableNeoHookean;
 
-fn snh_energy(
-    l: &Lame<f64>,
-    rest: &ElementRest<f64>,
-    g: &[Vector3<f64>; 4],
-    x: &[[f64; 3]; 4],
-) -> f64 {
-    SNH.element_energy_of_h(l, rest.volume, &displacement_gradient(x, g))
-}
-
-fn snh_gradient(
-    l: &Lame<f64>,
-    rest: &ElementRest<f64>,
-    g: &[Vector3<f64>; 4],
-    x: &[[f64; 3]; 4],
-) -> [f64; 12] {
-    flat(&SNH.element_gradient_of_h(l, rest.volume, g, &displacement_gradient(x, g)))
-}
-
-/// The map from node displacements (12) to `vec(F)` (9, row-major `F_ij` at `3 i + j`):
-/// `δF = Σ_a δx_a g_aᵀ`.
-fn f_map(g: &[Vector3<f64>; 4]) -> SMatrix<f64, 9, 12> {
-    SMatrix::<f64, 9, 12>::from_fn(|r, c| {
-        let (i, j) = (r / 3, r % 3);
-        let (a, k) = (c / 3, c % 3);
-        if i == k { g[a][j] } else { 0.0 }
-    })
-}
-
-/// The Neo-Hookean Hessian in `vec(F)` (row-major), by central differences of the stress.
-fn snh_hessian_f(l: &Lame<f64>, f: &Matrix3<f64>) -> SMatrix<f64, 9, 9> {
-    let step = 1e-6 * (1.0 + f.norm());
-    let mut hess = SMatrix::<f64, 9, 9>::zeros();
-    for c in 0..9 {
-        let mut fp = *f;
-        let mut fm = *f;
-        fp[(c / 3, c % 3)] += step;
-        fm[(c / 3, c % 3)] -= step;
-        let dp = (neo_hookean_first_piola_kirchhoff(l, &fp)
-            - neo_hookean_first_piola_kirchhoff(l, &fm))
-            / (2.0 * step);
-        for r in 0..9 {
-            hess[(r, c)] = dp[(r / 3, r % 3)];
-        }
+    fn snh_energy(
+        l: &Lame<f64>,
+        rest: &ElementRest<f64>,
+        g: &[Vector3<f64>; 4],
+        x: &[[f64; 3]; 4],
+    ) -> f64 {
+        SNH.element_energy_of_h(l, rest.volume, &displacement_gradient(x, g))
     }
-    (hess + hess.transpose()) * 0.5
-}
 
-#[test]
-fn neo_hookean_is_stress_free_at_rest_and_linearizes_to_the_same_lame_pair_as_svk() {
-    for_cases(|kind, nu, l, rest, g, _x, _h| {
-        let at_rest = [[0.0; 3]; 4];
-        let snh =
-            SNH.element_energy_gradient_tangent(l, rest, g, &at_rest, TangentProjection::Exact);
-        let svk = element_energy_gradient_tangent(l, rest, g, &at_rest, TangentProjection::Exact);
-        assert_eq!(snh.energy, 0.0);
-        assert!(max_abs(flat(&snh.gradient)) == 0.0, "{kind:?} nu={nu}");
-        let (ks, kv) = (assemble(&snh.tangent), assemble(&svk.tangent));
-        assert!((ks - kv).amax() <= 1e-12 * kv.amax(), "{kind:?} nu={nu}");
-        // Rigid motions are free: a rotation costs nothing and stresses nothing.
-        let q = Matrix3::new(0.0, -1.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0);
-        assert!(neo_hookean_energy_density(l, &q).abs() < 1e-12 * l.mu);
-        assert!(neo_hookean_first_piola_kirchhoff(l, &q).amax() < 1e-12 * l.mu);
-    });
-}
+    fn snh_gradient(
+        l: &Lame<f64>,
+        rest: &ElementRest<f64>,
+        g: &[Vector3<f64>; 4],
+        x: &[[f64; 3]; 4],
+    ) -> [f64; 12] {
+        flat(&SNH.element_gradient_of_h(l, rest.volume, g, &displacement_gradient(x, g)))
+    }
 
-#[test]
-fn neo_hookean_gradient_and_exact_tangent_match_finite_differences() {
-    for_cases(|kind, nu, l, rest, g, x, h| {
-        let step = 1e-6 * h;
-        let grad = snh_gradient(l, rest, g, x);
-        let fd: [f64; 12] = core::array::from_fn(|i| {
-            (snh_energy(l, rest, g, &perturbed(x, i, step))
-                - snh_energy(l, rest, g, &perturbed(x, i, -step)))
-                / (2.0 * step)
-        });
-        let err = max_abs((0..12).map(|i| grad[i] - fd[i])) / max_abs(grad);
-        assert!(
-            err <= 1e-6,
-            "{kind:?} nu={nu}: gradient, relative error {err:e}"
-        );
-        let eval = SNH.element_energy_gradient_tangent(l, rest, g, x, TangentProjection::Exact);
-        let k = assemble(&eval.tangent);
-        let mut fdk = K12::zeros();
-        for j in 0..12 {
-            let gp = snh_gradient(l, rest, g, &perturbed(x, j, step));
-            let gm = snh_gradient(l, rest, g, &perturbed(x, j, -step));
-            for i in 0..12 {
-                fdk[(i, j)] = (gp[i] - gm[i]) / (2.0 * step);
+    /// The map from node displacements (12) to `vec(F)` (9, row-major `F_ij` at `3 i + j`):
+    /// `δF = Σ_a δx_a g_aᵀ`.
+    fn f_map(g: &[Vector3<f64>; 4]) -> SMatrix<f64, 9, 12> {
+        SMatrix::<f64, 9, 12>::from_fn(|r, c| {
+            let (i, j) = (r / 3, r % 3);
+            let (a, k) = (c / 3, c % 3);
+            if i == k { g[a][j] } else { 0.0 }
+        })
+    }
+
+    /// The Neo-Hookean Hessian in `vec(F)` (row-major), by central differences of the stress.
+    fn snh_hessian_f(l: &Lame<f64>, f: &Matrix3<f64>) -> SMatrix<f64, 9, 9> {
+        let step = 1e-6 * (1.0 + f.norm());
+        let mut hess = SMatrix::<f64, 9, 9>::zeros();
+        for c in 0..9 {
+            let mut fp = *f;
+            let mut fm = *f;
+            fp[(c / 3, c % 3)] += step;
+            fm[(c / 3, c % 3)] -= step;
+            let dp = (neo_hookean_first_piola_kirchhoff(l, &fp)
+                - neo_hookean_first_piola_kirchhoff(l, &fm))
+                / (2.0 * step);
+            for r in 0..9 {
+                hess[(r, c)] = dp[(r / 3, r % 3)];
             }
         }
-        let err = (k - fdk).amax() / k.amax();
-        assert!(
-            err <= 1e-6,
-            "{kind:?} nu={nu}: tangent, relative error {err:e}"
-        );
-        assert_eq!(flat(&eval.gradient), grad);
-        assert_eq!(eval.energy, snh_energy(l, rest, g, x));
-    });
-}
-
-#[test]
-fn signed_svd_reconstructs_f_with_rotations_and_the_sign_of_det_on_the_last_value() {
-    let mut rng = Rng(0xD15C_0517);
-    let fixed = [
-        Matrix3::identity(),
-        Matrix3::zeros(),
-        Matrix3::from_diagonal(&Vector3::new(2.0, 1.0, 0.0)),
-        Matrix3::from_diagonal(&Vector3::new(1.0, 0.0, 0.0)),
-        Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, -1.0)),
-        Matrix3::from_diagonal(&Vector3::new(3.0, 3.0, 3.0)),
-    ];
-    let random = (0..400).map(|k| {
-        if k % 2 == 0 {
-            Matrix3::from_fn(|_, _| rng.range(-2.0, 2.0))
-        } else {
-            rng.rotation() * Matrix3::from_diagonal(&Vector3::new(1.5, 1.5, 0.2)) * rng.rotation()
-        }
-    });
-    let cases = fixed.into_iter().chain(random);
-    for f in cases {
-        let (u, sigma, v) = neohookean::signed_svd(&f);
-        let scale = 1.0 + f.norm();
-        assert!(
-            (u.transpose() * u - Matrix3::identity()).amax() < 1e-12,
-            "{f}"
-        );
-        assert!(
-            (v.transpose() * v - Matrix3::identity()).amax() < 1e-12,
-            "{f}"
-        );
-        assert!((u.determinant() - 1.0).abs() < 1e-12 && (v.determinant() - 1.0).abs() < 1e-12);
-        let back = u * Matrix3::from_diagonal(&sigma) * v.transpose();
-        assert!((back - f).amax() <= 1e-10 * scale, "{f}: {back}");
-        assert!(
-            sigma.x >= sigma.y - 1e-12 * scale && sigma.y >= sigma.z.abs() - 1e-10 * scale,
-            "{sigma}"
-        );
-        assert!(sigma.y >= 0.0 && sigma.x >= 0.0);
-        if f.determinant() < -1e-9 {
-            assert!(sigma.z < 0.0, "{f}: {sigma}");
-        }
+        (hess + hess.transpose()) * 0.5
     }
-}
 
-/// The projection is the nearest positive semidefinite Hessian: against the Hessian in
-/// `vec(F)` (finite differences of the stress), eigen-solved by nalgebra, its negative
-/// eigenvalues set to zero and taken to the element's nodes.
-#[test]
-fn neo_hookean_projection_is_the_nearest_psd_hessian() {
-    let mut clamped = 0;
-    for_cases(|kind, nu, l, rest, g, x, _h| {
-        let f = Matrix3::identity() + displacement_gradient(x, g);
-        let hess = snh_hessian_f(l, &f);
-        let eig = SymmetricEigen::new(hess);
-        if eig
-            .eigenvalues
-            .iter()
-            .any(|&e| e < -1e-6 * eig.eigenvalues.amax())
-        {
-            clamped += 1;
-        }
-        let plus = eig.eigenvectors
-            * SMatrix::<f64, 9, 9>::from_diagonal(&eig.eigenvalues.map(|e| e.max(0.0)))
-            * eig.eigenvectors.transpose();
-        let m = f_map(g);
-        let want = m.transpose() * plus * m * rest.volume;
-        let got = assemble(
-            &SNH.element_energy_gradient_tangent(
-                l,
-                rest,
-                g,
-                x,
-                TangentProjection::PositiveDefinite,
-            )
-            .tangent,
-        );
-        let err = (got - want).amax() / want.amax().max(1e-300);
-        assert!(err <= 1e-5, "{kind:?} nu={nu}: relative error {err:e}");
-        let min = SymmetricEigen::new(got).eigenvalues.min();
-        assert!(
-            min >= -1e-9 * got.amax(),
-            "{kind:?} nu={nu}: eigenvalue {min:e}"
-        );
-    });
-    // The cases include indefinite Hessians (compression, inversion), so the clamp is
-    // exercised, not only the exact branch.
-    assert!(clamped > 20, "{clamped} cases clamped");
-}
+    #[test]
+    fn neo_hookean_is_stress_free_at_rest_and_linearizes_to_the_same_lame_pair_as_svk() {
+        for_cases(|kind, nu, l, rest, g, _x, _h| {
+            let at_rest = [[0.0; 3]; 4];
+            let snh =
+                SNH.element_energy_gradient_tangent(l, rest, g, &at_rest, TangentProjection::Exact);
+            let svk =
+                element_energy_gradient_tangent(l, rest, g, &at_rest, TangentProjection::Exact);
+            assert_eq!(snh.energy, 0.0);
+            assert!(max_abs(flat(&snh.gradient)) == 0.0, "{kind:?} nu={nu}");
+            let (ks, kv) = (assemble(&snh.tangent), assemble(&svk.tangent));
+            assert!((ks - kv).amax() <= 1e-12 * kv.amax(), "{kind:?} nu={nu}");
+            // Rigid motions are free: a rotation costs nothing and stresses nothing.
+            let q = Matrix3::new(0.0, -1.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0);
+            assert!(neo_hookean_energy_density(l, &q).abs() < 1e-12 * l.mu);
+            assert!(neo_hookean_first_piola_kirchhoff(l, &q).amax() < 1e-12 * l.mu);
+        });
+    }
 
-/// Uniaxial stretch `λ` with the sides free: the lateral stretch `t` makes the lateral
-/// stress vanish, `μ t + s λ t = 0`, so `s = −μ/λ` and `λ t² = J = 1 + μ (λ − 1)/(λ (λ + μ))`
-/// in the law's own Lamé pair (`λ' = λ_L + μ`): a closed form to hold the stress against,
-/// and the reason for the law (SVK contracts far more).
-#[test]
-fn neo_hookean_lateral_contraction_under_uniaxial_stretch_has_its_closed_form() {
-    let l = lame(0.45);
-    let weight = l.lambda + l.mu;
-    for stretch in [1.1, 1.3, 1.65, 2.0] {
-        let j = 1.0 + l.mu * (stretch - 1.0) / (stretch * weight);
-        let t = (j / stretch).sqrt();
-        let f = Matrix3::from_diagonal(&Vector3::new(stretch, t, t));
-        let p = neo_hookean_first_piola_kirchhoff(&l, &f);
-        assert!(
-            p[(1, 1)].abs() <= 1e-12 * l.mu && p[(2, 2)].abs() <= 1e-12 * l.mu,
-            "{p}"
-        );
-        assert!(p[(0, 0)] > 0.0);
-        if stretch == 1.65 {
-            // About 0.79: rubber keeps most of its width; SVK's 0.47 does not.
-            assert!((t - 0.794).abs() < 2e-3, "{t}");
-            let s = second_piola_kirchhoff(
-                &l,
-                &Matrix3::from_diagonal(&Vector3::new(stretch, 0.47, 0.47)),
+    #[test]
+    fn neo_hookean_gradient_and_exact_tangent_match_finite_differences() {
+        for_cases(|kind, nu, l, rest, g, x, h| {
+            let step = 1e-6 * h;
+            let grad = snh_gradient(l, rest, g, x);
+            let fd: [f64; 12] = core::array::from_fn(|i| {
+                (snh_energy(l, rest, g, &perturbed(x, i, step))
+                    - snh_energy(l, rest, g, &perturbed(x, i, -step)))
+                    / (2.0 * step)
+            });
+            let err = max_abs((0..12).map(|i| grad[i] - fd[i])) / max_abs(grad);
+            assert!(
+                err <= 1e-6,
+                "{kind:?} nu={nu}: gradient, relative error {err:e}"
+            );
+            let eval = SNH.element_energy_gradient_tangent(l, rest, g, x, TangentProjection::Exact);
+            let k = assemble(&eval.tangent);
+            let mut fdk = K12::zeros();
+            for j in 0..12 {
+                let gp = snh_gradient(l, rest, g, &perturbed(x, j, step));
+                let gm = snh_gradient(l, rest, g, &perturbed(x, j, -step));
+                for i in 0..12 {
+                    fdk[(i, j)] = (gp[i] - gm[i]) / (2.0 * step);
+                }
+            }
+            let err = (k - fdk).amax() / k.amax();
+            assert!(
+                err <= 1e-6,
+                "{kind:?} nu={nu}: tangent, relative error {err:e}"
+            );
+            assert_eq!(flat(&eval.gradient), grad);
+            assert_eq!(eval.energy, snh_energy(l, rest, g, x));
+        });
+    }
+
+    #[test]
+    fn signed_svd_reconstructs_f_with_rotations_and_the_sign_of_det_on_the_last_value() {
+        let mut rng = Rng(0xD15C_0517);
+        let fixed = [
+            Matrix3::identity(),
+            Matrix3::zeros(),
+            Matrix3::from_diagonal(&Vector3::new(2.0, 1.0, 0.0)),
+            Matrix3::from_diagonal(&Vector3::new(1.0, 0.0, 0.0)),
+            Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, -1.0)),
+            Matrix3::from_diagonal(&Vector3::new(3.0, 3.0, 3.0)),
+        ];
+        let random = (0..400).map(|k| {
+            if k % 2 == 0 {
+                Matrix3::from_fn(|_, _| rng.range(-2.0, 2.0))
+            } else {
+                rng.rotation()
+                    * Matrix3::from_diagonal(&Vector3::new(1.5, 1.5, 0.2))
+                    * rng.rotation()
+            }
+        });
+        let cases = fixed.into_iter().chain(random);
+        for f in cases {
+            let (u, sigma, v) = neohookean::signed_svd(&f);
+            let scale = 1.0 + f.norm();
+            assert!(
+                (u.transpose() * u - Matrix3::identity()).amax() < 1e-12,
+                "{f}"
             );
             assert!(
-                s[(1, 1)].abs() < 0.05 * l.mu,
-                "SVK's lateral stretch near 0.47: {s}"
+                (v.transpose() * v - Matrix3::identity()).amax() < 1e-12,
+                "{f}"
             );
+            assert!((u.determinant() - 1.0).abs() < 1e-12 && (v.determinant() - 1.0).abs() < 1e-12);
+            let back = u * Matrix3::from_diagonal(&sigma) * v.transpose();
+            assert!((back - f).amax() <= 1e-10 * scale, "{f}: {back}");
+            assert!(
+                sigma.x >= sigma.y - 1e-12 * scale && sigma.y >= sigma.z.abs() - 1e-10 * scale,
+                "{sigma}"
+            );
+            assert!(sigma.y >= 0.0 && sigma.x >= 0.0);
+            if f.determinant() < -1e-9 {
+                assert!(sigma.z < 0.0, "{f}: {sigma}");
+            }
+        }
+    }
+
+    /// The projection is the nearest positive semidefinite Hessian: against the Hessian in
+    /// `vec(F)` (finite differences of the stress), eigen-solved by nalgebra, its negative
+    /// eigenvalues set to zero and taken to the element's nodes.
+    #[test]
+    fn neo_hookean_projection_is_the_nearest_psd_hessian() {
+        let mut clamped = 0;
+        for_cases(|kind, nu, l, rest, g, x, _h| {
+            let f = Matrix3::identity() + displacement_gradient(x, g);
+            let hess = snh_hessian_f(l, &f);
+            let eig = SymmetricEigen::new(hess);
+            if eig
+                .eigenvalues
+                .iter()
+                .any(|&e| e < -1e-6 * eig.eigenvalues.amax())
+            {
+                clamped += 1;
+            }
+            let plus = eig.eigenvectors
+                * SMatrix::<f64, 9, 9>::from_diagonal(&eig.eigenvalues.map(|e| e.max(0.0)))
+                * eig.eigenvectors.transpose();
+            let m = f_map(g);
+            let want = m.transpose() * plus * m * rest.volume;
+            let got = assemble(
+                &SNH.element_energy_gradient_tangent(
+                    l,
+                    rest,
+                    g,
+                    x,
+                    TangentProjection::PositiveDefinite,
+                )
+                .tangent,
+            );
+            let err = (got - want).amax() / want.amax().max(1e-300);
+            assert!(err <= 1e-5, "{kind:?} nu={nu}: relative error {err:e}");
+            let min = SymmetricEigen::new(got).eigenvalues.min();
+            assert!(
+                min >= -1e-9 * got.amax(),
+                "{kind:?} nu={nu}: eigenvalue {min:e}"
+            );
+        });
+        // The cases include indefinite Hessians (compression, inversion), so the clamp is
+        // exercised, not only the exact branch.
+        assert!(clamped > 20, "{clamped} cases clamped");
+    }
+
+    /// Uniaxial stretch `λ` with the sides free: the lateral stretch `t` makes the lateral
+    /// stress vanish, `μ t + s λ t = 0`, so `s = −μ/λ` and `λ t² = J = 1 + μ (λ − 1)/(λ (λ + μ))`
+    /// in the law's own Lamé pair (`λ' = λ_L + μ`): a closed form to hold the stress against,
+    /// and the reason for the law (SVK contracts far more).
+    #[test]
+    fn neo_hookean_lateral_contraction_under_uniaxial_stretch_has_its_closed_form() {
+        let l = lame(0.45);
+        let weight = l.lambda + l.mu;
+        for stretch in [1.1, 1.3, 1.65, 2.0] {
+            let j = 1.0 + l.mu * (stretch - 1.0) / (stretch * weight);
+            let t = (j / stretch).sqrt();
+            let f = Matrix3::from_diagonal(&Vector3::new(stretch, t, t));
+            let p = neo_hookean_first_piola_kirchhoff(&l, &f);
+            assert!(
+                p[(1, 1)].abs() <= 1e-12 * l.mu && p[(2, 2)].abs() <= 1e-12 * l.mu,
+                "{p}"
+            );
+            assert!(p[(0, 0)] > 0.0);
+            if stretch == 1.65 {
+                // About 0.79: rubber keeps most of its width; SVK's 0.47 does not.
+                assert!((t - 0.794).abs() < 2e-3, "{t}");
+                let s = second_piola_kirchhoff(
+                    &l,
+                    &Matrix3::from_diagonal(&Vector3::new(stretch, 0.47, 0.47)),
+                );
+                assert!(
+                    s[(1, 1)].abs() < 0.05 * l.mu,
+                    "SVK's lateral stretch near 0.47: {s}"
+                );
+            }
         }
     }
 }

@@ -308,6 +308,11 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
     ) -> Result<Self, Error> {
         config.solver.validate()?;
         config.detection.validate()?;
+        if !config.material.law.is_built() {
+            return Err(Error::InvalidParameter {
+                parameter: crate::error::Parameter::Law,
+            });
+        }
         let lame = Lame::from_young_poisson(config.material.young, config.material.poisson)?;
         let ModelBuffers {
             reals,

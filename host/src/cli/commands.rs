@@ -120,7 +120,7 @@ pub(super) fn codegen_command(
         outln!("|---|---:|---:|---:|---|")?;
         for set in &fp::feature_sets(generated.strategy, generated.projection) {
             let target = fp::firmware_dir().join("target").join(set.dir_name());
-            let built = fp::build(out, set, &target).map_err(|e| e.to_string())?;
+            let built = fp::build(out, set, generated.law, &target).map_err(|e| e.to_string())?;
             let f = built.footprint;
             outln!(
                 "| {} | {} | {} | {} | {} |",

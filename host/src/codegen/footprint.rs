@@ -274,15 +274,26 @@ pub fn isolated_release_build(
     cmd
 }
 
-/// Builds the firmware program for the generated module `module` with `set`'s features in
-/// `target_dir`, links it with the C `main` and measures it.
+/// Builds the firmware program for the generated module `module` with `set`'s features (and the
+/// core's `neo-hookean` where the scene's `law` needs it) in `target_dir`, links it with the C
+/// `main` and measures it.
 ///
 /// # Errors
 /// The build, link or measurement that failed, with its output.
-pub fn build(module: &Path, set: &FeatureSet, target_dir: &Path) -> Result<Firmware, CodegenError> {
+pub fn build(
+    module: &Path,
+    set: &FeatureSet,
+    law: incise_core::Law,
+    target_dir: &Path,
+) -> Result<Firmware, CodegenError> {
     let module = std::fs::canonicalize(module)
         .map_err(|e| CodegenError(format!("{}: {e}", module.display())))?;
-    let mut cmd = isolated_release_build(&firmware_dir(), set.features, target_dir);
+    let law_feature: &[&str] = match law {
+        incise_core::Law::StableNeoHookean => &["neo-hookean"],
+        _ => &[],
+    };
+    let features: Vec<&str> = set.features.iter().chain(law_feature).copied().collect();
+    let mut cmd = isolated_release_build(&firmware_dir(), &features, target_dir);
     cmd.env("INCISE_FIRMWARE_SCENE", &module);
     run(&mut cmd, "building the firmware program")?;
     let lib = target_dir.join("release").join("libincise_firmware.a");

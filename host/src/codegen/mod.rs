@@ -69,6 +69,9 @@ pub struct Generated {
     pub strategy: Strategy,
     /// The scene's camera projection.
     pub projection: Projection,
+    /// The model's strain energy law: a firmware build of a scene on the stable Neo-Hookean
+    /// law needs the core's `neo-hookean` feature ([`footprint::build`] adds it).
+    pub law: incise_core::Law,
 }
 
 /// Why `incise codegen` refused a scene.
@@ -176,6 +179,7 @@ pub fn generate(scene: &Scene, options: &CodegenOptions) -> Result<Generated, Co
         needs_cut: config.detection.enabled,
         strategy: config.solver.strategy,
         projection: config.camera.projection(),
+        law: config.material.law,
     })
 }
 
