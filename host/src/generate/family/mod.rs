@@ -11,6 +11,7 @@
 //! variants = 20
 //! seed = 1
 //! intact_fraction = 0.5        # variants without a slit (they must stay uncut)
+//! intact_pull = 1.0            # how much of the base's grasp motion the intact ones make
 //! live_fraction = 0.3          # cut variants whose cut grows while filmed
 //! noise_px = [0.3, 2.0]
 //! dropout = [0.0, 0.10]
@@ -83,6 +84,13 @@ pub struct Family {
     /// `[0, 1]`. The rest are pre-cut.
     #[serde(default)]
     pub live_fraction: f64,
+    /// The intact variants' grasps move this fraction of the base's motion (displacement and
+    /// rotation), in `(0, 1]`; 1 when left out. A base whose grasps pull the two sides of its
+    /// slit apart opens the slit with that motion; without the slit the same motion stretches
+    /// the tissue between the grasps instead, and may stretch it far beyond what intact tissue
+    /// bears (the liver's: 175 %). Such a control is a tear, not an intact organ.
+    #[serde(default)]
+    pub intact_pull: Option<f64>,
     /// `[tracking] noise_px`: the trackers' Gaussian noise, pixels (≥ 0).
     #[serde(default)]
     pub noise_px: Option<[f64; 2]>,
@@ -197,6 +205,11 @@ impl Family {
             if !(0.0..=1.0).contains(&f) {
                 return bad(key, format!("{f} is not in [0, 1]"));
             }
+        }
+        if let Some(f) = self.intact_pull
+            && !(f > 0.0 && f <= 1.0)
+        {
+            return bad("intact_pull", format!("{f} is not in (0, 1]"));
         }
         let ranges = [
             ("noise_px", self.noise_px, 0.0, f64::INFINITY, false),
@@ -555,6 +568,48 @@ mod tests {
     }
 
     #[test]
+    fn intact_pull_scales_only_the_intact_variants_grasps() {
+        let path = fixtures().join("families/band.toml");
+        let whole = Family {
+            intact_pull: None,
+            ..Family::load(&path).unwrap()
+        };
+        let quarter = Family {
+            intact_pull: Some(0.25),
+            ..whole.clone()
+        };
+        let (a, b) = (
+            variants(&whole, &path).unwrap(),
+            variants(&quarter, &path).unwrap(),
+        );
+        let kinds = whole.kinds();
+        assert!(kinds.contains(&Kind::Intact) && kinds.contains(&Kind::PreCut));
+        for ((x, y), kind) in a.iter().zip(&b).zip(&kinds) {
+            // The same draws either way: only an intact variant's grasps differ.
+            assert_eq!(
+                (x.seed, &x.tracking, &x.camera),
+                (y.seed, &y.tracking, &y.camera)
+            );
+            if *kind != Kind::Intact {
+                assert_eq!(x, y);
+                continue;
+            }
+            assert!(
+                y.description.contains("grasps moved ×0.25"),
+                "{}",
+                y.description
+            );
+            for (g, h) in x.motion.grasp.iter().zip(&y.motion.grasp) {
+                for (p, q) in g.displacement.iter().zip(&h.displacement) {
+                    assert!((q - 0.25 * p).abs() < 1e-15, "{p} {q}");
+                }
+                assert!((h.rotation_degrees - 0.25 * g.rotation_degrees).abs() < 1e-12);
+                assert_eq!((g.region, g.start, g.end), (h.region, h.start, h.end));
+            }
+        }
+    }
+
+    #[test]
     fn dome_and_liver_families_make_sensible_variants() {
         for name in ["dome", "liver"] {
             let path = fixtures().join(format!("families/{name}.toml"));
@@ -595,6 +650,11 @@ mod tests {
         let e = Family::load(&write("intact_fraction = 0.5\ndropout = [0.2, 0.1]\n")).unwrap_err();
         assert_eq!(e.line, 6, "{e}");
         assert!(e.message.contains("dropout"), "{e}");
+        for bad in ["0.0", "1.5", "nan"] {
+            let e = Family::load(&write(&format!("intact_pull = {bad}\n"))).unwrap_err();
+            assert!(e.message.contains("intact_pull"), "{e}");
+            assert_eq!(e.line, 5, "{e}");
+        }
         let e = Family::load(&write("name2 = 1\n")).unwrap_err();
         assert_eq!(e.line, 5, "{e}");
         // Too long a pull for the base's frames (the grasp starts at frame 3 of 40).

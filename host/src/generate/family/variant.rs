@@ -129,6 +129,18 @@ pub(super) fn derive(
         let _ = write!(notes, ", pull over {pull} frames");
     }
 
+    // An intact variant's grasps move the given share of the base's motion.
+    if kind == Kind::Intact
+        && let Some(f) = family.intact_pull
+        && f != 1.0
+    {
+        for g in &mut s.motion.grasp {
+            g.displacement = g.displacement.map(|x| x * f);
+            g.rotation_degrees *= f;
+        }
+        let _ = write!(notes, ", grasps moved ×{f:.2}");
+    }
+
     // Turn the camera about its target.
     if let Some(r) = family.oblique_degrees {
         let angle = lerp(r, d.oblique);
