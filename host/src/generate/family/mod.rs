@@ -85,12 +85,12 @@ pub struct Family {
     #[serde(default)]
     pub live_fraction: f64,
     /// The intact variants' grasps move this fraction of the base's motion (displacement and
-    /// rotation), in `(0, 1]`; 1 when left out. A base whose grasps pull the two sides of its
+    /// rotation), in `(0, 1]` (1, the whole motion, when left out). A base whose grasps pull the two sides of its
     /// slit apart opens the slit with that motion; without the slit the same motion stretches
     /// the tissue between the grasps instead, and may stretch it far beyond what intact tissue
     /// bears (the liver's: 175 %). Such a control is a tear, not an intact organ.
-    #[serde(default)]
-    pub intact_pull: Option<f64>,
+    #[serde(default = "whole_pull")]
+    pub intact_pull: f64,
     /// `[tracking] noise_px`: the trackers' Gaussian noise, pixels (≥ 0).
     #[serde(default)]
     pub noise_px: Option<[f64; 2]>,
@@ -133,6 +133,11 @@ pub struct Family {
     /// refined instead of its own fine mesh).
     #[serde(default, rename = "override")]
     pub overrides: toml::Table,
+}
+
+/// [`Family::intact_pull`] left out: the base's whole motion.
+fn whole_pull() -> f64 {
+    1.0
 }
 
 /// What a variant is (`intact`, `pre-cut` or `live` when written out).
@@ -206,9 +211,8 @@ impl Family {
                 return bad(key, format!("{f} is not in [0, 1]"));
             }
         }
-        if let Some(f) = self.intact_pull
-            && !(f > 0.0 && f <= 1.0)
-        {
+        let f = self.intact_pull;
+        if !(f > 0.0 && f <= 1.0) {
             return bad("intact_pull", format!("{f} is not in (0, 1]"));
         }
         let ranges = [
@@ -571,11 +575,11 @@ mod tests {
     fn intact_pull_scales_only_the_intact_variants_grasps() {
         let path = fixtures().join("families/band.toml");
         let whole = Family {
-            intact_pull: None,
+            intact_pull: 1.0,
             ..Family::load(&path).unwrap()
         };
         let quarter = Family {
-            intact_pull: Some(0.25),
+            intact_pull: 0.25,
             ..whole.clone()
         };
         let (a, b) = (

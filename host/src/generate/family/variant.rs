@@ -130,10 +130,8 @@ pub(super) fn derive(
     }
 
     // An intact variant's grasps move the given share of the base's motion.
-    if kind == Kind::Intact
-        && let Some(f) = family.intact_pull
-        && f != 1.0
-    {
+    let f = family.intact_pull;
+    if kind == Kind::Intact && f != 1.0 {
         for g in &mut s.motion.grasp {
             g.displacement = g.displacement.map(|x| x * f);
             g.rotation_degrees *= f;
