@@ -93,9 +93,86 @@ fn scenes_without_a_cut_are_never_cut() {
             s.pairs, s.pairs_lost, s.features_filtered
         );
     }
-    // The jumping features of block-extreme are caught by the temporal filter.
+    // The jumping features of block-extreme (the generator's list, `gt/outliers.csv`) are
+    // caught by the temporal filter.
     let (s, _) = run_scene(&load("block-extreme"), &RunOptions::default()).unwrap();
-    assert!(s.features_filtered >= 5, "{s:?}");
+    let truth = s
+        .filter_truth
+        .expect("block-extreme lists its jumping features");
+    assert!(truth.outliers_filtered >= 5, "{truth:?}");
+}
+
+#[test]
+fn the_listed_outliers_jump_in_the_tracks_and_the_filter_is_measured_against_them() {
+    for name in ["band-middle-cut", "block-extreme", "liver-lobe"] {
+        let scene = load(name);
+        let text = std::fs::read_to_string(scene.dir.join("gt").join("outliers.csv")).unwrap();
+        let outliers = incise::scene::read_outliers_csv(&text, Path::new("outliers.csv")).unwrap();
+        assert!(!outliers.is_empty(), "{name}");
+        // Each listed feature, seen the frame before its jump and the frame of it, moves by
+        // its jump beside its neighbours (within 40 px at the frame before): its displacement
+        // minus their median displacement is the jump, give or take the noise and the
+        // motion's variation over that neighbourhood.
+        let mut checked = 0;
+        for o in &outliers {
+            let (Some(before), Some(at)) = (
+                scene.frames.get(o.start as usize - 1),
+                scene.frames.get(o.start as usize),
+            ) else {
+                continue;
+            };
+            let find =
+                |obs: &[Observation<f64>], id: u32| obs.iter().find(|x| x.id == id).map(|x| x.uv);
+            let (Some(a), Some(b)) = (find(before, o.id), find(at, o.id)) else {
+                continue;
+            };
+            let mut du = vec![];
+            let mut dv = vec![];
+            for x in before {
+                let near = (x.uv[0] - a[0]).hypot(x.uv[1] - a[1]) < 40.0;
+                if x.id != o.id
+                    && near
+                    && !outliers.iter().any(|p| p.id == x.id)
+                    && let Some(y) = find(at, x.id)
+                {
+                    du.push(y[0] - x.uv[0]);
+                    dv.push(y[1] - x.uv[1]);
+                }
+            }
+            let median = |v: &mut Vec<f64>| {
+                v.sort_by(f64::total_cmp);
+                v[v.len() / 2]
+            };
+            assert!(du.len() >= 3, "{name}: feature {} has no neighbours", o.id);
+            let moved = [b[0] - a[0] - median(&mut du), b[1] - a[1] - median(&mut dv)];
+            let off = (moved[0] - o.jump[0]).hypot(moved[1] - o.jump[1]);
+            let jump = o.jump[0].hypot(o.jump[1]);
+            assert!(
+                off < 0.25 * jump,
+                "{name}: feature {} moved {moved:?} beside its neighbours, listed {:?}",
+                o.id,
+                o.jump
+            );
+            checked += 1;
+        }
+        assert!(checked >= 1, "{name}: no listed jump was seen");
+        // Every feature the filter took out is either a listed jump or a genuine feature.
+        let (s, _) = run_scene(&scene, &RunOptions::default()).unwrap();
+        let truth = s
+            .filter_truth
+            .expect("the scene lists its jumping features");
+        assert_eq!(s.filtered_features.len(), s.features_filtered, "{name}");
+        assert_eq!(
+            truth.outliers_filtered + truth.genuine_filtered,
+            s.features_filtered,
+            "{name}: {truth:?}"
+        );
+        assert!(
+            truth.outliers_filtered <= truth.outliers,
+            "{name}: {truth:?}"
+        );
+        eprintln!("{name}: {truth:?}");
+    }
 }
 
 #[test]

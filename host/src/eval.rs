@@ -16,7 +16,7 @@ use serde::Serialize;
 use crate::generate::family::{Family, Kind, variants};
 use crate::generate::pipeline::{generate_scenario, rebase_mesh_paths};
 use crate::generate::scenario::Scenario;
-use crate::run::{RunOptions, Summary, run_scene};
+use crate::run::{FilterTruth, RunOptions, Summary, run_scene};
 use crate::scene::Scene;
 
 /// The acceptance of issue 11, per family: what [`FamilySummary::passes`] checks.
@@ -54,6 +54,10 @@ pub struct VariantResult {
     pub name: String,
     /// Intact, pre-cut or live.
     pub kind: Kind,
+    /// The tracks' noise (`[tracking] noise_px`), pixels.
+    pub noise_px: f64,
+    /// How far its jumping features jump (`[tracking] outlier_jump_px`), pixels.
+    pub jump_px: f64,
     /// Frame the cut opens (ground truth), none when intact.
     pub open_frame: Option<u32>,
     /// Frame the cut was detected, if it was.
@@ -136,6 +140,9 @@ pub struct FamilySummary {
     pub tre_mm: Option<Spread>,
     /// Target error of the rest model (not registered), the reference.
     pub tre_rest_mm: Option<Spread>,
+    /// The temporal filter against the features the generator made jump, summed over every
+    /// variant (intact and cut) that lists them.
+    pub filter: Option<FilterTruth>,
     /// Whether [`ACCEPTANCE`] holds.
     pub passes: bool,
     /// Every variant.
@@ -167,7 +174,9 @@ pub struct EvalOptions {
 
 /// Whether `dir` holds the scene of scenario `s` (drawn relative to `base`) already.
 fn is_generated(s: &Scenario, base: &Path, dir: &Path) -> bool {
-    if !dir.join("scene.toml").is_file() {
+    // A scene written before the generator wrote `gt/outliers.csv` is written again, so that
+    // every variant's filter is measured.
+    if !dir.join("scene.toml").is_file() || !dir.join("gt").join("outliers.csv").is_file() {
         return false;
     }
     let mut expected = s.clone();
@@ -223,7 +232,9 @@ pub fn eval_family(family_path: &Path, options: &EvalOptions) -> Result<FamilySu
         }
         let (summary, _) =
             run_scene(&scene, &RunOptions::default()).map_err(|e| format!("{}: {e}", s.name))?;
-        results.push(variant_result(&s.name, kind, summary));
+        let mut result = variant_result(&s.name, kind, summary);
+        (result.noise_px, result.jump_px) = (s.tracking.noise_px, s.tracking.outlier_jump_px);
+        results.push(result);
         bar.inc(1);
     }
     bar.finish_and_clear();
@@ -237,6 +248,8 @@ fn variant_result(name: &str, kind: Kind, summary: Summary) -> VariantResult {
     VariantResult {
         name: name.to_string(),
         kind,
+        noise_px: f64::NAN,
+        jump_px: f64::NAN,
         open_frame: open,
         detected_frame: detected,
         latency: match (detected, open) {
@@ -303,6 +316,15 @@ pub fn summarise(family: &str, variants: Vec<VariantResult>) -> FamilySummary {
         tre_uncut_mm: over(&|v| v.summary.tre_mm_final_uncut),
         tre_mm: over(&|v| v.summary.tre_mm_final),
         tre_rest_mm: over(&|v| v.summary.tre_mm_final_rest),
+        filter: variants
+            .iter()
+            .filter_map(|v| v.summary.filter_truth)
+            .reduce(|a, b| FilterTruth {
+                outliers: a.outliers + b.outliers,
+                outliers_filtered: a.outliers_filtered + b.outliers_filtered,
+                genuine_filtered: a.genuine_filtered + b.genuine_filtered,
+                genuine_before_detection: a.genuine_before_detection + b.genuine_before_detection,
+            }),
         passes,
         variants,
     }
@@ -314,6 +336,17 @@ fn spread(s: Option<Spread>, digits: usize) -> String {
     })
 }
 
+/// "caught / made, genuine": the filter's jumping features taken out of those made to jump,
+/// and the features it took out that never jumped.
+fn filter_cell(f: Option<FilterTruth>) -> String {
+    f.map_or("–".to_string(), |f| {
+        format!(
+            "{} / {}, {}",
+            f.outliers_filtered, f.outliers, f.genuine_filtered
+        )
+    })
+}
+
 fn median(s: Option<Spread>, digits: usize) -> String {
     s.map_or("–".to_string(), |s| format!("{:.digits$}", s.median))
 }
@@ -322,12 +355,13 @@ fn median(s: Option<Spread>, digits: usize) -> String {
 pub fn markdown_table(families: &[FamilySummary]) -> String {
     let mut t = String::from(
         "| family | intact | cut (live) | false cuts | missed | early | latency median / max (frames) \
-         | Hausdorff median / max (% diag.) | to its open part | Dice uncut → cut (median) | target error uncut → cut, rest (mm, median) | acceptance |\n\
-         |---|---|---|---|---|---|---|---|---|---|---|---|\n",
+         | Hausdorff median / max (% diag.) | to its open part | Dice uncut → cut (median) | target error uncut → cut, rest (mm, median) \
+         | filter: jumps caught / made, genuine taken out | acceptance |\n\
+         |---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for f in families {
         t.push_str(&format!(
-            "| {} | {} | {} ({}) | {} | {} | {} | {} | {} | {} | {} → {} | {} → {}, {} | {} |\n",
+            "| {} | {} | {} ({}) | {} | {} | {} | {} | {} | {} | {} → {} | {} → {}, {} | {} | {} |\n",
             f.family,
             f.intact,
             f.cut,
@@ -343,6 +377,7 @@ pub fn markdown_table(families: &[FamilySummary]) -> String {
             median(f.tre_uncut_mm, 2),
             median(f.tre_mm, 2),
             median(f.tre_rest_mm, 2),
+            filter_cell(f.filter),
             if f.passes { "met" } else { "not met" }
         ));
     }
@@ -352,8 +387,8 @@ pub fn markdown_table(families: &[FamilySummary]) -> String {
 /// One line per variant, for finding the ones that fail.
 pub fn variant_table(f: &FamilySummary) -> String {
     let mut t = String::from(
-        "| variant | kind | opens | detected | Hausdorff (% diag.) | to its open part | Dice uncut → cut | target error uncut → cut (mm) |\n\
-         |---|---|---|---|---|---|---|---|\n",
+        "| variant | kind | noise px | jumps px | opens | detected | Hausdorff (% diag.) | to its open part | Dice uncut → cut | target error uncut → cut (mm) | filter: jumps caught / made, genuine taken out |\n\
+         |---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     let frame = |v: Option<u32>| v.map_or("–".to_string(), |f| f.to_string());
     for v in &f.variants {
@@ -365,9 +400,11 @@ pub fn variant_table(f: &FamilySummary) -> String {
             ""
         };
         t.push_str(&format!(
-            "| {} | {} | {} | {}{} | {} | {} | {:.3} → {:.3} | {:.2} → {:.2} |\n",
+            "| {} | {} | {:.2} | {:.1} | {} | {}{} | {} | {} | {:.3} → {:.3} | {:.2} → {:.2} | {} |\n",
             v.name,
             v.kind.name(),
+            v.noise_px,
+            v.jump_px,
             frame(v.open_frame),
             frame(v.detected_frame),
             flag,
@@ -379,6 +416,7 @@ pub fn variant_table(f: &FamilySummary) -> String {
             v.summary.dice_final,
             v.summary.tre_mm_final_uncut,
             v.summary.tre_mm_final,
+            filter_cell(v.summary.filter_truth),
         ));
     }
     t

@@ -46,6 +46,45 @@ fn run_json_is_one_object() {
     let v: serde_json::Value = serde_json::from_slice(&output.stdout).unwrap();
     assert_eq!(v["scene"], "band-no-cut");
     assert!(v["cut_detected_frame"].is_null());
+    // The features the filter took out, each once, and its measure against the scene's list
+    // of jumping features: every one taken out is a jump or a genuine feature.
+    let filtered = v["filtered_features"].as_array().unwrap();
+    assert_eq!(
+        filtered.len() as u64,
+        v["features_filtered"].as_u64().unwrap()
+    );
+    let truth = &v["filter_truth"];
+    let count = |k: &str| truth[k].as_u64().unwrap();
+    assert_eq!(
+        count("outliers_filtered") + count("genuine_filtered"),
+        filtered.len() as u64
+    );
+    assert!(count("outliers_filtered") <= count("outliers"));
+}
+
+#[test]
+fn table_prints_the_filter_against_the_true_jumps_when_asked() {
+    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/../fixtures/band-no-cut");
+    let output = incise()
+        .args(["table", "--filter", scene])
+        .output()
+        .unwrap();
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    assert!(
+        stdout.contains("| jumps made | jumps taken out |"),
+        "{stdout}"
+    );
+    // The scene table's row and the filter table's.
+    assert_eq!(
+        stdout.matches("| band-no-cut | 300 |").count(),
+        2,
+        "{stdout}"
+    );
 }
 
 /// `--pairs` draws the detector's split pairs (orange) on the overlays: none at frame 0,

@@ -92,7 +92,13 @@ fn a_family_is_written_variant_by_variant_and_each_regenerates() {
     let mut live = 0;
     for name in ["small-00", "small-01"] {
         let dir = out.join(name);
-        for f in ["scenario.toml", "scene.toml", "tracks.csv", "gt/cut.csv"] {
+        for f in [
+            "scenario.toml",
+            "scene.toml",
+            "tracks.csv",
+            "gt/cut.csv",
+            "gt/outliers.csv",
+        ] {
             assert!(dir.join(f).exists(), "{name}: no {f}");
         }
         let scenario = std::fs::read_to_string(dir.join("scenario.toml")).unwrap();

@@ -47,7 +47,7 @@ pub(super) fn print_summary(
 
 pub(super) fn table_command(
     dirs: &[PathBuf],
-    true_cut: bool,
+    (true_cut, filter): (bool, bool),
     (real, law): (Precision, Option<ModelLaw>),
 ) -> Result<(), Failure> {
     let mut rows = vec![];
@@ -67,6 +67,9 @@ pub(super) fn table_command(
     out!("{}", crate::report::markdown_table(&rows))?;
     if true_cut {
         out!("\n{}", crate::report::true_cut_table(&rows))?;
+    }
+    if filter {
+        out!("\n{}", crate::report::filter_table(&rows))?;
     }
     Ok(())
 }

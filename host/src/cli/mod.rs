@@ -92,6 +92,10 @@ pub enum Command {
         /// table: Dice and target error with the detected cut against the true one.
         #[arg(long)]
         true_cut: bool,
+        /// Also print a table of the temporal filter against the features each scene's
+        /// generator made jump (`gt/outliers.csv`): jumps taken out, genuine features taken out.
+        #[arg(long)]
+        filter: bool,
         /// The scalar type the core computes in (the host measures in f64 either way).
         #[arg(long, value_enum, default_value_t = Precision::F64)]
         real: Precision,
@@ -374,9 +378,10 @@ pub fn run(cli: Cli) -> i32 {
         Command::Table {
             scenes,
             true_cut,
+            filter,
             real,
             law,
-        } => table_command(&scenes, true_cut, (real, law)),
+        } => table_command(&scenes, (true_cut, filter), (real, law)),
         Command::Sweep { scene, out } => sweep_command(&scene, out.as_deref()),
         Command::Instructions {
             scene,

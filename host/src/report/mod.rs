@@ -119,6 +119,33 @@ pub fn true_cut_table(rows: &[Summary]) -> String {
     out
 }
 
+/// For the scenes that list the features their generator made jump (`gt/outliers.csv`): what
+/// the temporal filter took out against that list. A jump the tracker never reported does not
+/// count; a feature taken out that was never reported off its place is genuine (for instance a
+/// lip of a cut opening under the camera).
+pub fn filter_table(rows: &[Summary]) -> String {
+    let mut out = String::from(
+        "| scene | features | taken out | jumps made | jumps taken out | genuine taken out | genuine, before the cut is detected |\n\
+         | --- | ---: | ---: | ---: | ---: | ---: | ---: |\n",
+    );
+    for s in rows {
+        let Some(t) = s.filter_truth else {
+            continue;
+        };
+        out.push_str(&format!(
+            "| {} | {} | {} | {} | {} | {} | {} |\n",
+            s.scene,
+            s.features,
+            s.features_filtered,
+            t.outliers,
+            t.outliers_filtered,
+            t.genuine_filtered,
+            t.genuine_before_detection,
+        ));
+    }
+    out
+}
+
 /// The four frames of a run that tell its story, with a caption under each: for a cut scene,
 /// before the cut opens, the cut detected, the mesh cut (or the model opening), and the last
 /// frame; for an intact one, the first, a third, two thirds and the last frame.

@@ -26,7 +26,10 @@ pub use sinks::FrameSink;
 #[cfg(feature = "opencv")]
 pub use sources::VideoFrames;
 pub use sources::{FrameSource, SourceFrame, TrackSource, rest_silhouette};
-pub use trace::{CutTrace, DetectionTrace, FrameHealth, FrameRecord, FrameWork, Summary, Trace};
+pub use trace::{
+    CutTrace, DetectionTrace, FilterTruth, FilteredFeature, FrameHealth, FrameRecord, FrameWork,
+    Summary, Trace,
+};
 
 use crate::render::overlay::{self, DetectorPairs, Overlay};
 use crate::render::silhouette;
@@ -455,6 +458,14 @@ pub fn run_scene_with(
         false,
     )?;
     let mut summary = Summary::new(scene, &trace, &uncut);
+    summary.filter_truth = Truth::load_outliers(scene)?.map(|outliers| {
+        FilterTruth::new(
+            &trace.detection.filtered,
+            &outliers,
+            &trace.observations,
+            trace.detection.detected_frame,
+        )
+    });
     if options.true_cut && scene.file.ground_truth.cut_open_frame.is_some() {
         // Its pictures and meshes beside the detected run's, to compare the two.
         let out = options.out.as_ref().map(|o| o.join("true-cut"));

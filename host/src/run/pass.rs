@@ -7,8 +7,8 @@ use incise_core::{CutWork, Model, Observation, Real};
 
 use super::truth::Truth;
 use super::{
-    CutTrace, DetectionTrace, FrameHealth, FrameRecord, FrameWork, RunError, cast_point, core,
-    known_observations, to_f64,
+    CutTrace, DetectionTrace, FilteredFeature, FrameHealth, FrameRecord, FrameWork, RunError,
+    cast_point, core, known_observations, to_f64,
 };
 use crate::generate::object::signed_volume6;
 
@@ -117,6 +117,21 @@ impl Pass {
                 d.pairs = report.detection.pairs;
                 d.pairs_lost = report.detection.pairs_lost;
                 d.features_filtered = report.detection.features_filtered;
+                if d.filtered.len() < d.features_filtered {
+                    let detector = model.detector();
+                    let features = model.features();
+                    for slot in 0..features.len() {
+                        if let Some(id) = features.id_of(slot)
+                            && detector.is_filtered(slot)
+                            && !d.filtered.iter().any(|x| x.id == id)
+                        {
+                            d.filtered.push(FilteredFeature {
+                                id,
+                                frame: f as u32,
+                            });
+                        }
+                    }
+                }
                 d.spacing_px = model.detector().spacing().to_f64();
                 if d.detected_frame.is_none() {
                     d.detected_frame = report.cut_line.detected_frame.map(|_| f as u32);

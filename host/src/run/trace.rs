@@ -27,6 +27,11 @@ pub struct Summary {
     pub pairs_lost: usize,
     /// Features taken out of detection by the temporal filter.
     pub features_filtered: usize,
+    /// Which, and when.
+    pub filtered_features: Vec<FilteredFeature>,
+    /// The filter against the features the generator made jump, for a scene that lists them
+    /// (`gt/outliers.csv`).
+    pub filter_truth: Option<FilterTruth>,
     /// The features' spacing at frame 0, pixels: the unit of the cut line's lengths.
     pub feature_spacing_px: f64,
     /// The springs' stiffness `k`, J/px²: the scene's, or derived from it (`[solver] coupling`).
@@ -175,6 +180,8 @@ pub struct DetectionTrace {
     pub pairs_lost: usize,
     /// Features taken out by the temporal filter, by the end.
     pub features_filtered: usize,
+    /// Which: each feature's id and the frame the filter took it out, in that order.
+    pub filtered: Vec<FilteredFeature>,
     /// The features' spacing at frame 0 (the unit of the cut line's lengths), pixels.
     pub spacing_px: f64,
     /// The cut line at the last frame, pixels.
@@ -184,6 +191,67 @@ pub struct DetectionTrace {
     pub hausdorff_px: Option<f64>,
     /// The same to the stretches of the true cut whose lips are a pixel or more apart.
     pub open_hausdorff_px: Option<f64>,
+}
+
+/// A feature the temporal filter took out (as a tracking failure).
+#[derive(Clone, Copy, Debug, Serialize, PartialEq, Eq)]
+pub struct FilteredFeature {
+    /// Its id, as the tracks name it.
+    pub id: u32,
+    /// The frame it was taken out.
+    pub frame: u32,
+}
+
+/// The temporal filter against the features the generator made jump (`gt/outliers.csv`).
+#[derive(Clone, Copy, Debug, Serialize, PartialEq, Eq)]
+pub struct FilterTruth {
+    /// Features made to jump while they were tracked (reported off their place at least once
+    /// after frame 0).
+    pub outliers: usize,
+    /// Of them, those the filter took out.
+    pub outliers_filtered: usize,
+    /// Features the filter took out that were never reported off their place: tracked where
+    /// they were, whatever their residual did (for instance the lips of a cut opening under
+    /// the camera).
+    pub genuine_filtered: usize,
+    /// Of them, those taken out before the frame the cut was detected (all of them when none
+    /// was): evidence the detection never saw.
+    pub genuine_before_detection: usize,
+}
+
+impl FilterTruth {
+    /// `filtered` (what the filter took out) against the `outliers` the generator wrote, over
+    /// the `observations` of every frame (a jump the tracker never reported does not count),
+    /// the cut detected at frame `detected` if it was.
+    pub fn new(
+        filtered: &[FilteredFeature],
+        outliers: &[crate::scene::TrueOutlier],
+        observations: &[Vec<Observation<f64>>],
+        detected: Option<u32>,
+    ) -> FilterTruth {
+        let reported = |o: &crate::scene::TrueOutlier| {
+            observations
+                .iter()
+                .enumerate()
+                .skip(1)
+                .any(|(f, obs)| o.is_off_at(f as u32) && obs.iter().any(|ob| ob.id == o.id))
+        };
+        let jumped: Vec<u32> = outliers
+            .iter()
+            .filter(|o| reported(o))
+            .map(|o| o.id)
+            .collect();
+        let caught = filtered.iter().filter(|f| jumped.contains(&f.id)).count();
+        FilterTruth {
+            outliers: jumped.len(),
+            outliers_filtered: caught,
+            genuine_filtered: filtered.len() - caught,
+            genuine_before_detection: filtered
+                .iter()
+                .filter(|f| !jumped.contains(&f.id) && detected.is_none_or(|d| f.frame < d))
+                .count(),
+        }
+    }
 }
 
 /// What cutting the mesh did over a run.
@@ -282,6 +350,8 @@ impl Summary {
             pairs: trace.detection.pairs,
             pairs_lost: trace.detection.pairs_lost,
             features_filtered: trace.detection.features_filtered,
+            filtered_features: trace.detection.filtered.clone(),
+            filter_truth: None,
             precision: scene.precision,
             law: scene.file.model.law,
             feature_spacing_px: trace.detection.spacing_px,

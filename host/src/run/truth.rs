@@ -8,7 +8,10 @@ use incise_core::{Camera, Model, Real};
 use super::to_f64;
 use crate::metrics::{dice, hausdorff_to_parts, paired_rms, surface_rms};
 use crate::render::{Mask, silhouette};
-use crate::scene::{CutParts, Scene, SceneError, Surface, read_cut_csv, read_obj, read_points_csv};
+use crate::scene::{
+    CutParts, Scene, SceneError, Surface, TrueOutlier, read_cut_csv, read_obj, read_outliers_csv,
+    read_points_csv,
+};
 
 /// Ground truth of a scene, read once.
 pub(crate) struct Truth {
@@ -45,6 +48,18 @@ impl Truth {
             surface,
             cut,
         }))
+    }
+
+    /// Reads the scene's `gt/outliers.csv` alone; `None` where it has none (a real video, or a
+    /// scene generated before the file was written).
+    pub(crate) fn load_outliers(scene: &Scene) -> Result<Option<Vec<TrueOutlier>>, SceneError> {
+        let p = scene.dir.join("gt").join("outliers.csv");
+        if !p.is_file() {
+            return Ok(None);
+        }
+        let text = std::fs::read_to_string(&p)
+            .map_err(|e| SceneError::new(&p, 0, format!("cannot read: {e}")))?;
+        read_outliers_csv(&text, &p).map(Some)
     }
 
     /// The internal targets at frame 0, where the model embeds them.

@@ -244,6 +244,94 @@ pub fn read_cut_csv(text: &str, file: &Path) -> Result<Vec<CutParts>, SceneError
     Ok(frames)
 }
 
+/// A feature the generator made jump (`gt/outliers.csv`): a tracking failure by construction,
+/// which the detector's temporal filter is there to take out.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TrueOutlier {
+    /// The feature's id, as in `tracks.csv`.
+    pub id: u32,
+    /// The first frame it is reported off its true position.
+    pub start: u32,
+    /// Frames it stays off (then it is reported where it is again).
+    pub frames: u32,
+    /// What is added to its observation meanwhile, pixels.
+    pub jump: [f64; 2],
+}
+
+impl TrueOutlier {
+    /// Whether it is reported off its true position at `frame`.
+    pub fn is_off_at(&self, frame: u32) -> bool {
+        frame >= self.start && frame - self.start < self.frames
+    }
+}
+
+const OUTLIERS_HEADER: &str = "id,start,frames,du,dv";
+
+/// Writes `gt/outliers.csv` (`id,start,frames,du,dv`, one row per jumping feature, by id).
+pub fn write_outliers_csv(outliers: &[TrueOutlier]) -> String {
+    let mut rows: Vec<&TrueOutlier> = outliers.iter().collect();
+    rows.sort_by_key(|o| o.id);
+    let mut out = format!("{OUTLIERS_HEADER}\n");
+    for o in rows {
+        out.push_str(&format!(
+            "{},{},{},{:.3},{:.3}\n",
+            o.id, o.start, o.frames, o.jump[0], o.jump[1]
+        ));
+    }
+    out
+}
+
+/// Reads `gt/outliers.csv` ([`write_outliers_csv`]).
+///
+/// # Errors
+/// A [`SceneError`] with the line for another header, a malformed row, an id, start or length
+/// that is not a whole number (ids below [`limits::MAX_FEATURES`], frames below
+/// [`limits::MAX_FRAMES`]), a jump that is not a finite number, or an id listed twice.
+pub fn read_outliers_csv(text: &str, file: &Path) -> Result<Vec<TrueOutlier>, SceneError> {
+    let header = text.lines().next().unwrap_or_default();
+    if !header
+        .split(',')
+        .map(str::trim)
+        .eq(OUTLIERS_HEADER.split(','))
+    {
+        return Err(SceneError::new(
+            file,
+            1,
+            format!("expected the header {OUTLIERS_HEADER}"),
+        ));
+    }
+    let mut out: Vec<TrueOutlier> = vec![];
+    for (i, line) in text.lines().enumerate().skip(1) {
+        let n = i + 1;
+        if line.trim().is_empty() {
+            continue;
+        }
+        let f: Vec<&str> = line.split(',').map(str::trim).collect();
+        let [id, start, frames, du, dv] = f.as_slice() else {
+            return Err(SceneError::new(file, n, "expected id,start,frames,du,dv"));
+        };
+        let jump = [du, dv].map(|s| s.parse::<f64>().ok().filter(|v| v.is_finite()));
+        let [Some(du), Some(dv)] = jump else {
+            return Err(SceneError::new(file, n, "du and dv must be finite numbers"));
+        };
+        let outlier = TrueOutlier {
+            id: whole(id, "id", limits::MAX_FEATURES, file, n)? as u32,
+            start: whole(start, "start", limits::MAX_FRAMES, file, n)? as u32,
+            frames: whole(frames, "frames", limits::MAX_FRAMES, file, n)? as u32,
+            jump: [du, dv],
+        };
+        if out.iter().any(|o| o.id == outlier.id) {
+            return Err(SceneError::new(
+                file,
+                n,
+                format!("feature {} is listed twice", outlier.id),
+            ));
+        }
+        out.push(outlier);
+    }
+    Ok(out)
+}
+
 /// A triangulated surface.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Surface {
@@ -438,5 +526,49 @@ mod tests {
         let s = read_obj(&write_obj(&pos, &tri), Path::new("s.obj")).unwrap();
         assert_eq!((s.positions, s.triangles), (pos, tri));
         assert!(read_obj("v 0 0 0\nf 1 2 3\n", Path::new("s.obj")).is_err());
+    }
+
+    #[test]
+    fn outliers_round_trip_and_errors_name_the_line() {
+        let listed = vec![
+            TrueOutlier {
+                id: 7,
+                start: 3,
+                frames: 2,
+                jump: [1.5, -12.25],
+            },
+            TrueOutlier {
+                id: 2,
+                start: 10,
+                frames: 5,
+                jump: [-3.0, 0.0],
+            },
+        ];
+        let text = write_outliers_csv(&listed);
+        assert!(text.starts_with("id,start,frames,du,dv\n2,10,"), "{text}");
+        let read = read_outliers_csv(&text, Path::new("o.csv")).unwrap();
+        assert_eq!(read, vec![listed[1], listed[0]]);
+        assert!(read[1].is_off_at(3) && read[1].is_off_at(4));
+        assert!(!read[1].is_off_at(2) && !read[1].is_off_at(5));
+        // None listed: the header alone.
+        assert_eq!(
+            read_outliers_csv(&write_outliers_csv(&[]), Path::new("o.csv")),
+            Ok(vec![])
+        );
+        for (text, line, says) in [
+            ("frame,id\n", 1, "header"),
+            ("id,start,frames,du,dv\n1,2,3,4\n", 2, "expected"),
+            ("id,start,frames,du,dv\n1,2,3,4,nan\n", 2, "finite"),
+            ("id,start,frames,du,dv\n1.5,2,3,4,5\n", 2, "id"),
+            (
+                "id,start,frames,du,dv\n1,2,3,4,5\n\n1,4,3,4,5\n",
+                4,
+                "twice",
+            ),
+        ] {
+            let e = read_outliers_csv(text, Path::new("o.csv")).unwrap_err();
+            assert_eq!(e.line, line, "{text:?}: {e}");
+            assert!(e.to_string().contains(says), "{text:?}: {e}");
+        }
     }
 }

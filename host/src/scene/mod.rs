@@ -9,7 +9,8 @@
 //!   gt/silhouettes/NNNN.png   true silhouette per frame at camera resolution
 //!   gt/targets.csv    frame,id,x,y,z — true positions of internal targets (metres)
 //!   gt/surface.obj    true surface at the last frame (metres)
-//!   gt/cut.csv        frame,u,v — the true cut line in the image per frame (if cut)
+//!   gt/cut.csv        frame,part,u,v,open — the true cut in the image per frame (if cut)
+//!   gt/outliers.csv   id,start,frames,du,dv — the features made to jump (absent in older scenes)
 //! ```
 //!
 //! Every error names the file and, where there is one, the line.
@@ -35,8 +36,8 @@ pub use file::{
     SolverSection, default_depth_prior,
 };
 pub use formats::{
-    CutParts, CutPoint, Surface, read_cut_csv, read_obj, read_points_csv, read_tracks, write_obj,
-    write_tracks,
+    CutParts, CutPoint, Surface, TrueOutlier, read_cut_csv, read_obj, read_outliers_csv,
+    read_points_csv, read_tracks, write_obj, write_outliers_csv, write_tracks,
 };
 
 /// An error while reading a scene: the file, the line (0 when the whole file is at fault) and

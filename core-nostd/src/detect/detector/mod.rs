@@ -257,6 +257,14 @@ impl<'a, T: Real> Detector<'a, T> {
         self.spacing
     }
 
+    /// Whether the temporal filter has taken the feature in `slot` out of detection (for
+    /// good: a tracking failure); `false` for a slot the detector does not hold.
+    pub fn is_filtered(&self, slot: usize) -> bool {
+        self.feature_state
+            .get(slot)
+            .is_some_and(|&s| s & FILTERED != 0)
+    }
+
     /// The separation points of the last frame, pixels.
     pub fn points(&self) -> &[[T; 2]] {
         self.points.get(..self.n_points).unwrap_or_default()

@@ -157,6 +157,9 @@ fn a_single_jumping_feature_is_filtered_and_cuts_nothing() {
     }
     let r = det.update(0, &d, &[1; 400], &uv, &config());
     assert_eq!(r.features_filtered, 1);
+    // It is feature 210, and no other slot (nor one past the detector's) reads as filtered.
+    assert!(det.is_filtered(210));
+    assert_eq!((0..401).filter(|&k| det.is_filtered(k)).count(), 1);
     // Feature 210 had 8 neighbours within 15 px.
     assert_eq!(r.pairs_lost, 8);
 }

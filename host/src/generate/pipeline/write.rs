@@ -11,8 +11,8 @@ use crate::generate::tracking::{DepthBuffer, observe_frame, sample_features};
 use crate::msh;
 use crate::rng::Rng;
 use crate::scene::{
-    CameraSection, GroundTruthSection, ModelSection, SceneFile, silhouette_path, write_obj,
-    write_tracks,
+    CameraSection, GroundTruthSection, ModelSection, SceneFile, TrueOutlier, silhouette_path,
+    write_obj, write_outliers_csv, write_tracks,
 };
 
 use super::prepare::rest_silhouette_dice;
@@ -224,6 +224,22 @@ pub fn write_scene(
     write_file(&out.join("tracks.csv"), write_tracks(&tracks))?;
     write_file(&out.join("gt").join("targets.csv"), target_rows)?;
     write_file(&out.join("gt").join("cut.csv"), cut_rows)?;
+    let outliers: Vec<TrueOutlier> = features
+        .iter()
+        .enumerate()
+        .filter_map(|(id, f)| {
+            f.jump.map(|(start, frames, jump)| TrueOutlier {
+                id: id as u32,
+                start,
+                frames,
+                jump,
+            })
+        })
+        .collect();
+    write_file(
+        &out.join("gt").join("outliers.csv"),
+        write_outliers_csv(&outliers),
+    )?;
     write_file(
         &out.join("gt").join("surface.obj"),
         write_obj(&sim.positions[sim.positions.len() - 1], &triangles),
