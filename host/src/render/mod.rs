@@ -204,6 +204,8 @@ pub mod colour {
     pub const OUTLIER_PAIR: [u8; 3] = [200, 0, 200];
     /// Neighbour pairs counted as split (`incise run --pairs`).
     pub const SPLIT_PAIR: [u8; 3] = [255, 160, 0];
+    /// Features the temporal filter took out (rings about their tracked positions).
+    pub const FILTERED: [u8; 3] = [170, 110, 255];
 }
 
 impl Canvas {
@@ -270,6 +272,17 @@ impl Canvas {
                     self.plot(cx + dx, cy + dy, colour);
                 }
             }
+        }
+    }
+
+    /// A circle of `radius` pixels about `p`, one pixel wide (24 chords).
+    pub fn ring(&mut self, p: [f64; 2], radius: f64, colour: [u8; 3]) {
+        let at = |k: usize| {
+            let a = std::f64::consts::TAU * k as f64 / 24.0;
+            [p[0] + radius * a.cos(), p[1] + radius * a.sin()]
+        };
+        for k in 0..24 {
+            self.line(at(k), at(k + 1), colour);
         }
     }
 
@@ -493,5 +506,26 @@ mod tests {
         let edge = o.image.pixels().filter(|p| p.0 == [255, 0, 0]).count();
         assert!(edge > 0 && edge < m.count(), "{edge} of {}", m.count());
         assert_ne!(o.image.get_pixel(3, 3).0, [255, 0, 0]);
+    }
+
+    #[test]
+    fn a_ring_lies_on_its_circle_and_leaves_its_centre() {
+        let mut c = Canvas::new(40, 40, [0, 0, 0]);
+        c.ring([20.0, 20.0], 8.0, [9, 8, 7]);
+        let lit: Vec<(u32, u32)> = c
+            .image
+            .enumerate_pixels()
+            .filter(|(_, _, p)| p.0 == [9, 8, 7])
+            .map(|(x, y, _)| (x, y))
+            .collect();
+        // About its circumference (2π · 8 ≈ 50 pixels), every pixel within a pixel and a half
+        // of the circle (chords and the pixel grid).
+        assert!(lit.len() >= 40, "{}", lit.len());
+        for &(x, y) in &lit {
+            let r = (f64::from(x) + 0.5 - 20.0).hypot(f64::from(y) + 0.5 - 20.0);
+            assert!((r - 8.0).abs() <= 1.5, "({x}, {y}) at {r}");
+        }
+        // Partly off the picture: drawn as far as it fits.
+        c.ring([1.0, 1.0], 6.0, [1, 1, 1]);
     }
 }

@@ -38,6 +38,9 @@ pub struct Overlay<'a> {
     pub true_cut: Option<&'a [Vec<[f64; 2]>]>,
     /// The frame's tracked features.
     pub observations: &'a [Observation<f64>],
+    /// The tracked positions this frame of the features the temporal filter has taken out
+    /// (as tracking failures), pixels.
+    pub filtered: &'a [[f64; 2]],
     /// The detected cut line, pixels.
     pub cut_line: &'a [[f64; 2]],
     /// The internal targets where the model carries them.
@@ -86,6 +89,9 @@ pub fn draw(o: &Overlay<'_>) -> Canvas {
     for &uv in o.virtual_features {
         canvas.cross_mark(uv, 1.5, colour::VIRTUAL);
     }
+    for &uv in o.filtered {
+        canvas.ring(uv, 5.0, colour::FILTERED);
+    }
     for line in o.true_cut.unwrap_or_default() {
         canvas.polyline(line, colour::TRUE_CUT, 1);
     }
@@ -121,6 +127,9 @@ pub fn draw(o: &Overlay<'_>) -> Canvas {
     legend.push((colour::MODEL, "model (mesh)"));
     legend.push((colour::FEATURE, "tracked features"));
     legend.push((colour::VIRTUAL, "model's features"));
+    if !o.filtered.is_empty() {
+        legend.push((colour::FILTERED, "taken out by the filter"));
+    }
     if !o.targets.is_empty() {
         legend.push((colour::TARGET, "internal targets"));
     }

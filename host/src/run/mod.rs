@@ -338,6 +338,12 @@ fn run_pass_in<T: Real, F: Real>(
                 .collect();
             let separation_points: Vec<[f64; 2]> =
                 model.detector().points().iter().map(to_f64).collect();
+            let filtered: Vec<[f64; 2]> = frame
+                .observations
+                .iter()
+                .filter(|o| pass.detection.filtered.iter().any(|f| f.id == o.id))
+                .map(|o| o.uv)
+                .collect();
             let pairs = scene.overlay_pairs.then(|| detector_pairs(&model));
             let true_cut = truth.as_ref().and_then(|t| t.cut_at(f));
             let canvas = overlay::draw(&Overlay {
@@ -354,6 +360,7 @@ fn run_pass_in<T: Real, F: Real>(
                 truth_mask: measure.truth_mask.as_ref(),
                 true_cut: true_cut.as_deref(),
                 observations: &frame.observations,
+                filtered: &filtered,
                 cut_line: &pass.detection.polyline,
                 targets: &measure.targets,
                 dice: measure.dice,
