@@ -232,24 +232,22 @@ pub fn eval_family(family_path: &Path, options: &EvalOptions) -> Result<FamilySu
         }
         let (summary, _) =
             run_scene(&scene, &RunOptions::default()).map_err(|e| format!("{}: {e}", s.name))?;
-        let mut result = variant_result(&s.name, kind, summary);
-        (result.noise_px, result.jump_px) = (s.tracking.noise_px, s.tracking.outlier_jump_px);
-        results.push(result);
+        results.push(variant_result(s, kind, summary));
         bar.inc(1);
     }
     bar.finish_and_clear();
     Ok(summarise(&family.name, results))
 }
 
-fn variant_result(name: &str, kind: Kind, summary: Summary) -> VariantResult {
+fn variant_result(s: &Scenario, kind: Kind, summary: Summary) -> VariantResult {
     let intact = kind == Kind::Intact;
     let detected = summary.cut_detected_frame;
     let open = summary.cut_open_frame;
     VariantResult {
-        name: name.to_string(),
+        name: s.name.clone(),
         kind,
-        noise_px: f64::NAN,
-        jump_px: f64::NAN,
+        noise_px: s.tracking.noise_px,
+        jump_px: s.tracking.outlier_jump_px,
         open_frame: open,
         detected_frame: detected,
         latency: match (detected, open) {
