@@ -170,6 +170,9 @@ pub struct EvalOptions {
     pub progress: bool,
     /// The model's strain energy law in place of each variant's (`None`: the variant's own).
     pub law: Option<crate::scene::ModelLaw>,
+    /// A seed in place of each family's own: other variants drawn from the same ranges, to
+    /// check that what the committed seeds show holds on variants nothing was tried on.
+    pub seed: Option<u64>,
 }
 
 /// Whether `dir` holds the scene of scenario `s` (drawn relative to `base`) already.
@@ -190,7 +193,15 @@ fn is_generated(s: &Scenario, base: &Path, dir: &Path) -> bool {
 /// # Errors
 /// A message naming the family, or the variant whose generation or run failed.
 pub fn eval_family(family_path: &Path, options: &EvalOptions) -> Result<FamilySummary, String> {
-    let family = Family::load(family_path).map_err(|e| e.to_string())?;
+    let mut family = Family::load(family_path).map_err(|e| e.to_string())?;
+    // Variants of another seed are kept apart from the family's own.
+    let work_name = match options.seed {
+        Some(seed) if seed != family.seed => {
+            family.seed = seed;
+            format!("{}-seed-{seed}", family.name)
+        }
+        _ => family.name.clone(),
+    };
     let scenarios = variants(&family, family_path).map_err(|e| e.to_string())?;
     let base = family.base_dir(family_path);
     let kinds = family.kinds();
@@ -204,7 +215,7 @@ pub fn eval_family(family_path: &Path, options: &EvalOptions) -> Result<FamilySu
             options.selection.per_kind.is_none_or(|n| *slot <= n)
         })
         .collect();
-    let work = options.work.join(&family.name);
+    let work = options.work.join(work_name);
     std::fs::create_dir_all(&work).map_err(|e| format!("{}: {e}", work.display()))?;
     let bar = if options.progress {
         let b = ProgressBar::new(chosen.len() as u64);

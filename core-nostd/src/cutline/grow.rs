@@ -6,22 +6,45 @@ use crate::detect::SplitPairs;
 
 impl<'a, T: Real> CutLine<'a, T> {
     /// Fits the line (robustly, then by total least squares) and places its two ends.
+    /// `pairs[k]` is point `k`'s pair in `tracked.split`.
     pub(super) fn start(
         &mut self,
         frame: u32,
         points: &[[T; 2]],
+        pairs: &[u32],
         tracked: &Tracked<'_, T>,
         rules: &Rules<T>,
         work: &mut LineWork,
     ) -> usize {
-        // Of the lines through two separation points, the one with most points within the
-        // tolerance: spurious clusters (a tracking failure, a region where the model is poor)
-        // then do not tilt the line.
         let pts = points.get(..FIT_POINTS).unwrap_or(points);
+        // Each point's pair (its two feature slots) and how it opens: the second feature's
+        // residual less the first's.
+        let mut slots = [[NO_SLOT; 2]; FIT_POINTS];
+        let mut opening = [[T::zero(); 2]; FIT_POINTS];
+        for ((s, o), &k) in slots.iter_mut().zip(opening.iter_mut()).zip(pairs) {
+            if let Some([a, b]) = tracked.split.slots(k)
+                && let (Some(ra), Some(rb)) = (
+                    tracked.residuals.get(a as usize),
+                    tracked.residuals.get(b as usize),
+                )
+            {
+                *s = [a, b];
+                *o = sub(*rb, *ra);
+            }
+        }
         let tol = rules.tolerance;
         let f = pts.len() as u64;
-        work.fit_tests += f * f.saturating_sub(1) / 2 * f + 3 * f;
-        // The inlier count and the two points of the best line.
+        // Of the lines through two separation points, the one that most points support:
+        // spurious clusters (a tracking failure, a region where the model is poor) then do not
+        // tilt the line. A point supports a line within the tolerance of it whose pair opens
+        // across it ([`crosses`]): where the lips part beside a cut's tip, the pairs between
+        // a lip and the material beyond the tip open along the line their midpoints make
+        // there, and would otherwise start the line across the cut instead of along it. And
+        // no feature may be in all the supporting pairs but one ([`carried_by_one`]).
+        let supports = |p: &[T; 2], o: &[T; 2], p_i: [T; 2], d: [T; 2], len: T| {
+            (cross(d, sub(*p, p_i)) / len).abs() <= tol && crosses(*o, d)
+        };
+        // The support and the two points of the best line.
         let mut best = (0usize, [T::zero(); 2], [T::zero(); 2]);
         for (i, &p_i) in pts.iter().enumerate() {
             for &p_j in pts.iter().skip(i + 1) {
@@ -30,12 +53,21 @@ impl<'a, T: Real> CutLine<'a, T> {
                 if !(len > T::EPS) {
                     continue;
                 }
-                let inliers = pts
+                let support = |(p, o): &(&[T; 2], &[T; 2])| supports(p, o, p_i, d, len);
+                work.fit_tests += f;
+                let count = pts.iter().zip(&opening).filter(support).count();
+                if count <= best.0 {
+                    continue;
+                }
+                work.fit_tests += CARRIED_BY_ONE_VISITS * f;
+                let supporting = pts
                     .iter()
-                    .filter(|p| (cross(d, sub(**p, p_i)) / len).abs() <= tol)
-                    .count();
-                if inliers > best.0 {
-                    best = (inliers, p_i, p_j);
+                    .zip(&opening)
+                    .zip(&slots)
+                    .filter(|(po, _)| support(po))
+                    .map(|(_, s)| *s);
+                if !carried_by_one(supporting, count) {
+                    best = (count, p_i, p_j);
                 }
             }
         }
@@ -44,16 +76,17 @@ impl<'a, T: Real> CutLine<'a, T> {
         }
         let (pi, d) = (best.1, sub(best.2, best.1));
         let dl = length(d);
-        let inlier = |p: &&[T; 2]| (cross(d, sub(**p, pi)) / dl).abs() <= tol;
+        let inlier = |(p, o): &(&[T; 2], &[T; 2])| supports(p, o, pi, d, dl);
         // Then total least squares on the inliers: the principal direction of their scatter.
+        work.fit_tests += 3 * f;
         let n = T::of(best.0 as f64);
         let mut c = [T::zero(); 2];
-        for p in pts.iter().filter(inlier) {
+        for (p, _) in pts.iter().zip(&opening).filter(inlier) {
             c[0] += p[0] / n;
             c[1] += p[1] / n;
         }
         let (mut sxx, mut sxy, mut syy) = (T::zero(), T::zero(), T::zero());
-        for p in pts.iter().filter(inlier) {
+        for (p, _) in pts.iter().zip(&opening).filter(inlier) {
             let d = sub(*p, c);
             sxx += d[0] * d[0];
             sxy += d[0] * d[1];
@@ -70,7 +103,7 @@ impl<'a, T: Real> CutLine<'a, T> {
         let (sin, cos) = angle.libm_sin_cos();
         let e = [cos, sin];
         let (mut lo, mut hi) = (T::zero(), T::zero());
-        for p in pts.iter().filter(inlier) {
+        for (p, _) in pts.iter().zip(&opening).filter(inlier) {
             let t = sub(*p, c)[0] * e[0] + sub(*p, c)[1] * e[1];
             lo = lo.min(t);
             hi = hi.max(t);
@@ -281,6 +314,7 @@ pub(super) fn anchor_across<T: Real>(
         features,
         usable,
         split,
+        ..
     } = tracked;
     let normal = [-tangent[1], tangent[0]];
     let across = |f: &[T; 2]| {
@@ -499,4 +533,49 @@ fn keep_nearest<T: Real, I: Copy>(near: &mut [(T, I)], found: usize, d: T, item:
         }
     }
     (found + 1).min(near.len())
+}
+
+/// A pair slot that no feature has: a point whose pair is unknown (never so for the detector's
+/// points).
+const NO_SLOT: u32 = u32::MAX;
+
+/// Whether a pair opening by `o` crosses a line heading `d`: the opening lies within 60° of the
+/// line's normal (`|o × d| ≥ |o| |d| / 2`), the same half that `opening_only` asks of the
+/// opening along the pair itself. A cut opens across itself.
+pub(super) fn crosses<T: Real>(o: [T; 2], d: [T; 2]) -> bool {
+    let scale = length(o) * length(d);
+    scale > T::EPS && cross(o, d).abs() >= T::of(0.5) * scale
+}
+
+/// Visits per point of [`carried_by_one`]: one pass to find the candidates, one to count each
+/// of the three.
+pub const CARRIED_BY_ONE_VISITS: u64 = 4;
+
+/// Whether one feature is in all of the `n` `pairs` but at most one. Then a single feature
+/// carries the line: it jumped and the temporal filter missed it (its pairs with every
+/// neighbour open alike and their midpoints ring it), or it is the only evidence of a cut yet.
+/// Either way the line would stand on one feature's track; at least two pairs without it
+/// (two points fix a line) are asked for. The feature, if there is one, is in more than a
+/// quarter of the `2 n` slots when `n ≥ 3`, so Misra and Gries' frequent-items count with three
+/// counters keeps it; each candidate kept is then counted.
+pub(super) fn carried_by_one(pairs: impl Iterator<Item = [u32; 2]> + Clone, n: usize) -> bool {
+    if n <= 2 {
+        // Any feature of a pair leaves at most one pair without it.
+        return true;
+    }
+    let mut kept = [(NO_SLOT, 0usize); 3];
+    for f in pairs.clone().flatten().filter(|&f| f != NO_SLOT) {
+        if let Some(k) = kept.iter_mut().find(|k| k.1 > 0 && k.0 == f) {
+            k.1 += 1;
+        } else if let Some(k) = kept.iter_mut().find(|k| k.1 == 0) {
+            *k = (f, 1);
+        } else {
+            for k in kept.iter_mut() {
+                k.1 -= 1;
+            }
+        }
+    }
+    kept.iter()
+        .filter(|k| k.1 > 0)
+        .any(|&(f, _)| pairs.clone().filter(|p| p.contains(&f)).count() + 1 >= n)
 }

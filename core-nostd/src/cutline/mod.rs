@@ -55,10 +55,11 @@ impl LineWork {
     /// The most work of one frame with `vertices` vertices of capacity, `points` separation
     /// points (the pair capacity) and `features` slots, whichever of
     /// starting or growing the line the frame does:
-    /// - starting: `F (F − 1) / 2 · F + 2 F` fit tests with `F = min(points, FIT_POINTS)` (every
-    ///   candidate line through two points against every point, then three passes over the
-    ///   inliers),
-    ///   and two anchorings;
+    /// - starting: `F (F − 1) / 2 · 5 F + 3 F` fit tests with `F = min(points, FIT_POINTS)`
+    ///   (every candidate line through two points against every point, and, for a candidate
+    ///   with more support than the best so far, the [`CARRIED_BY_ONE_VISITS`] passes that
+    ///   check no single feature carries it; then three passes over the inliers), and two
+    ///   anchorings;
     /// - growing: each vertex follows its evidence (`points` visits) and each front
     ///   looks ahead (`points`), with one anchoring per vertex and per front.
     ///
@@ -71,7 +72,7 @@ impl LineWork {
         } else {
             FIT_POINTS as u64
         };
-        let start_fit = f * f.saturating_sub(1) / 2 * f + 3 * f;
+        let start_fit = f * f.saturating_sub(1) / 2 * (1 + CARRIED_BY_ONE_VISITS) * f + 3 * f;
         let grow_points = (vertices + 2) * points;
         let anchor = ANCHOR_COST * (features + 20) + points;
         let start_anchor = 2 * anchor;
@@ -99,6 +100,8 @@ impl LineWork {
 /// slot), which slots may anchor a vertex, and the pairs the detector found split.
 struct Tracked<'s, T> {
     features: &'s [[T; 2]],
+    /// The features' residuals (pixels, one per slot): how a split pair's lips part.
+    residuals: &'s [[T; 2]],
     usable: &'s [u32],
     split: SplitPairs<'s>,
 }
@@ -412,8 +415,10 @@ impl<'a, T: Real> CutLine<'a, T> {
     /// front advances only on points inserted after it last moved (the paper's "new cut lines
     /// are only inserted when a sufficient number of separation points have been inserted"),
     /// so a discrepancy that stays put, such as the strain at a cut's tip that a coarse model
-    /// cannot follow, cannot push a front along frame after frame. `features` are the latest image positions of the feature
-    /// slots (vertices are anchored to them); `usable[i] != 0` marks slots that may anchor a
+    /// cannot follow, cannot push a front along frame after frame. `pairs[k]` is point `k`'s
+    /// pair in `split` ([`SplitPairs::slots`]). `features` are the latest image positions of the feature
+    /// slots (vertices are anchored to them) and `residuals` theirs (tracked less model, one per
+    /// slot); `usable[i] != 0` marks slots that may anchor a
     /// new vertex; `scratch` holds the projected vertices (at least the capacity); `spacing`
     /// is the features' spacing at frame 0 (pixels), the unit of the configured lengths.
     #[allow(clippy::too_many_arguments)]
@@ -422,8 +427,10 @@ impl<'a, T: Real> CutLine<'a, T> {
         frame: u32,
         points: &[[T; 2]],
         since: &[u32],
+        pairs: &[u32],
         split: SplitPairs<'_>,
         features: &[[T; 2]],
+        residuals: &[[T; 2]],
         usable: &[u32],
         config: &DetectionConfig<T>,
         spacing: T,
@@ -432,6 +439,7 @@ impl<'a, T: Real> CutLine<'a, T> {
         let rules = Rules::new(config, spacing);
         let tracked = Tracked {
             features,
+            residuals,
             usable,
             split,
         };
@@ -439,7 +447,7 @@ impl<'a, T: Real> CutLine<'a, T> {
         let mut added = 0;
         if self.n == 0 {
             if points.len() >= rules.init_points && self.anchors.len() >= 2 {
-                added = self.start(frame, points, &tracked, &rules, &mut work);
+                added = self.start(frame, points, pairs, &tracked, &rules, &mut work);
             }
         } else {
             // `project` writes at most `scratch.len()` vertices.
@@ -514,6 +522,7 @@ const ANCHORS: usize = 6;
 
 mod grow;
 
+pub use grow::CARRIED_BY_ONE_VISITS;
 use grow::anchor_across;
 
 // The unit tests compute in `f64`: an `f32`-only build has none.

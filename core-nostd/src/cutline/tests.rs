@@ -1,6 +1,6 @@
 //! Unit tests of the cut line on synthetic separation points.
 
-use super::grow::{anchor_across, anchor_at};
+use super::grow::{anchor_across, anchor_at, carried_by_one};
 use super::*;
 
 #[test]
@@ -33,6 +33,38 @@ fn grid() -> [[f64; 2]; 121] {
     core::array::from_fn(|k| [10.0 * (k % 11) as f64, 10.0 * (k / 11) as f64])
 }
 
+/// Pairs across the grid's column x = 50, one per row (slots `(4, r)` and `(6, r)`), then
+/// two on the left of it (rows 0 and 1, slots `(0, r)` and `(1, r)`); all split.
+const ACROSS: [[u32; 2]; 13] = {
+    let mut p = [[0u32; 2]; 13];
+    let mut r = 0;
+    while r < 11 {
+        p[r] = [11 * r as u32 + 4, 11 * r as u32 + 6];
+        r += 1;
+    }
+    p[11] = [0, 1];
+    p[12] = [11, 12];
+    p
+};
+const ALL_SPLIT: [u32; 13] = [u32::MAX; 13];
+
+/// Point `k`'s pair is pair `k`.
+const OWN_PAIR: [u32; 13] = {
+    let mut k = [0u32; 13];
+    let mut i = 0;
+    while i < 13 {
+        k[i] = i as u32;
+        i += 1;
+    }
+    k
+};
+
+/// Residuals of the grid's features when the lips either side of x = 50 part along `dir`:
+/// those left of it by `-dir`, those right of it by `dir`.
+fn parting(dir: [f64; 2]) -> [[f64; 2]; 121] {
+    core::array::from_fn(|k| if k % 11 <= 5 { [-dir[0], -dir[1]] } else { dir })
+}
+
 #[test]
 fn the_line_starts_on_collinear_points_and_grows_toward_new_ones() {
     // Features on a grid; separation points along x = 50 from y = 20 to 60, then more up
@@ -57,8 +89,10 @@ fn the_line_starts_on_collinear_points_and_grows_toward_new_ones() {
         3,
         &points[..11],
         &[4; 11],
-        SplitPairs::default(),
+        &OWN_PAIR[..11],
+        SplitPairs::for_test(&ACROSS, &ALL_SPLIT),
         &features,
+        &parting([3.0, 0.0]),
         &usable,
         &config,
         25.0,
@@ -80,8 +114,10 @@ fn the_line_starts_on_collinear_points_and_grows_toward_new_ones() {
         4,
         &points[..8],
         &[4; 8],
-        SplitPairs::default(),
+        &OWN_PAIR[..8],
+        SplitPairs::for_test(&ACROSS, &ALL_SPLIT),
         &features,
+        &parting([3.0, 0.0]),
         &usable,
         &config,
         25.0,
@@ -112,8 +148,10 @@ fn a_full_line_reports_its_cap_instead_of_growing() {
         1,
         &points,
         &[1; 8],
-        SplitPairs::default(),
+        &OWN_PAIR[..8],
+        SplitPairs::for_test(&ACROSS, &ALL_SPLIT),
         &features,
+        &parting([3.0, 0.0]),
         &usable,
         &config,
         25.0,
@@ -127,8 +165,10 @@ fn a_full_line_reports_its_cap_instead_of_growing() {
         2,
         &points,
         &[2; 8],
-        SplitPairs::default(),
+        &OWN_PAIR[..8],
+        SplitPairs::for_test(&ACROSS, &ALL_SPLIT),
         &features,
+        &parting([3.0, 0.0]),
         &usable,
         &config,
         25.0,
@@ -172,6 +212,7 @@ fn a_vertex_off_the_cut_is_held_by_both_lips_the_split_pairs_name() {
     });
     let tracked = Tracked {
         features: &features,
+        residuals: &parting([30.0, 0.0]),
         usable: &usable,
         split,
     };
@@ -189,4 +230,106 @@ fn a_vertex_off_the_cut_is_held_by_both_lips_the_split_pairs_name() {
     let by_side = anchor_across(p, up, &by_side_only, 25.0).unwrap();
     let x = placed(&by_side, &opened)[0];
     assert!(x < 44.0 - 10.0, "{x}");
+}
+
+/// Pairs between feature 60 (the grid's (5, 5), on the left lip) and the right lip's column,
+/// then pairs across the cut that leave it out.
+const FAN: [[u32; 2]; 11] = [
+    [60, 6],
+    [60, 17],
+    [60, 28],
+    [60, 39],
+    [60, 50],
+    [60, 72],
+    [60, 83],
+    [60, 94],
+    [60, 105],
+    [81, 83],
+    [92, 94],
+];
+const FAN_SPLIT: [u32; 11] = [u32::MAX; 11];
+
+/// The vertices a fresh line adds when it meets separation points along x = 50, point `k`
+/// on pair `pairs[k]` of `table`, with the features' residuals `residuals`.
+fn start_on(table: &[[u32; 2]], pairs: &[u32], residuals: &[[f64; 2]; 121]) -> usize {
+    let features = grid();
+    let usable = [1u32; 121];
+    let config = DetectionConfig::<f64>::paper();
+    let (mut reals, mut indices) = ([0.0; 128], [0u32; 128]);
+    let mut rs = Slab::new(&mut reals, crate::error::Resource::RealStorage);
+    let mut is = Slab::new(&mut indices, crate::error::Resource::IndexStorage);
+    let mut line = CutLine::new(16, &mut rs, &mut is).unwrap();
+    let mut scratch = [[0.0; 2]; 16];
+    let points: [[f64; 2]; 13] = core::array::from_fn(|k| [50.0, 20.0 + 5.0 * k as f64]);
+    let state = [u32::MAX; 13];
+    line.update(
+        1,
+        &points[..pairs.len()],
+        &[1; 13][..pairs.len()],
+        pairs,
+        SplitPairs::for_test(table, &state[..table.len()]),
+        &features,
+        residuals,
+        &usable,
+        &config,
+        25.0,
+        &mut scratch,
+    )
+    .added
+}
+
+#[test]
+fn a_line_starts_only_along_points_whose_pairs_open_across_it() {
+    let pairs = &OWN_PAIR[..9];
+    assert_eq!(start_on(&ACROSS, pairs, &parting([3.0, 0.0])), 2);
+    // 45° off the line's normal is still across it (within 60°).
+    assert_eq!(start_on(&ACROSS, pairs, &parting([3.0, -3.0])), 2);
+    // The same points, the lips sliding along the line, as beside a cut's tip: no line.
+    assert_eq!(start_on(&ACROSS, pairs, &parting([0.0, 3.0])), 0);
+    assert_eq!(start_on(&ACROSS, pairs, &parting([1.0, 3.0])), 0);
+    // Lips that do not part at all: no line either.
+    assert_eq!(start_on(&ACROSS, pairs, &parting([0.0, 0.0])), 0);
+}
+
+#[test]
+fn a_line_one_feature_carries_does_not_start() {
+    let _ = FAN_SPLIT;
+    let residuals = parting([3.0, 0.0]);
+    // Nine points, all on pairs of feature 60: its track alone would make the cut.
+    assert_eq!(start_on(&FAN, &OWN_PAIR[..9], &residuals), 0);
+    // Eight of them and one pair without it: still one feature's line.
+    let one_other = [0, 1, 2, 3, 4, 5, 6, 7, 9];
+    assert_eq!(start_on(&FAN, &one_other, &residuals), 0);
+    // Seven and two pairs without it: two points fix a line without feature 60.
+    let two_others = [0, 1, 2, 3, 4, 5, 6, 9, 10];
+    assert_eq!(start_on(&FAN, &two_others, &residuals), 2);
+}
+
+#[test]
+fn one_carrying_feature_is_found_as_counting_every_feature_finds_it() {
+    // Deterministic pseudo-random pairs of distinct features among 0..6, against the
+    // oracle that counts each feature's pairs.
+    let mut seed = 12345u64;
+    let mut next = |m: u64| {
+        seed = seed
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (seed >> 33) % m
+    };
+    for _ in 0..2000 {
+        let n = 1 + next(12) as usize;
+        let mut pairs = [[0u32; 2]; 12];
+        for p in pairs.iter_mut().take(n) {
+            let a = next(6) as u32;
+            let b = (a + 1 + next(5) as u32) % 6;
+            *p = [a, b];
+        }
+        let pairs = &pairs[..n];
+        let oracle = (0..6).any(|f| pairs.iter().filter(|p| p.contains(&f)).count() + 1 >= n);
+        assert_eq!(
+            carried_by_one(pairs.iter().copied(), n),
+            oracle,
+            "{pairs:?}"
+        );
+    }
 }

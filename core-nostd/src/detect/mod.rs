@@ -60,7 +60,9 @@ pub struct DetectionConfig<T> {
     pub min_difference_px: T,
     /// Frames in a row a pair must be an outlier before it counts as split.
     pub persistence: u32,
-    /// Separation points needed to start the cut line.
+    /// Separation points needed to start the cut line: points near the line whose pairs open
+    /// across it, of which at least two leave out any one feature (so never fewer than
+    /// three; see `CutLine::update`).
     pub init_points: u32,
     /// Angular restriction `α` of a front's advance, degrees.
     pub alpha_degrees: T,

@@ -60,8 +60,13 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
             self.frame,
             self.cut.detector.points(),
             self.cut.detector.point_since(),
+            self.cut.detector.point_pair(),
             self.cut.detector.split_pairs(),
             self.features.targets(),
+            self.cut
+                .residuals
+                .get(..self.features.len())
+                .unwrap_or_default(),
             self.features.active(),
             &self.config.detection,
             self.cut.detector.spacing(),

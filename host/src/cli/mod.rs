@@ -194,6 +194,10 @@ pub enum Command {
         /// The model's strain energy law in place of each variant's `[model] law`.
         #[arg(long, value_enum)]
         law: Option<ModelLaw>,
+        /// Draw the variants with this seed instead of each family's own: variants that no
+        /// setting was tried on (kept in their own folders under --work).
+        #[arg(long)]
+        seed: Option<u64>,
     },
     /// Write one scene as a Rust module for a firmware build (`firmware/`): mesh, camera,
     /// settings, capacities and `const` buffer lengths, the uncut mesh's precomputed ordering
@@ -345,6 +349,7 @@ pub fn run(cli: Cli) -> i32 {
             variants,
             json,
             law,
+            seed,
         } => eval_command(
             &families,
             &crate::eval::EvalOptions {
@@ -353,6 +358,7 @@ pub fn run(cli: Cli) -> i32 {
                 fresh,
                 progress: true,
                 law,
+                seed,
             },
             variants,
             json,

@@ -52,6 +52,8 @@ pub struct Detector<'a, T> {
     points: &'a mut [[T; 2]],
     /// Per point: the frame its pair (last) became split.
     point_since: &'a mut [u32],
+    /// Per point: its pair (an index into `pairs`).
+    point_pair: &'a mut [u32],
     /// Per pair: the frame it (last) became split.
     split_since: &'a mut [u32],
     n_points: usize,
@@ -87,6 +89,11 @@ impl<'d> SplitPairs<'d> {
     #[cfg(all(test, feature = "f64"))]
     pub(crate) fn for_test(pairs: &'d [[u32; 2]], state: &'d [u32]) -> Self {
         SplitPairs { pairs, state }
+    }
+
+    /// The two feature slots of pair `k` (an index from [`Detector::point_pair`]).
+    pub fn slots(&self, k: u32) -> Option<[u32; 2]> {
+        self.pairs.get(k as usize).copied()
     }
 
     /// The pairs a pass over [`SplitPairs::iter`] visits, split or not.
@@ -145,7 +152,7 @@ impl<'a, T: Real> Detector<'a, T> {
             features,
             features,
             1,
-            times(2, pairs),
+            times(3, pairs),
             times(KEY_WORDS, larger(features, pairs)),
         ])
     }
@@ -178,6 +185,7 @@ impl<'a, T: Real> Detector<'a, T> {
             keys: indices.take(times(KEY_WORDS, pairs.max(features)))?,
             points: reals.take(times(2, pairs))?.as_chunks_mut::<2>().0,
             point_since: indices.take(pairs)?,
+            point_pair: indices.take(pairs)?,
             split_since: indices.take(pairs)?,
             n_points: 0,
             radius: T::zero(),
@@ -203,6 +211,7 @@ impl<'a, T: Real> Detector<'a, T> {
         h.reals(self.slope.iter());
         h.reals(self.points.iter().take(self.n_points).flatten());
         h.words(self.point_since.iter().take(self.n_points));
+        h.words(self.point_pair.iter().take(self.n_points));
         h.reals([self.radius, self.spacing].iter());
         h.words(
             [
@@ -274,6 +283,11 @@ impl<'a, T: Real> Detector<'a, T> {
     /// separation points "inserted" since then).
     pub fn point_since(&self) -> &[u32] {
         self.point_since.get(..self.n_points).unwrap_or_default()
+    }
+
+    /// For each separation point, its pair: an index for [`SplitPairs::slots`].
+    pub fn point_pair(&self) -> &[u32] {
+        self.point_pair.get(..self.n_points).unwrap_or_default()
     }
 
     /// Builds the neighbour pairs from the frame-0 projections `uv` of the virtual features

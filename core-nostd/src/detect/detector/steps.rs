@@ -329,7 +329,9 @@ impl<'a, T: Real> Detector<'a, T> {
             .iter()
             .zip(self.pair_state.iter_mut())
             .zip(self.difference.iter().zip(self.split_since.iter_mut()));
-        for ((&[i, j], pair_state), (&difference, split_since)) in pairs.take(self.n_pairs) {
+        for (k, ((&[i, j], pair_state), (&difference, split_since))) in
+            pairs.take(self.n_pairs).enumerate()
+        {
             // Unmeasured pairs keep their streak (a dropped frame does not reset it).
             if !(difference >= T::zero()) {
                 continue;
@@ -353,14 +355,17 @@ impl<'a, T: Real> Detector<'a, T> {
                 }
                 // The separation point: between the two tracked features, where the cut
                 // runs (a measured pair's slots are within `targets`), while there is room.
-                if let (Some(point), Some(since), Some(&a), Some(&b)) = (
+                if let (Some(point), Some(since), Some(pair), Some(&a), Some(&b)) = (
                     self.points.get_mut(self.n_points),
                     self.point_since.get_mut(self.n_points),
+                    self.point_pair.get_mut(self.n_points),
                     targets.get(i as usize),
                     targets.get(j as usize),
                 ) {
                     *point = [(a[0] + b[0]) * T::of(0.5), (a[1] + b[1]) * T::of(0.5)];
                     *since = *split_since;
+                    // `k < n_pairs`, which fits the `u32` slots.
+                    *pair = k as u32;
                     self.n_points += 1;
                 }
             }

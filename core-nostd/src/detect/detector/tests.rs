@@ -13,13 +13,13 @@ fn grid(n: usize, spacing: f64) -> [[f64; 2]; 400] {
 
 struct Store {
     reals: [f64; 16384],
-    indices: [u32; 24576],
+    indices: [u32; 32768],
 }
 
 fn store() -> Store {
     Store {
         reals: [0.0; 16384],
-        indices: [0; 24576],
+        indices: [0; 32768],
     }
 }
 
