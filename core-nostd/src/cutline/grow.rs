@@ -547,8 +547,8 @@ pub(super) fn crosses<T: Real>(o: [T; 2], d: [T; 2]) -> bool {
     scale > T::EPS && cross(o, d).abs() >= T::of(0.5) * scale
 }
 
-/// Visits per point of [`carried_by_one`]: one pass to find the candidates, one to count each
-/// of the three.
+/// Visits per point of the check that no single feature carries a line (`carried_by_one`):
+/// one pass to find the candidates, one to count each of the three.
 pub const CARRIED_BY_ONE_VISITS: u64 = 4;
 
 /// Whether one feature is in all of the `n` `pairs` but at most one. Then a single feature
