@@ -53,20 +53,23 @@ impl<'a, T: Real> CutLine<'a, T> {
                 if !(len > T::EPS) {
                     continue;
                 }
-                let support = |(p, o): &(&[T; 2], &[T; 2])| supports(p, o, p_i, d, len);
+                // One pass: the supporting points' pairs, gathered for the check below.
+                let mut supporting = [[NO_SLOT; 2]; FIT_POINTS];
+                let mut count = 0;
                 work.fit_tests += f;
-                let count = pts.iter().zip(&opening).filter(support).count();
+                for ((p, o), s) in pts.iter().zip(&opening).zip(&slots) {
+                    if supports(p, o, p_i, d, len)
+                        && let Some(slot) = supporting.get_mut(count)
+                    {
+                        *slot = *s;
+                        count += 1;
+                    }
+                }
                 if count <= best.0 {
                     continue;
                 }
                 work.fit_tests += CARRIED_BY_ONE_VISITS * f;
-                let supporting = pts
-                    .iter()
-                    .zip(&opening)
-                    .zip(&slots)
-                    .filter(|(po, _)| support(po))
-                    .map(|(_, s)| *s);
-                if !carried_by_one(supporting, count) {
+                if !carried_by_one(supporting.get(..count).unwrap_or_default()) {
                     best = (count, p_i, p_j);
                 }
             }
@@ -558,13 +561,14 @@ pub const CARRIED_BY_ONE_VISITS: u64 = 4;
 /// (two points fix a line) are asked for. The feature, if there is one, is in more than a
 /// quarter of the `2 n` slots when `n ≥ 3`, so Misra and Gries' frequent-items count with three
 /// counters keeps it; each candidate kept is then counted.
-pub(super) fn carried_by_one(pairs: impl Iterator<Item = [u32; 2]> + Clone, n: usize) -> bool {
+pub(super) fn carried_by_one(pairs: &[[u32; 2]]) -> bool {
+    let n = pairs.len();
     if n <= 2 {
         // Any feature of a pair leaves at most one pair without it.
         return true;
     }
     let mut kept = [(NO_SLOT, 0usize); 3];
-    for f in pairs.clone().flatten().filter(|&f| f != NO_SLOT) {
+    for &f in pairs.iter().flatten().filter(|&&f| f != NO_SLOT) {
         if let Some(k) = kept.iter_mut().find(|k| k.1 > 0 && k.0 == f) {
             k.1 += 1;
         } else if let Some(k) = kept.iter_mut().find(|k| k.1 == 0) {
@@ -577,5 +581,5 @@ pub(super) fn carried_by_one(pairs: impl Iterator<Item = [u32; 2]> + Clone, n: u
     }
     kept.iter()
         .filter(|k| k.1 > 0)
-        .any(|&(f, _)| pairs.clone().filter(|p| p.contains(&f)).count() + 1 >= n)
+        .any(|&(f, _)| pairs.iter().filter(|p| p.contains(&f)).count() + 1 >= n)
 }

@@ -478,16 +478,20 @@ mod tests {
         assert_eq!(m3.count(), 0);
     }
 
+    /// The pixels of `c` painted `colour`.
+    fn lit(c: &Canvas, colour: [u8; 3]) -> Vec<(u32, u32)> {
+        c.image
+            .enumerate_pixels()
+            .filter(|(_, _, p)| p.0 == colour)
+            .map(|(x, y, _)| (x, y))
+            .collect()
+    }
+
     #[test]
     fn text_legend_and_outline_stay_where_they_are_put() {
         let mut c = Canvas::new(200, 100, [0, 0, 0]);
         c.text(10, 10, "Ab", [255, 255, 255], 2);
-        let lit: Vec<(u32, u32)> = c
-            .image
-            .enumerate_pixels()
-            .filter(|(_, _, p)| p.0 == [255, 255, 255])
-            .map(|(x, y, _)| (x, y))
-            .collect();
+        let lit = lit(&c, [255, 255, 255]);
         assert!(!lit.is_empty());
         let w = Canvas::text_width("Ab", 2);
         assert_eq!(w, 32);
@@ -512,12 +516,7 @@ mod tests {
     fn a_ring_lies_on_its_circle_and_leaves_its_centre() {
         let mut c = Canvas::new(40, 40, [0, 0, 0]);
         c.ring([20.0, 20.0], 8.0, [9, 8, 7]);
-        let lit: Vec<(u32, u32)> = c
-            .image
-            .enumerate_pixels()
-            .filter(|(_, _, p)| p.0 == [9, 8, 7])
-            .map(|(x, y, _)| (x, y))
-            .collect();
+        let lit = lit(&c, [9, 8, 7]);
         // About its circumference (2π · 8 ≈ 50 pixels), every pixel within a pixel and a half
         // of the circle (chords and the pixel grid).
         assert!(lit.len() >= 40, "{}", lit.len());
