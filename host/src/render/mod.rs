@@ -173,6 +173,32 @@ pub fn silhouette(camera: &Camera<f64>, positions: &[[f64; 3]], triangles: &[[u3
     mask
 }
 
+/// Height of one legend line, pixels.
+const LEGEND_LINE: u32 = 14;
+
+/// A corner of the picture, where [`Canvas::legend`] puts its box.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Corner {
+    /// Below the title band, on the left.
+    TopLeft,
+    /// Below the title band, on the right.
+    TopRight,
+    /// At the bottom, on the left.
+    BottomLeft,
+    /// At the bottom, on the right.
+    BottomRight,
+}
+
+impl Corner {
+    /// The four corners, the preferred one (top right, away from the title's text) first.
+    pub const ALL: [Corner; 4] = [
+        Corner::TopRight,
+        Corner::TopLeft,
+        Corner::BottomRight,
+        Corner::BottomLeft,
+    ];
+}
+
 /// An RGB picture to draw overlays on.
 #[derive(Clone, Debug)]
 pub struct Canvas {
@@ -392,19 +418,41 @@ impl Canvas {
         self.text(6, 6, text, [235, 235, 235], 1);
     }
 
-    /// A legend in the top right corner: a colour swatch and its meaning per line.
-    pub fn legend(&mut self, entries: &[([u8; 3], &str)]) {
-        let line = 14i64;
+    /// Width and height in pixels of the legend box [`Canvas::legend`] draws for `entries`.
+    pub fn legend_size(entries: &[([u8; 3], &str)]) -> (u32, u32) {
         let longest = entries
             .iter()
             .map(|(_, t)| Canvas::text_width(t, 1))
             .max()
             .unwrap_or(0);
-        let w = longest + 30;
-        let h = entries.len() as u32 * line as u32 + 8;
-        let x = i64::from(self.image.width()) - i64::from(w) - 4;
-        let y = 24;
+        (longest + 30, entries.len() as u32 * LEGEND_LINE + 8)
+    }
+
+    /// The top left corner of the legend box for `entries` in `corner`: 4 pixels from the
+    /// picture's edges, below the title band at the top.
+    pub fn legend_origin(&self, entries: &[([u8; 3], &str)], corner: Corner) -> (i64, i64) {
+        let (w, h) = Canvas::legend_size(entries);
+        let (width, height) = (
+            i64::from(self.image.width()),
+            i64::from(self.image.height()),
+        );
+        let x = match corner {
+            Corner::TopLeft | Corner::BottomLeft => 4,
+            Corner::TopRight | Corner::BottomRight => width - i64::from(w) - 4,
+        };
+        let y = match corner {
+            Corner::TopLeft | Corner::TopRight => 24,
+            Corner::BottomLeft | Corner::BottomRight => height - i64::from(h) - 4,
+        };
+        (x, y)
+    }
+
+    /// A legend in `corner`: a colour swatch and its meaning per line, on a shaded box.
+    pub fn legend(&mut self, entries: &[([u8; 3], &str)], corner: Corner) {
+        let (x, y) = self.legend_origin(entries, corner);
+        let (w, h) = Canvas::legend_size(entries);
         self.shade(x, y, w, h);
+        let line = i64::from(LEGEND_LINE);
         for (k, (colour, label)) in entries.iter().enumerate() {
             let top = y + 4 + k as i64 * line;
             for dy in 1..9 {
@@ -501,7 +549,10 @@ mod tests {
         );
         // Off the picture, and characters outside ASCII: drawn as far as they fit, no panic.
         c.text(190, 95, "é—x", [1, 2, 3], 3);
-        c.legend(&[([9, 9, 9], "a very long legend line that does not fit")]);
+        c.legend(
+            &[([9, 9, 9], "a very long legend line that does not fit")],
+            Corner::BottomLeft,
+        );
         c.title("title");
         let mut m = Mask::new(20, 20);
         m.fill_triangle([[2.0, 2.0], [18.0, 2.0], [2.0, 18.0]]);

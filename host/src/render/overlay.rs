@@ -6,7 +6,7 @@ use image::RgbImage;
 use incise_core::{Camera, Observation};
 use nalgebra::Vector3;
 
-use super::{Canvas, Mask, colour};
+use super::{Canvas, Corner, Mask, colour};
 
 /// Everything one frame's overlay shows.
 pub struct Overlay<'a> {
@@ -64,7 +64,11 @@ pub struct DetectorPairs {
 /// wireframe, the true silhouette's outline over it, tracked and virtual features, the true
 /// and the detected cut with its separation points, the internal targets, then the title and
 /// a legend of what is drawn.
-pub fn draw(o: &Overlay<'_>) -> Canvas {
+///
+/// `legend` is the corner the legend took in the previous frame of the same sequence (`None`
+/// for the first): it stays there until the object moves under it, so that the legend of a
+/// video does not jump from corner to corner. The corner taken is written back.
+pub fn draw(o: &Overlay<'_>, legend_at: &mut Option<Corner>) -> Canvas {
     let mut canvas = match o.picture {
         Some(image) => Canvas {
             image: image.clone(),
@@ -141,6 +145,128 @@ pub fn draw(o: &Overlay<'_>) -> Canvas {
         legend.push((colour::OUTLIER_PAIR, "outlier pairs"));
         legend.push((colour::SPLIT_PAIR, "split pairs"));
     }
-    canvas.legend(&legend);
+    let corner = legend_corner(
+        &canvas,
+        &legend,
+        &[Some(o.model_mask), o.truth_mask],
+        *legend_at,
+    );
+    canvas.legend(&legend, corner);
+    *legend_at = Some(corner);
     canvas
+}
+
+/// The corner where the legend hides the least of the object: the fewest pixels of `masks`
+/// (the model's and the true silhouette) under its box, top right on a tie. A fixed corner
+/// hid whatever the scene put there (a band's pulled end, a lobe, a false line). The corner
+/// `keep` is kept unless another hides at least a fifth less.
+fn legend_corner(
+    canvas: &Canvas,
+    legend: &[([u8; 3], &str)],
+    masks: &[Option<&Mask>],
+    keep: Option<Corner>,
+) -> Corner {
+    let (w, h) = Canvas::legend_size(legend);
+    let covered = |corner: Corner| {
+        let (x0, y0) = canvas.legend_origin(legend, corner);
+        let mut n = 0usize;
+        for mask in masks.iter().flatten() {
+            let xs = x0.max(0)..(x0 + i64::from(w)).min(i64::from(mask.width));
+            let ys = y0.max(0)..(y0 + i64::from(h)).min(i64::from(mask.height));
+            for y in ys {
+                n += xs.clone().filter(|&x| mask.get(x as u32, y as u32)).count();
+            }
+        }
+        n
+    };
+    // `min_by_key` keeps the first of equal keys: the preferred corner wins a tie.
+    let best = Corner::ALL
+        .into_iter()
+        .min_by_key(|&c| covered(c))
+        .unwrap_or(Corner::TopRight);
+    match keep {
+        Some(k) => {
+            // A fifth less hidden is worth a move; less is not (no flicker between corners
+            // that hide about as much).
+            if 5 * covered(best) >= 4 * covered(k) {
+                k
+            } else {
+                best
+            }
+        }
+        None => best,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A `w × h` mask set where `inside(x, y)`.
+    fn mask(w: u32, h: u32, inside: impl Fn(u32, u32) -> bool) -> Mask {
+        let mut m = Mask::new(w, h);
+        for y in 0..h {
+            for x in 0..w {
+                m.data[(y * w + x) as usize] = u8::from(inside(x, y));
+            }
+        }
+        m
+    }
+
+    #[test]
+    fn the_legend_goes_where_it_hides_least_of_the_object() {
+        let canvas = Canvas::new(320, 200, [0, 0, 0]);
+        let legend = [([1, 2, 3], "model (mesh)"), ([4, 5, 6], "true cut")];
+        // Nothing to hide, or the object on the left: the preferred top right corner.
+        let empty = mask(320, 200, |_, _| false);
+        assert_eq!(
+            legend_corner(&canvas, &legend, &[Some(&empty), None], None),
+            Corner::TopRight
+        );
+        let left = mask(320, 200, |x, _| x < 160);
+        assert_eq!(
+            legend_corner(&canvas, &legend, &[Some(&left), None], None),
+            Corner::TopRight
+        );
+        // The object on the right: top left.
+        let right = mask(320, 200, |x, _| x >= 160);
+        assert_eq!(
+            legend_corner(&canvas, &legend, &[Some(&right), None], None),
+            Corner::TopLeft
+        );
+        // The model across the top, the truth down the left side: bottom right, where
+        // neither is.
+        let top = mask(320, 200, |_, y| y < 120);
+        assert_eq!(
+            legend_corner(&canvas, &legend, &[Some(&top), Some(&left)], None),
+            Corner::BottomRight
+        );
+        // A corner taken before stays while another would hide about as much (the object
+        // all over the picture but a strip along the top), and is left once another hides a
+        // fifth less.
+        let strip = mask(320, 200, |_, y| y >= 30);
+        for corner in [Corner::TopRight, Corner::BottomLeft] {
+            let keep = Some(corner);
+            assert_eq!(
+                legend_corner(&canvas, &legend, &[Some(&strip), None], keep),
+                corner
+            );
+        }
+        assert_eq!(
+            legend_corner(
+                &canvas,
+                &legend,
+                &[Some(&right), None],
+                Some(Corner::TopRight)
+            ),
+            Corner::TopLeft
+        );
+        // The box drawn there stays inside the picture, below the title band on top.
+        for corner in Corner::ALL {
+            let (x, y) = canvas.legend_origin(&legend, corner);
+            let (w, h) = Canvas::legend_size(&legend);
+            assert!(x >= 0 && x + i64::from(w) <= 320, "{corner:?}");
+            assert!(y >= 20 && y + i64::from(h) <= 200, "{corner:?}");
+        }
+    }
 }

@@ -313,6 +313,8 @@ fn run_pass_in<T: Real, F: Real>(
     };
     let mut pass = Pass::new(scene.file.capacities.cut_vertices);
     let mut pending = Some(first);
+    // Where the overlays' legend is: kept from frame to frame while it hides little.
+    let mut legend_at = None;
     for f in 0.. {
         let frame = match pending.take() {
             Some(frame) => frame,
@@ -346,26 +348,29 @@ fn run_pass_in<T: Real, F: Real>(
                 .collect();
             let pairs = scene.overlay_pairs.then(|| detector_pairs(&model));
             let true_cut = truth.as_ref().and_then(|t| t.cut_at(f));
-            let canvas = overlay::draw(&Overlay {
-                scene: &scene.file.name,
-                frame: f,
-                camera: &camera,
-                picture: frame.image.as_ref(),
-                virtual_features: &virtual_features,
-                separation_points: &separation_points,
-                pairs: pairs.as_ref(),
-                positions: &x,
-                surface: &surface,
-                model_mask: &measure.model_mask,
-                truth_mask: measure.truth_mask.as_ref(),
-                true_cut: true_cut.as_deref(),
-                observations: &frame.observations,
-                filtered: &filtered,
-                cut_line: &pass.detection.polyline,
-                targets: &measure.targets,
-                dice: measure.dice,
-                target_error_mm: measure.tre * 1e3,
-            });
+            let canvas = overlay::draw(
+                &Overlay {
+                    scene: &scene.file.name,
+                    frame: f,
+                    camera: &camera,
+                    picture: frame.image.as_ref(),
+                    virtual_features: &virtual_features,
+                    separation_points: &separation_points,
+                    pairs: pairs.as_ref(),
+                    positions: &x,
+                    surface: &surface,
+                    model_mask: &measure.model_mask,
+                    truth_mask: measure.truth_mask.as_ref(),
+                    true_cut: true_cut.as_deref(),
+                    observations: &frame.observations,
+                    filtered: &filtered,
+                    cut_line: &pass.detection.polyline,
+                    targets: &measure.targets,
+                    dice: measure.dice,
+                    target_error_mm: measure.tre * 1e3,
+                },
+                &mut legend_at,
+            );
             outputs.overlay(f, &canvas)?;
         }
         outputs.mesh(f, &model)?;
