@@ -127,7 +127,7 @@ fn model_new_names_the_parameter_resource_and_index_at_fault() {
     );
     // Each detection field has its own name.
     type Mutation = fn(&mut DetectionConfig<f64>);
-    let detection: [(Mutation, Parameter); 17] = [
+    let detection: [(Mutation, Parameter); 16] = [
         (|d| d.radius_px = -1.0, Parameter::RadiusPx),
         (|d| d.radius_spacings = 0.0, Parameter::RadiusSpacings),
         (|d| d.max_surface_ratio = 0.5, Parameter::MaxSurfaceRatio),
@@ -145,7 +145,6 @@ fn model_new_names_the_parameter_resource_and_index_at_fault() {
         (|d| d.max_step = 0.0, Parameter::MaxStep),
         (|d| d.min_support = 0, Parameter::MinSupport),
         (|d| d.line_tolerance = 0.0, Parameter::LineTolerance),
-        (|d| d.max_line_spread = -0.1, Parameter::MaxLineSpread),
         (
             |d| d.max_outlier_fraction = 0.0,
             Parameter::MaxOutlierFraction,

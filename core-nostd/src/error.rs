@@ -144,8 +144,6 @@ pub enum Parameter {
     MinSupport,
     /// Cut detection, `line_tolerance`: distance of a point counted for the line fit, spacings (positive, finite).
     LineTolerance,
-    /// Cut detection, `max_line_spread`: spread of the points across the fitted line (positive, finite).
-    MaxLineSpread,
     /// Cut detection, `max_outlier_fraction`: fraction of outlier pairs that makes a feature a tracking failure (positive, finite).
     MaxOutlierFraction,
     /// Cut detection, `depth`: extrusion direction of the cut (finite, not zero).
@@ -207,7 +205,6 @@ impl fmt::Display for Parameter {
             Parameter::MaxStep => "detection max_step must be positive and finite",
             Parameter::MinSupport => "detection min_support must be at least 1",
             Parameter::LineTolerance => "detection line_tolerance must be positive and finite",
-            Parameter::MaxLineSpread => "detection max_line_spread must be positive and finite",
             Parameter::MaxOutlierFraction => {
                 "detection max_outlier_fraction must be positive and finite"
             }

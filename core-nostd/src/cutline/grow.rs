@@ -95,13 +95,12 @@ impl<'a, T: Real> CutLine<'a, T> {
             sxy += d[0] * d[1];
             syy += d[1] * d[1];
         }
-        // A cut is a line: refuse a cloud (one bad feature's pairs make a ring, noise a blob).
-        let half_trace = (sxx + syy) * T::of(0.5);
-        let root = ((sxx - syy) * (sxx - syy) * T::of(0.25) + sxy * sxy).sqrt();
-        let (major, minor) = (half_trace + root, (half_trace - root).max(T::zero()));
-        if !(major > T::zero()) || (minor / major).sqrt() > rules.max_line_spread {
-            return 0;
-        }
+        // No test of how line-like the inliers are: they lie within the tolerance of a line
+        // through two of them, and the rules above refuse what made clouds and rings (one
+        // feature's fan, pairs that open along the line). A bound on the spread across the
+        // fitted line over the spread along it (at most 0.25 once) then refused only the
+        // first few points of real cuts, a spacing or two long, and delayed their start.
+        // Points that coincide have no direction: the ends below are then equal, and refused.
         let angle = T::of(0.5) * (T::of(2.0) * sxy).libm_atan2(sxx - syy);
         let (sin, cos) = angle.libm_sin_cos();
         let e = [cos, sin];

@@ -123,7 +123,6 @@ struct Rules<T> {
     cos_alpha: T,
     min_support: u32,
     init_points: usize,
-    max_line_spread: T,
     /// How far from a point the split pairs whose lips anchor it lie: two maximum steps.
     lip_reach: T,
 }
@@ -139,7 +138,6 @@ impl<T: Real> Rules<T> {
                 .1,
             min_support: config.min_support,
             init_points: config.init_points as usize,
-            max_line_spread: config.max_line_spread,
             lip_reach: T::of(2.0) * config.max_step * spacing,
         }
     }

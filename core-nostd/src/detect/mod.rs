@@ -75,9 +75,6 @@ pub struct DetectionConfig<T> {
     /// Separation points within this distance of a candidate line count for it when the line
     /// is started (a robust fit), feature spacings.
     pub line_tolerance: T,
-    /// The separation points must lie along a line to start the cut line: the spread across
-    /// the fitted line over the spread along it, `√(λ_min / λ_max)`, may not exceed this.
-    pub max_line_spread: T,
     /// Count only pairs whose residuals diverge across the line joining them (the lips of an
     /// opening cut), not those that converge or shear.
     pub opening_only: bool,
@@ -109,7 +106,6 @@ impl<T: Real> DetectionConfig<T> {
             max_step: T::of(1.0),
             min_support: 3,
             line_tolerance: T::of(0.3),
-            max_line_spread: T::of(0.25),
             max_outlier_fraction: T::of(0.85),
             opening_only: true,
             depth: None,
@@ -134,7 +130,6 @@ impl<T: Real> DetectionConfig<T> {
             max_step: c(self.max_step),
             min_support: self.min_support,
             line_tolerance: c(self.line_tolerance),
-            max_line_spread: c(self.max_line_spread),
             max_outlier_fraction: c(self.max_outlier_fraction),
             opening_only: self.opening_only,
             depth: self.depth.map(|d| d.map(c)),
@@ -189,7 +184,6 @@ impl<T: Real> DetectionConfig<T> {
             ),
             (Parameter::MinSupport, self.min_support >= 1),
             (Parameter::LineTolerance, pos(self.line_tolerance)),
-            (Parameter::MaxLineSpread, pos(self.max_line_spread)),
             (
                 Parameter::MaxOutlierFraction,
                 pos(self.max_outlier_fraction),

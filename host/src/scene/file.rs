@@ -232,8 +232,6 @@ pub struct DetectionSection {
     pub min_support: u32,
     /// Distance within which separation points support a candidate line, feature spacings.
     pub line_tolerance: f64,
-    /// Largest spread across the fitted line, relative to along it, to start the cut line.
-    pub max_line_spread: f64,
     /// Count only pairs whose residuals diverge (an opening cut).
     pub opening_only: bool,
     /// Largest fraction of a feature's pairs that may be outliers before the feature itself
@@ -261,7 +259,6 @@ impl Default for DetectionSection {
             max_step: p.max_step,
             min_support: p.min_support,
             line_tolerance: p.line_tolerance,
-            max_line_spread: p.max_line_spread,
             opening_only: p.opening_only,
             max_outlier_fraction: p.max_outlier_fraction,
             depth: p.depth,
@@ -292,7 +289,6 @@ impl DetectionSection {
             max_step: self.max_step,
             min_support: self.min_support,
             line_tolerance: self.line_tolerance,
-            max_line_spread: self.max_line_spread,
             opening_only: self.opening_only,
             max_outlier_fraction: self.max_outlier_fraction,
             depth: self.depth,
