@@ -64,6 +64,11 @@ pub struct VariantResult {
     pub detected_frame: Option<u32>,
     /// `detected − open` in frames (negative: detected before it opened).
     pub latency: Option<i64>,
+    /// Of the latency, the frames from the opening until the detector held the separation
+    /// points the line's start needs (`Summary::cut_evidence_frame`), for a detected cut.
+    pub evidence_wait: Option<i64>,
+    /// The rest of the latency: from that evidence to the line's start.
+    pub start_wait: Option<i64>,
     /// A cut detected on an intact variant.
     pub false_cut: bool,
     /// A cut variant whose cut was never detected.
@@ -125,6 +130,10 @@ pub struct FamilySummary {
     pub early: usize,
     /// Latency over the detected cut variants, frames.
     pub latency: Option<Spread>,
+    /// Of it, the wait for the detector's evidence ([`VariantResult::evidence_wait`]).
+    pub evidence_wait: Option<Spread>,
+    /// And the wait for the line's start to accept it ([`VariantResult::start_wait`]).
+    pub start_wait: Option<Spread>,
     /// Hausdorff distance over the detected cut variants, percent of the diagonal (what
     /// [`ACCEPTANCE`] judges).
     pub hausdorff_percent: Option<Spread>,
@@ -254,6 +263,16 @@ fn variant_result(s: &Scenario, kind: Kind, summary: Summary) -> VariantResult {
     let intact = kind == Kind::Intact;
     let detected = summary.cut_detected_frame;
     let open = summary.cut_open_frame;
+    // The evidence counts only up to the start: a start on fewer points (a line that grew
+    // from an earlier one, none here) leaves the whole latency to the evidence.
+    let evidence = summary
+        .cut_evidence_frame
+        .zip(detected)
+        .map(|(e, d)| e.min(d));
+    let frames = |a: Option<u32>, b: Option<u32>| match (a, b) {
+        (Some(a), Some(b)) if !intact => Some(i64::from(b) - i64::from(a)),
+        _ => None,
+    };
     VariantResult {
         name: s.name.clone(),
         kind,
@@ -265,6 +284,8 @@ fn variant_result(s: &Scenario, kind: Kind, summary: Summary) -> VariantResult {
             (Some(d), Some(o)) if !intact => Some(i64::from(d) - i64::from(o)),
             _ => None,
         },
+        evidence_wait: frames(open, evidence),
+        start_wait: frames(evidence, detected),
         false_cut: intact && detected.is_some(),
         missed: !intact && detected.is_none(),
         hausdorff_percent: if intact {
@@ -287,6 +308,16 @@ pub fn summarise(family: &str, variants: Vec<VariantResult>) -> FamilySummary {
     let detected: Vec<&&VariantResult> = cut.iter().filter(|v| !v.missed).collect();
     let over = |f: &dyn Fn(&VariantResult) -> f64| Spread::of(cut.iter().map(|v| f(v)));
     let latency = Spread::of(detected.iter().filter_map(|v| v.latency.map(|l| l as f64)));
+    let evidence_wait = Spread::of(
+        detected
+            .iter()
+            .filter_map(|v| v.evidence_wait.map(|l| l as f64)),
+    );
+    let start_wait = Spread::of(
+        detected
+            .iter()
+            .filter_map(|v| v.start_wait.map(|l| l as f64)),
+    );
     let hausdorff = Spread::of(
         detected
             .iter()
@@ -318,6 +349,8 @@ pub fn summarise(family: &str, variants: Vec<VariantResult>) -> FamilySummary {
             .filter(|v| v.latency.is_some_and(|l| l < 0))
             .count(),
         latency,
+        evidence_wait,
+        start_wait,
         hausdorff_percent: hausdorff,
         open_hausdorff_percent: open_hausdorff,
         dice_uncut: over(&|v| v.summary.dice_final_uncut),
@@ -364,13 +397,14 @@ fn median(s: Option<Spread>, digits: usize) -> String {
 pub fn markdown_table(families: &[FamilySummary]) -> String {
     let mut t = String::from(
         "| family | intact | cut (live) | false cuts | missed | early | latency median / max (frames) \
+         | of it, waiting for evidence / for the line's start (median / max) \
          | Hausdorff median / max (% diag.) | to its open part | Dice uncut → cut (median) | target error uncut → cut, rest (mm, median) \
          | filter: jumps caught / made, genuine taken out | acceptance |\n\
-         |---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+         |---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for f in families {
         t.push_str(&format!(
-            "| {} | {} | {} ({}) | {} | {} | {} | {} | {} | {} | {} → {} | {} → {}, {} | {} | {} |\n",
+            "| {} | {} | {} ({}) | {} | {} | {} | {} | {}; {} | {} | {} | {} → {} | {} → {}, {} | {} | {} |\n",
             f.family,
             f.intact,
             f.cut,
@@ -379,6 +413,8 @@ pub fn markdown_table(families: &[FamilySummary]) -> String {
             f.missed,
             f.early,
             spread(f.latency, 1),
+            spread(f.evidence_wait, 1),
+            spread(f.start_wait, 1),
             spread(f.hausdorff_percent, 1),
             spread(f.open_hausdorff_percent, 1),
             median(f.dice_uncut, 3),
@@ -396,8 +432,8 @@ pub fn markdown_table(families: &[FamilySummary]) -> String {
 /// One line per variant, for finding the ones that fail.
 pub fn variant_table(f: &FamilySummary) -> String {
     let mut t = String::from(
-        "| variant | kind | noise px | jumps px | opens | detected | Hausdorff (% diag.) | to its open part | Dice uncut → cut | target error uncut → cut (mm) | filter: jumps caught / made, genuine taken out |\n\
-         |---|---|---|---|---|---|---|---|---|---|---|\n",
+        "| variant | kind | noise px | jumps px | opens | evidence | detected | Hausdorff (% diag.) | to its open part | Dice uncut → cut | target error uncut → cut (mm) | filter: jumps caught / made, genuine taken out |\n\
+         |---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     let frame = |v: Option<u32>| v.map_or("–".to_string(), |f| f.to_string());
     for v in &f.variants {
@@ -409,12 +445,13 @@ pub fn variant_table(f: &FamilySummary) -> String {
             ""
         };
         t.push_str(&format!(
-            "| {} | {} | {:.2} | {:.1} | {} | {}{} | {} | {} | {:.3} → {:.3} | {:.2} → {:.2} | {} |\n",
+            "| {} | {} | {:.2} | {:.1} | {} | {} | {}{} | {} | {} | {:.3} → {:.3} | {:.2} → {:.2} | {} |\n",
             v.name,
             v.kind.name(),
             v.noise_px,
             v.jump_px,
             frame(v.open_frame),
+            frame(v.summary.cut_evidence_frame),
             frame(v.detected_frame),
             flag,
             v.hausdorff_percent

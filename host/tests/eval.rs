@@ -82,7 +82,19 @@ fn eval_runs_one_variant_of_each_kind_and_sums_them_up_consistently() {
             } else {
                 let open = s["cut_open_frame"].as_i64().expect("a cut opens");
                 match s["cut_detected_frame"].as_i64() {
-                    Some(d) => assert_eq!(v["latency"].as_i64(), Some(d - open)),
+                    Some(d) => {
+                        assert_eq!(v["latency"].as_i64(), Some(d - open));
+                        // A line starts on as many separation points as its start needs, so
+                        // a cut found after it opens had that evidence by then: the latency
+                        // is the wait for it and then for the start.
+                        if d >= open {
+                            let evidence = s["cut_evidence_frame"].as_i64().expect("evidence");
+                            assert!((open..=d).contains(&evidence), "{v}");
+                            let waits = [&v["evidence_wait"], &v["start_wait"]]
+                                .map(|w| w.as_i64().expect("a wait"));
+                            assert_eq!(waits, [evidence - open, d - evidence], "{v}");
+                        }
+                    }
                     None => {
                         assert!(v["missed"].as_bool().unwrap());
                         missed += 1;

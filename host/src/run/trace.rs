@@ -43,6 +43,11 @@ pub struct Summary {
     pub cut_detected_frame: Option<u32>,
     /// Frame at which the true cut opens (ground truth), if the scene has one.
     pub cut_open_frame: Option<u32>,
+    /// The first frame, from the cut's opening on (from frame 1 without a ground truth), in
+    /// which the detector held as many separation points as the cut line's start needs
+    /// (`[detection] init_points`). From the opening to it the detection waits for evidence,
+    /// from it to `cut_detected_frame` for the line's start to accept the evidence.
+    pub cut_evidence_frame: Option<u32>,
     /// Hausdorff distance of the final detected polyline to the true cut (the slit where the
     /// camera sees it at the last frame), pixels.
     pub cut_hausdorff_px: Option<f64>,
@@ -359,6 +364,11 @@ impl Summary {
             spring_threshold_px: Some(trace.spring_threshold_px).filter(|d| d.is_finite()),
             cut_detected_frame: trace.detection.detected_frame,
             cut_open_frame: open,
+            cut_evidence_frame: evidence_frame(
+                trace,
+                open.unwrap_or(1),
+                scene.file.detection.init_points,
+            ),
             cut_hausdorff_px: trace.detection.hausdorff_px,
             cut_hausdorff_percent: trace.detection.hausdorff_px.map(percent),
             cut_open_hausdorff_percent: trace.detection.open_hausdorff_px.map(percent),
@@ -408,6 +418,15 @@ impl Summary {
                 .map(|(f, e)| format!("frame {f}: {e}")),
         }
     }
+}
+
+/// The first frame from `from` on whose record counts at least `needed` separation points.
+fn evidence_frame(trace: &Trace, from: u32, needed: u32) -> Option<u32> {
+    trace
+        .frames
+        .iter()
+        .find(|r| r.frame >= from as usize && r.separation_points >= needed as usize)
+        .map(|r| r.frame as u32)
 }
 
 /// The median of `v` (the upper one of an even count), 0 for none.
