@@ -263,8 +263,8 @@ fn variant_result(s: &Scenario, kind: Kind, summary: Summary) -> VariantResult {
     let intact = kind == Kind::Intact;
     let detected = summary.cut_detected_frame;
     let open = summary.cut_open_frame;
-    // The evidence counts only up to the start: a start on fewer points (a line that grew
-    // from an earlier one, none here) leaves the whole latency to the evidence.
+    // The evidence is looked for from the opening on: a cut found before it opened (early)
+    // has it counted at its start, so that the two waits still add up to the latency.
     let evidence = summary
         .cut_evidence_frame
         .zip(detected)
