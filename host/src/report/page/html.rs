@@ -93,7 +93,7 @@ fn inline_svg(path: &Path) -> Result<String, String> {
 /// largest ratio of a work counter to its formula, and the model's storage.
 pub(super) fn summary_markdown(report: &Report) -> String {
     let mut s = String::from(
-        "| scene | own setting | instructions / frame (M) | Dice | TRE mm | recommended | instructions / frame (M) | Dice | TRE mm | own setting in f32: instructions / frame (M), Dice − f64, TRE − f64 mm | own setting in mixed precision: the same | steady max / median | counted / formula (max) | stability cells: converged / not / typed error / failure | cells with TRE > 1.2 × rest | storage KiB |\n\
+        "| scene | own setting | instructions / frame (M) | Dice | TRE mm | recommended | instructions / frame (M) | Dice | TRE mm | own setting in f32: instructions / frame (M), Dice − f64, TRE − f64 mm | own setting in mixed precision: the same | steady max / median (per topology) | counted / formula (max) | stability cells: converged / not / typed error / failure | cells with TRE > 1.2 × rest | storage KiB |\n\
          | --- | --- | ---: | ---: | ---: | --- | ---: | ---: | ---: | --- | --- | ---: | ---: | ---: | ---: | ---: |\n",
     );
     let millions = |v: Option<f64>| v.map_or("–".to_string(), |v| format!("{:.1}", v / 1e6));
@@ -487,7 +487,8 @@ fn page(
         if let Some(r) = scene.steady_max_over_median {
             let _ = write!(
                 h,
-                "<p>Instructions of a steady frame: largest / median = {r:.3} over {} frames \
+                "<p>Instructions of a steady frame: largest / median = {r:.3} within a topology \
+                 (the frames between two cut events; the largest over the topologies) over {} frames \
                  ({} cutting the mesh: {}).</p>",
                 scene.instructions_per_frame.len(),
                 scene.cut_frames.len(),

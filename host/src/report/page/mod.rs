@@ -84,7 +84,8 @@ pub struct SceneReport {
     pub instructions_per_frame: Vec<u64>,
     /// Frames (numbers) that cut the mesh, with the scene's own setting.
     pub cut_frames: Vec<usize>,
-    /// Steady frames (no cut event): largest instructions over the median.
+    /// Steady frames (no cut event): largest instructions over the median within one
+    /// topology, the largest over the run's topologies.
     pub steady_max_over_median: Option<f64>,
     /// The model's storage, part by part (f64).
     pub memory: Vec<MemoryRow>,
@@ -560,6 +561,38 @@ fn steady_counts(counts: &[u64], cuts: &[usize]) -> Vec<f64> {
         .collect()
 }
 
+/// Largest over median of the steady frames' counts within each topology (the runs of frames
+/// between two cut events: a cut adds nodes and elements, so the frames after it cost more
+/// than those before, which says nothing of whether a frame's work follows its data), the
+/// largest over the topologies; `None` without a steady frame.
+fn steady_spread(counts: &[u64], cuts: &[usize]) -> Option<f64> {
+    let mut worst: Option<f64> = None;
+    let mut run: Vec<f64> = vec![];
+    // Count `k` is frame `k + 1`; a cut frame ends the run before it.
+    for (k, &c) in counts.iter().enumerate() {
+        if cuts.contains(&(k + 1)) {
+            worst = larger(worst, max_over_median(&run));
+            run.clear();
+        } else {
+            run.push(c as f64);
+        }
+    }
+    larger(worst, max_over_median(&run))
+}
+
+/// The larger of two optional ratios.
+fn larger(a: Option<f64>, b: Option<f64>) -> Option<f64> {
+    match (a, b) {
+        (Some(a), Some(b)) => Some(a.max(b)),
+        (a, b) => a.or(b),
+    }
+}
+
+/// Largest over median of `run`; `None` if empty.
+fn max_over_median(run: &[f64]) -> Option<f64> {
+    median(run).map(|m| run.iter().copied().fold(0.0, f64::max) / m)
+}
+
 /// The median of [`steady_counts`].
 fn steady_median(counts: &[u64], cuts: &[usize]) -> Option<f64> {
     median(&steady_counts(counts, cuts))
@@ -626,9 +659,7 @@ fn scene_report(
     let front = pareto::front(&points);
     let recommended = pareto::recommend(&points, &front);
     let cuts = cut_frames(trace);
-    let steady = steady_counts(&counts, &cuts);
-    let steady_max_over_median =
-        median(&steady).map(|m| steady.iter().copied().fold(0.0, f64::max) / m);
+    let steady_max_over_median = steady_spread(&counts, &cuts);
     let works: Vec<FrameWork> = trace.frames.iter().filter_map(|r| r.work).collect();
     let memory = scene_storage(scene)
         .map_err(|e| e.to_string())?
@@ -770,4 +801,25 @@ fn worst_case_rows(works: &[FrameWork], counters: &[Counter]) -> Vec<WorstCaseRo
             }
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::steady_spread;
+
+    #[test]
+    fn the_steady_spread_is_taken_within_each_topology() {
+        // Frames 1..=9: 100, 100, 100, 100, 101 before a cut at frame 6, then 150, 150, 153.
+        let counts = [100, 100, 100, 100, 101, 400, 150, 150, 153];
+        let spread = steady_spread(&counts, &[6]).unwrap();
+        // 101 / 100 before the cut, 153 / 150 after it: the larger, 1.02; not the dearest
+        // topology's frame over the median of all steady frames mixed (153 / 100), nor the
+        // cut frame's 400.
+        assert!((spread - 1.02).abs() < 1e-12, "{spread}");
+        let counts = [100, 100, 100, 100, 102, 400, 150, 150, 150];
+        assert!((steady_spread(&counts, &[6]).unwrap() - 1.02).abs() < 1e-12);
+        // No cut: one topology; no steady frame: none.
+        assert!((steady_spread(&[10, 10, 11], &[]).unwrap() - 1.1).abs() < 1e-12);
+        assert_eq!(steady_spread(&[5], &[1]), None);
+    }
 }
