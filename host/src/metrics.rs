@@ -251,36 +251,26 @@ pub fn hausdorff_to_parts(a: &[[f64; 2]], parts: &[Vec<[f64; 2]>]) -> f64 {
 mod tests {
     use super::*;
 
-    fn mask(w: u32, h: u32, set: impl Fn(u32, u32) -> bool) -> Mask {
-        let mut m = Mask::new(w, h);
-        for y in 0..h {
-            for x in 0..w {
-                m.data[(y * w + x) as usize] = u8::from(set(x, y));
-            }
-        }
-        m
-    }
-
     #[test]
     fn dice_on_hand_made_masks() {
-        let a = mask(10, 10, |x, _| x < 5);
+        let a = Mask::from_fn(10, 10, |x, _| x < 5);
         assert_eq!(dice(&a, &a), 1.0);
-        let b = mask(10, 10, |x, _| x >= 5);
+        let b = Mask::from_fn(10, 10, |x, _| x >= 5);
         assert_eq!(dice(&a, &b), 0.0);
         // Half of a overlaps all of c: |A| = 50, |C| = 25, |A ∩ C| = 25 → 50/75.
-        let c = mask(10, 10, |x, y| x < 5 && y < 5);
+        let c = Mask::from_fn(10, 10, |x, y| x < 5 && y < 5);
         assert!((dice(&a, &c) - 2.0 / 3.0).abs() < 1e-15);
         // Bands of 5 columns sharing 3: 2·30 / (50 + 50).
-        let d = mask(10, 10, |x, _| (3..8).contains(&x));
-        let e = mask(10, 10, |x, _| (5..10).contains(&x));
+        let d = Mask::from_fn(10, 10, |x, _| (3..8).contains(&x));
+        let e = Mask::from_fn(10, 10, |x, _| (5..10).contains(&x));
         assert!((dice(&d, &e) - 0.6).abs() < 1e-15);
         assert_eq!(dice(&Mask::new(3, 3), &Mask::new(3, 3)), 1.0);
     }
 
     #[test]
     fn half_overlap_is_one_half() {
-        let a = mask(8, 8, |x, _| x < 4);
-        let b = mask(8, 8, |x, _| (2..6).contains(&x));
+        let a = Mask::from_fn(8, 8, |x, _| x < 4);
+        let b = Mask::from_fn(8, 8, |x, _| (2..6).contains(&x));
         assert!((dice(&a, &b) - 0.5).abs() < 1e-15);
     }
 

@@ -30,6 +30,17 @@ impl Mask {
         }
     }
 
+    /// A mask set where `inside(x, y)`.
+    pub fn from_fn(width: u32, height: u32, inside: impl Fn(u32, u32) -> bool) -> Self {
+        let mut m = Mask::new(width, height);
+        for y in 0..height {
+            for x in 0..width {
+                m.data[(y * width + x) as usize] = u8::from(inside(x, y));
+            }
+        }
+        m
+    }
+
     /// Whether pixel `(x, y)` is set (false outside).
     pub fn get(&self, x: u32, y: u32) -> bool {
         x < self.width && y < self.height && self.data[(y * self.width + x) as usize] != 0

@@ -202,41 +202,30 @@ fn legend_corner(
 mod tests {
     use super::*;
 
-    /// A `w × h` mask set where `inside(x, y)`.
-    fn mask(w: u32, h: u32, inside: impl Fn(u32, u32) -> bool) -> Mask {
-        let mut m = Mask::new(w, h);
-        for y in 0..h {
-            for x in 0..w {
-                m.data[(y * w + x) as usize] = u8::from(inside(x, y));
-            }
-        }
-        m
-    }
-
     #[test]
     fn the_legend_goes_where_it_hides_least_of_the_object() {
         let canvas = Canvas::new(320, 200, [0, 0, 0]);
         let legend = [([1, 2, 3], "model (mesh)"), ([4, 5, 6], "true cut")];
         // Nothing to hide, or the object on the left: the preferred top right corner.
-        let empty = mask(320, 200, |_, _| false);
+        let empty = Mask::from_fn(320, 200, |_, _| false);
         assert_eq!(
             legend_corner(&canvas, &legend, &[Some(&empty), None], None),
             Corner::TopRight
         );
-        let left = mask(320, 200, |x, _| x < 160);
+        let left = Mask::from_fn(320, 200, |x, _| x < 160);
         assert_eq!(
             legend_corner(&canvas, &legend, &[Some(&left), None], None),
             Corner::TopRight
         );
         // The object on the right: top left.
-        let right = mask(320, 200, |x, _| x >= 160);
+        let right = Mask::from_fn(320, 200, |x, _| x >= 160);
         assert_eq!(
             legend_corner(&canvas, &legend, &[Some(&right), None], None),
             Corner::TopLeft
         );
         // The model across the top, the truth down the left side: bottom right, where
         // neither is.
-        let top = mask(320, 200, |_, y| y < 120);
+        let top = Mask::from_fn(320, 200, |_, y| y < 120);
         assert_eq!(
             legend_corner(&canvas, &legend, &[Some(&top), Some(&left)], None),
             Corner::BottomRight
@@ -244,7 +233,7 @@ mod tests {
         // A corner taken before stays while another would hide about as much (the object
         // all over the picture but a strip along the top), and is left once another hides a
         // fifth less.
-        let strip = mask(320, 200, |_, y| y >= 30);
+        let strip = Mask::from_fn(320, 200, |_, y| y >= 30);
         for corner in [Corner::TopRight, Corner::BottomLeft] {
             let keep = Some(corner);
             assert_eq!(

@@ -566,26 +566,19 @@ fn steady_counts(counts: &[u64], cuts: &[usize]) -> Vec<f64> {
 /// than those before, which says nothing of whether a frame's work follows its data), the
 /// largest over the topologies; `None` without a steady frame.
 fn steady_spread(counts: &[u64], cuts: &[usize]) -> Option<f64> {
-    let mut worst: Option<f64> = None;
+    let mut ratios = vec![];
     let mut run: Vec<f64> = vec![];
     // Count `k` is frame `k + 1`; a cut frame ends the run before it.
     for (k, &c) in counts.iter().enumerate() {
         if cuts.contains(&(k + 1)) {
-            worst = larger(worst, max_over_median(&run));
+            ratios.extend(max_over_median(&run));
             run.clear();
         } else {
             run.push(c as f64);
         }
     }
-    larger(worst, max_over_median(&run))
-}
-
-/// The larger of two optional ratios.
-fn larger(a: Option<f64>, b: Option<f64>) -> Option<f64> {
-    match (a, b) {
-        (Some(a), Some(b)) => Some(a.max(b)),
-        (a, b) => a.or(b),
-    }
+    ratios.extend(max_over_median(&run));
+    ratios.into_iter().reduce(f64::max)
 }
 
 /// Largest over median of `run`; `None` if empty.
