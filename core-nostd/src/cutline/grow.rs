@@ -302,8 +302,9 @@ impl<'a, T: Real> CutLine<'a, T> {
 /// before the pairs around it split (the liver's lower end, at frame 7) still holds one lip
 /// only; anchoring it anew once they split keeps the liver's line on its cut (12 % → 4 %) but
 /// folds other lines back on themselves, so it is not done. With fewer pairs,
-/// or without a usable triangle on each lip, the features of the pairs keep their lip and the
-/// others are split by the side of the line. Where one side has no usable feature near (the
+/// or without a usable triangle on each lip, the features of the pairs keep their lip and each
+/// other feature is given one by [`Lips::side_of`]: by how it moves where that is clear, else
+/// by its side of the cut as the pairs place it. Where one side has no usable feature near (the
 /// line's end at the object's edge), the three features around `p` hold it. `None` when
 /// nothing works.
 pub(super) fn anchor_across<T: Real>(
@@ -314,18 +315,18 @@ pub(super) fn anchor_across<T: Real>(
 ) -> Option<([u32; ANCHORS], [T; ANCHORS])> {
     let Tracked {
         features,
+        residuals,
         usable,
         split,
-        ..
     } = tracked;
     let normal = [-tangent[1], tangent[0]];
     let across = |f: &[T; 2]| {
         let d = sub(*f, p);
         d[0] * normal[0] + d[1] * normal[1]
     };
-    let lips = Lips::near(p, features, split, reach, &across);
-    anchor_halves(p, features, usable, &lips, &across, true)
-        .or_else(|| anchor_halves(p, features, usable, &lips, &across, false))
+    let lips = Lips::near(p, features, residuals, split, reach, &across);
+    anchor_halves(p, tracked, &lips, &across, true)
+        .or_else(|| anchor_halves(p, tracked, &lips, &across, false))
         .or_else(|| {
             anchor_at(p, features, usable).map(|(a, w)| {
                 (
@@ -340,22 +341,22 @@ pub(super) fn anchor_across<T: Real>(
 /// it and `across` a feature's offset across the line: with `lips_only`, the lips are the
 /// features of those pairs alone (`None` with fewer than
 /// [`MIN_LIP_PAIRS`] of them); without, those features keep their pair's side and the others
-/// are split by the side of the line.
+/// are given one by [`Lips::side_of`].
 fn anchor_halves<T: Real>(
     p: [T; 2],
-    features: &[[T; 2]],
-    usable: &[u32],
-    lips: &Lips,
+    tracked: &Tracked<'_, T>,
+    lips: &Lips<T>,
     across: &impl Fn(&[T; 2]) -> T,
     lips_only: bool,
 ) -> Option<([u32; ANCHORS], [T; ANCHORS])> {
     if lips_only && lips.n < 2 * MIN_LIP_PAIRS {
         return None;
     }
+    let (features, usable) = (tracked.features, tracked.usable);
     let side = |positive: bool| {
         move |i: usize, f: &[T; 2]| match lips.side(i) {
             Some(s) => s == positive,
-            None => !lips_only && (across(f) > T::zero()) == positive,
+            None => !lips_only && lips.side_of(*f, tracked.residuals.get(i), across) == positive,
         }
     };
     let ((a, wa), (b, wb)) = anchor_where(p, features, usable, side(true)).zip(anchor_where(
@@ -385,22 +386,39 @@ const LIP_PAIRS: usize = 8;
 const MIN_LIP_PAIRS: usize = 3;
 
 /// The features of the split pairs nearest a point, each with its lip (`true` for the side the
-/// line's normal points to).
-struct Lips {
+/// line's normal points to), and the cut as those pairs see it.
+struct Lips<T> {
     slots: [(u32, bool); 2 * LIP_PAIRS],
     n: usize,
+    /// Where the pairs place the cut, if any pair is near: see [`PairsCut`].
+    cut: Option<PairsCut<T>>,
 }
 
-impl Lips {
+/// The cut near a point as its split pairs see it: each pair spans it, so their midpoints
+/// lie on it (to within half a pair's length) and their directions cross it; and the
+/// features of each lip move alike, apart from the other lip's.
+#[derive(Clone, Copy)]
+struct PairsCut<T> {
+    /// The pairs' mean midpoint.
+    centre: [T; 2],
+    /// The mean of the pairs' unit vectors from the negative lip's feature to the positive
+    /// one's: the cut's normal, pointing to the positive lip.
+    normal: [T; 2],
+    /// The mean residual of the positive lip's features and of the negative lip's.
+    motion: [[T; 2]; 2],
+}
+
+impl<T: Real> Lips<T> {
     /// The [`LIP_PAIRS`] split pairs whose midpoints lie nearest `p` within `reach`, each
     /// oriented by which of its features lies further along the line's normal (`across`).
-    fn near<T: Real>(
+    fn near(
         p: [T; 2],
         features: &[[T; 2]],
+        residuals: &[[T; 2]],
         split: &SplitPairs<'_>,
         reach: T,
         across: &impl Fn(&[T; 2]) -> T,
-    ) -> Lips {
+    ) -> Lips<T> {
         let mut near: [(T, [u32; 2]); LIP_PAIRS] = [(reach, [u32::MAX; 2]); LIP_PAIRS];
         let mut found = 0;
         for [i, j] in split.iter() {
@@ -417,12 +435,45 @@ impl Lips {
         let mut lips = Lips {
             slots: [(u32::MAX, false); 2 * LIP_PAIRS],
             n: 0,
+            cut: None,
         };
+        // Sums over the pairs: midpoints, unit directions, the positive and the negative lip's
+        // residuals.
+        let (mut centre, mut normal) = ([T::zero(); 2], [T::zero(); 2]);
+        let mut motion = [[T::zero(); 2]; 2];
+        let mut counted = 0u32;
         for &(_, [i, j]) in near.iter().take(found) {
-            let (Some(a), Some(b)) = (features.get(i as usize), features.get(j as usize)) else {
+            let (Some(a), Some(b), Some(ra), Some(rb)) = (
+                features.get(i as usize),
+                features.get(j as usize),
+                residuals.get(i as usize),
+                residuals.get(j as usize),
+            ) else {
                 continue;
             };
             let i_positive = across(a) > across(b);
+            let ((fp, rp), (fn_, rn)) = if i_positive {
+                ((a, ra), (b, rb))
+            } else {
+                ((b, rb), (a, ra))
+            };
+            let u = sub(*fp, *fn_);
+            let l = length(u);
+            if !(l > T::EPS) {
+                continue;
+            }
+            let half = T::of(0.5);
+            centre = [
+                centre[0] + (fp[0] + fn_[0]) * half,
+                centre[1] + (fp[1] + fn_[1]) * half,
+            ];
+            normal = [normal[0] + u[0] / l, normal[1] + u[1] / l];
+            let [plus, minus] = motion;
+            motion = [
+                [plus[0] + rp[0], plus[1] + rp[1]],
+                [minus[0] + rn[0], minus[1] + rn[1]],
+            ];
+            counted += 1;
             for (slot, positive) in [(i, i_positive), (j, !i_positive)] {
                 if let Some(s) = lips.slots.get_mut(lips.n) {
                     *s = (slot, positive);
@@ -430,7 +481,50 @@ impl Lips {
                 }
             }
         }
+        let norm = length(normal);
+        if counted > 0 && norm > T::EPS {
+            let k = T::of(f64::from(counted));
+            lips.cut = Some(PairsCut {
+                centre: centre.map(|x| x / k),
+                normal: normal.map(|x| x / norm),
+                motion: motion.map(|m| m.map(|x| x / k)),
+            });
+        }
         lips
+    }
+
+    /// The lip of a feature at `f` with residual `residual` that is in none of the pairs
+    /// (`true` for the positive one). By how it moves, where that is clear: its residual lies
+    /// within a quarter of the way from one lip's mean residual toward the other's (a lip is
+    /// what moves together, the detector's own evidence). Otherwise by its side of the cut as
+    /// the pairs place it ([`PairsCut`]), not of the line: a line's end can lie a spacing off
+    /// the cut, or tilted across it, and the features between the two would count for the
+    /// wrong lip. Without pairs, by the side of the line (`across`).
+    ///
+    /// Before, every such feature went by the side of the line: the liver's lower end, placed
+    /// at frame 7 with a tilted line and one lip's pairs from two features only, held the
+    /// right lip with both halves and moved 85 px with it, its line ending 70 px from the cut
+    /// (now 25 px; `band-live-cut` 27 → 20 px).
+    fn side_of(
+        &self,
+        f: [T; 2],
+        residual: Option<&[T; 2]>,
+        across: &impl Fn(&[T; 2]) -> T,
+    ) -> bool {
+        let Some(cut) = self.cut else {
+            return across(&f) > T::zero();
+        };
+        if let Some(r) = residual {
+            let [plus, minus] = cut.motion;
+            let (to_plus, to_minus) = (length(sub(*r, plus)), length(sub(*r, minus)));
+            // `|d₊ − d₋| > D / 2`: within a quarter of the way from one mean to the other
+            // along the line between them (and beyond it).
+            if (to_plus - to_minus).abs() > T::of(0.5) * length(sub(plus, minus)) {
+                return to_plus < to_minus;
+            }
+        }
+        let d = sub(f, cut.centre);
+        d[0] * cut.normal[0] + d[1] * cut.normal[1] > T::zero()
     }
 
     /// The lip of feature `slot`, if it belongs to one of the pairs.

@@ -232,6 +232,63 @@ fn a_vertex_off_the_cut_is_held_by_both_lips_the_split_pairs_name() {
     assert!(x < 44.0 - 10.0, "{x}");
 }
 
+#[test]
+fn features_outside_the_pairs_take_the_lip_they_move_with_or_the_pairs_place_them_on() {
+    // The grid cut between x = 50 and x = 60. The line's end lies at (56, 50), tilted 40°
+    // across the cut, and the only split pairs near it are a fan from one left feature,
+    // (50, 50), to three on the right: no triangle on the left lip among the pairs' features,
+    // so every other feature needs a lip. By the side of the tilted line, (60, 60) and
+    // (60, 70) would count for the left lip and (50, 40) for the right.
+    let features = grid();
+    let usable = [1u32; 121];
+    let p = [56.0, 50.0];
+    let (s, c) = (40f64.to_radians().sin(), 40f64.to_radians().cos());
+    let tangent = [s, c];
+    let fan: [[u32; 2]; 3] = [[60, 50], [60, 61], [60, 72]];
+    let state = [u32::MAX; 3];
+    let opened = features.map(|f| {
+        [
+            if f[0] <= 50.0 {
+                f[0] - 30.0
+            } else {
+                f[0] + 30.0
+            },
+            f[1],
+        ]
+    });
+    let held = |residuals: &[[f64; 2]; 121]| {
+        let tracked = Tracked {
+            features: &features,
+            residuals,
+            usable: &usable,
+            split: SplitPairs::for_test(&fan, &state),
+        };
+        let anchor = anchor_across(p, tangent, &tracked, 25.0).unwrap();
+        assert!((placed(&anchor, &features)[0] - p[0]).abs() < 1e-9);
+        placed(&anchor, &opened)[0]
+    };
+    // The lips move apart: every feature moves as one of the pairs' lips does, and each
+    // half of the vertex goes with its own lip.
+    let x = held(&parting([30.0, 0.0]));
+    assert!((x - p[0]).abs() < 1e-9, "{x}");
+    // No motion tells the lips apart: the side of the cut the pairs place (their midpoints'
+    // mean x = 55, their directions across it) decides, with the same result here.
+    let x = held(&[[0.0; 2]; 121]);
+    assert!((x - p[0]).abs() < 1e-9, "{x}");
+    // Without any split pair near, the side of the line decides: each half holds features of
+    // both lips, and the vertex moves with the opening (3 px of the 60 the lips part here,
+    // frame after frame on a cut that goes on opening).
+    let tracked = Tracked {
+        features: &features,
+        residuals: &parting([30.0, 0.0]),
+        usable: &usable,
+        split: SplitPairs::default(),
+    };
+    let by_line = anchor_across(p, tangent, &tracked, 25.0).unwrap();
+    let x = placed(&by_line, &opened)[0];
+    assert!((x - p[0]).abs() > 2.0, "{x}");
+}
+
 /// Pairs between feature 60 (the grid's (5, 5), on the left lip) and the right lip's column,
 /// then pairs across the cut that leave it out.
 const FAN: [[u32; 2]; 11] = [
