@@ -248,7 +248,7 @@ fn stiff_springs_do_not_move_the_model_in_depth() {
 /// deficit closed, the targets at least 40 % nearer the truth than the uncut model's and nearer
 /// than the rest model's); on `band-middle-cut` the Dice and the targets; on `liver-lobe` the
 /// targets nearer than the rest model's. What is missing (the middle cut closes 68 % of the
-/// deficit, the liver 21 % with a Dice of 0.936) is in the README under "Scenes".
+/// deficit, the liver 32 % with a Dice of 0.944) is in the README under "Scenes".
 #[test]
 fn the_cut_scenes_keep_what_they_reach_of_issue_10() {
     let closed = |s: &Summary| (s.dice_final - s.dice_final_uncut) / (1.0 - s.dice_final_uncut);

@@ -19,8 +19,8 @@ use super::instructions;
 pub(super) const BASES: [&str; 2] = ["band-side-cut", "liver-lobe"];
 
 /// Frames counted under callgrind per model: one, since every steady frame of a topology does
-/// nearly the same work (the summary's steady max / median per topology is at most 1.022, the
-/// frame after a cut re-anchoring the line), and the fine liver costs
+/// nearly the same work (the summary's steady max / median per topology is at most 1.013), and
+/// the fine liver costs
 /// about a minute per frame there (with two, the full report took 9 min 53 s of its 10).
 const COUNTED_FRAMES: usize = 1;
 
