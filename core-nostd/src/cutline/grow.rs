@@ -494,9 +494,10 @@ impl<T: Real> Lips<T> {
     }
 
     /// The lip of a feature at `f` with residual `residual` that is in none of the pairs
-    /// (`true` for the positive one). By how it moves, where that is clear: its residual lies
-    /// within a quarter of the way from one lip's mean residual toward the other's (a lip is
-    /// what moves together, the detector's own evidence). Otherwise by its side of the cut as
+    /// (`true` for the positive one). By how it moves, where that is clear: its residual is
+    /// nearer one lip's mean residual than the other's by more than half the distance between
+    /// the two means (on the segment between them, within a quarter of the way from one end;
+    /// a lip is what moves together, the detector's own evidence). Otherwise by its side of the cut as
     /// the pairs place it ([`PairsCut`]), not of the line: a line's end can lie a spacing off
     /// the cut, or tilted across it, and the features between the two would count for the
     /// wrong lip. Without pairs, by the side of the line (`across`).
@@ -517,8 +518,7 @@ impl<T: Real> Lips<T> {
         if let Some(r) = residual {
             let [plus, minus] = cut.motion;
             let (to_plus, to_minus) = (length(sub(*r, plus)), length(sub(*r, minus)));
-            // `|d₊ − d₋| > D / 2`: within a quarter of the way from one mean to the other
-            // along the line between them (and beyond it).
+            // `|d₊ − d₋| > D / 2`, `D` the distance between the means.
             if (to_plus - to_minus).abs() > T::of(0.5) * length(sub(plus, minus)) {
                 return to_plus < to_minus;
             }
