@@ -177,6 +177,21 @@ fn a_full_line_reports_its_cap_instead_of_growing() {
     assert_eq!((r.vertices, r.added, r.capped), (2, 0, true));
 }
 
+/// The grid with the cut between x = 50 and x = 60 opened: the left lip moved 30 px left, the
+/// right one 30 px right.
+fn opened_grid() -> [[f64; 2]; 121] {
+    grid().map(|f| {
+        [
+            if f[0] <= 50.0 {
+                f[0] - 30.0
+            } else {
+                f[0] + 30.0
+            },
+            f[1],
+        ]
+    })
+}
+
 /// The pixel of a vertex anchored by `anchor_across`, with the features at `f`.
 fn placed(anchor: &([u32; ANCHORS], [f64; ANCHORS]), f: &[[f64; 2]]) -> [f64; 2] {
     let mut p = [0.0; 2];
@@ -199,17 +214,7 @@ fn a_vertex_off_the_cut_is_held_by_both_lips_the_split_pairs_name() {
     let pairs: [[u32; 2]; 11] = core::array::from_fn(|r| [11 * r as u32 + 5, 11 * r as u32 + 6]);
     let state = [u32::MAX; 11];
     let split = SplitPairs::for_test(&pairs, &state);
-    // The lips part: the left one moves 30 px left, the right one 30 px right.
-    let opened = features.map(|f| {
-        [
-            if f[0] <= 50.0 {
-                f[0] - 30.0
-            } else {
-                f[0] + 30.0
-            },
-            f[1],
-        ]
-    });
+    let opened = opened_grid();
     let tracked = Tracked {
         features: &features,
         residuals: &parting([30.0, 0.0]),
@@ -246,16 +251,7 @@ fn features_outside_the_pairs_take_the_lip_they_move_with_or_the_pairs_place_the
     let tangent = [s, c];
     let fan: [[u32; 2]; 3] = [[60, 50], [60, 61], [60, 72]];
     let state = [u32::MAX; 3];
-    let opened = features.map(|f| {
-        [
-            if f[0] <= 50.0 {
-                f[0] - 30.0
-            } else {
-                f[0] + 30.0
-            },
-            f[1],
-        ]
-    });
+    let opened = opened_grid();
     let held = |residuals: &[[f64; 2]; 121]| {
         let tracked = Tracked {
             features: &features,
