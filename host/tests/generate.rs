@@ -11,6 +11,18 @@ fn incise() -> Command {
     Command::new(env!("CARGO_BIN_EXE_incise"))
 }
 
+/// Runs `command`, which must succeed (else its stderr is the failure), and returns its
+/// standard output.
+fn succeeds(command: &mut Command) -> Vec<u8> {
+    let output = command.output().unwrap();
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    output.stdout
+}
+
 fn fixtures() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures")
 }
@@ -77,17 +89,12 @@ fn a_family_is_written_variant_by_variant_and_each_regenerates() {
     )
     .unwrap();
     let out = tmp.path().join("variants");
-    let output = incise()
-        .args(["gen", "--family"])
-        .arg(&family)
-        .arg("--out")
-        .arg(&out)
-        .output()
-        .unwrap();
-    assert!(
-        output.status.success(),
-        "{}",
-        String::from_utf8_lossy(&output.stderr)
+    succeeds(
+        incise()
+            .args(["gen", "--family"])
+            .arg(&family)
+            .arg("--out")
+            .arg(&out),
     );
     let mut live = 0;
     for name in ["small-00", "small-01"] {
@@ -107,16 +114,7 @@ fn a_family_is_written_variant_by_variant_and_each_regenerates() {
         let again = tmp.path().join("again").join(name);
         std::fs::create_dir_all(&again).unwrap();
         std::fs::copy(dir.join("scenario.toml"), again.join("scenario.toml")).unwrap();
-        let output = incise()
-            .arg("gen")
-            .arg(again.join("scenario.toml"))
-            .output()
-            .unwrap();
-        assert!(
-            output.status.success(),
-            "{}",
-            String::from_utf8_lossy(&output.stderr)
-        );
+        succeeds(incise().arg("gen").arg(again.join("scenario.toml")));
         assert_same_files(&dir, &again);
     }
     // One intact and one cut variant, and every cut variant of this family is live.
@@ -130,4 +128,53 @@ fn a_family_is_written_variant_by_variant_and_each_regenerates() {
         .unwrap();
     assert!(!output.status.success());
     assert!(String::from_utf8_lossy(&output.stderr).contains("--out"));
+}
+
+/// `--model-mesh refined` writes the same scene modelled by the refined mesh: the same tracks
+/// and truth, the refined grid's nodes, and a run of it measures against the same rest
+/// baseline. Without `--out` it is refused before anything is written.
+#[test]
+fn gen_models_the_object_by_another_mesh_beside_the_same_truth() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scenario = fixtures().join("band-side-cut/scenario.toml");
+    let out = tmp.path().join("refined");
+    succeeds(
+        incise()
+            .arg("gen")
+            .arg(&scenario)
+            .args(["--model-mesh", "refined", "--out"])
+            .arg(&out),
+    );
+    let own = fixtures().join("band-side-cut");
+    for f in ["tracks.csv", "gt/cut.csv", "gt/targets.csv"] {
+        assert_eq!(
+            std::fs::read(own.join(f)).unwrap(),
+            std::fs::read(out.join(f)).unwrap(),
+            "{f} differs"
+        );
+    }
+    let run = |dir: &Path| -> serde_json::Value {
+        let stdout = succeeds(incise().arg("run").arg(dir).arg("--json"));
+        serde_json::from_slice(&stdout).unwrap()
+    };
+    let (coarse, fine) = (run(&own), run(&out));
+    // The scenario's 16 × 5 × 1 cells (17 · 6 · 2 nodes) refine to 32 × 10 × 2 cells.
+    assert_eq!(coarse["nodes_initial"], 17 * 6 * 2);
+    assert_eq!(fine["nodes_initial"], 33 * 11 * 3);
+    // The targets at rest, embedded in either mesh, are where the truth has them (to rounding).
+    let rest = |v: &serde_json::Value| v["tre_mm_final_rest"].as_f64().unwrap();
+    assert!((rest(&coarse) - rest(&fine)).abs() < 1e-9);
+
+    let elsewhere = tmp.path().join("unwritten");
+    std::fs::create_dir_all(&elsewhere).unwrap();
+    std::fs::copy(&scenario, elsewhere.join("scenario.toml")).unwrap();
+    let output = incise()
+        .arg("gen")
+        .arg(elsewhere.join("scenario.toml"))
+        .args(["--model-mesh", "fine"])
+        .output()
+        .unwrap();
+    assert!(!output.status.success());
+    assert!(String::from_utf8_lossy(&output.stderr).contains("--out"));
+    assert_eq!(files(&elsewhere), [PathBuf::from("scenario.toml")]);
 }

@@ -205,6 +205,7 @@ pub(super) fn gen_command(
     scenarios: &[PathBuf],
     out: Option<PathBuf>,
     video: bool,
+    model_mesh: ModelMesh,
 ) -> Result<(), Failure> {
     if out.is_some() && scenarios.len() > 1 {
         return Err("--out takes one scenario at a time".into());
@@ -221,7 +222,8 @@ pub(super) fn gen_command(
                 .map_or_else(|| PathBuf::from("."), Path::to_path_buf),
         };
         // Their errors name the file at fault.
-        let sim = crate::generate::pipeline::simulate(path, true).map_err(|e| e.to_string())?;
+        let mut sim = crate::generate::pipeline::simulate(path, true).map_err(|e| e.to_string())?;
+        sim.remodel(model_mesh);
         let g = crate::generate::pipeline::write_scene(&sim, path, &dir, true)
             .map_err(|e| e.to_string())?;
         #[cfg(feature = "opencv")]

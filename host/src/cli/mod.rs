@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 
 use clap::{Parser, Subcommand};
 
+use crate::generate::pipeline::ModelMesh;
 use crate::run::{RunOptions, run_scene};
 use crate::scene::{ModelLaw, Precision, Scene};
 
@@ -240,6 +241,11 @@ pub enum Command {
         /// (MJPG, 25 frames per second; needs the opencv feature).
         #[arg(long)]
         video: bool,
+        /// The mesh that models the object, with the same truth and tracks: the scenario's,
+        /// that mesh refined (every tetrahedron into eight) or the real object's own fine
+        /// mesh (what the report's mesh-resolution axis runs); needs --out.
+        #[arg(long, value_enum, default_value_t = ModelMesh::Scenario, requires = "out", conflicts_with = "family")]
+        model_mesh: ModelMesh,
     },
 }
 
@@ -373,7 +379,8 @@ pub fn run(cli: Cli) -> i32 {
             family: None,
             out,
             video,
-        } => gen_command(&scenarios, out, video),
+            model_mesh,
+        } => gen_command(&scenarios, out, video, model_mesh),
         Command::Codegen {
             scene,
             out,

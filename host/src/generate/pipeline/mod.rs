@@ -93,7 +93,41 @@ pub struct Simulation {
     pub tolerance: f64,
 }
 
+/// Which mesh models the object in the scene written from a simulation (`incise gen
+/// --model-mesh`, the report's mesh-resolution axis): the truth, the tracks and the camera
+/// stay the same, so that models of one object can be compared against one ground truth.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum ModelMesh {
+    /// The scenario's own model mesh.
+    Scenario,
+    /// The scenario's model mesh with every tetrahedron split into eight.
+    Refined,
+    /// The real object's own fine mesh before its slit (for the liver, SOFA's fine liver),
+    /// which the ground truth is simulated on.
+    Fine,
+}
+
 impl Simulation {
+    /// Models the object by `mesh` instead of the scenario's model mesh: its held nodes found
+    /// anew, and the room for a cut's new nodes and tetrahedra grown with the cut's area in
+    /// elements (the node ratio to the power 2/3), from the scenario's own capacities.
+    pub fn remodel(&mut self, mesh: ModelMesh) {
+        let coarse = &self.meshes.model;
+        let model = match mesh {
+            ModelMesh::Scenario => return,
+            ModelMesh::Refined => coarse.refine(),
+            ModelMesh::Fine => self.meshes.fine.clone(),
+        };
+        let growth = (model.nodes.len() as f64 / coarse.nodes.len() as f64).powf(2.0 / 3.0);
+        let capacities = &mut self.scenario.capacities;
+        capacities.cut_nodes = (capacities.cut_nodes as f64 * growth).ceil() as usize;
+        capacities.cut_tets = (capacities.cut_tets as f64 * growth).ceil() as usize;
+        self.meshes.model_fixed = held_nodes(&model.nodes, &self.scenario.motion.held);
+        self.meshes.model = model;
+        // Written beside the scene as `model.msh`.
+        self.meshes.model_mesh_file = None;
+    }
+
     /// Boundary triangles of the real mesh.
     pub fn triangles(&self) -> Vec<[u32; 3]> {
         self.boundary.iter().map(|b| b.0).collect()

@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 
 use serde::Serialize;
 
-use crate::generate::pipeline::{held_nodes, simulate, write_scene};
+use crate::generate::pipeline::{ModelMesh, simulate, write_scene};
 use crate::run::{RunOptions, run_scene};
 use crate::scene::Scene;
 
@@ -156,31 +156,21 @@ pub(super) fn assemble(
 fn variants(base: usize, scene: &Scene, work: &Path) -> Result<Vec<Job>, String> {
     let name = &scene.file.name;
     let scenario = scene.dir.join("scenario.toml");
-    let mut sim = simulate(&scenario, false).map_err(|e| format!("{name}: {e}"))?;
-    let coarse = sim.meshes.model.clone();
-    let finer = [
-        (MODELS[1], coarse.refine()),
-        (MODELS[2], sim.meshes.fine.clone()),
-    ];
+    let sim = simulate(&scenario, false).map_err(|e| format!("{name}: {e}"))?;
     let mut jobs = vec![Job {
         base,
         label: MODELS[0],
         scene: scene.clone(),
         dir: scene.dir.clone(),
     }];
-    for (label, mesh) in finer {
-        let dir = work.join(format!("{name}-{}", mesh.nodes.len()));
-        // Room for a cut grows with the cut's area in elements.
-        let growth = (mesh.nodes.len() as f64 / coarse.nodes.len() as f64).powf(2.0 / 3.0);
-        let own = &scene.file.capacities;
-        let capacities = &mut sim.scenario.capacities;
-        capacities.cut_nodes = (own.cut_nodes as f64 * growth).ceil() as usize;
-        capacities.cut_tets = (own.cut_tets as f64 * growth).ceil() as usize;
-        sim.meshes.model_fixed = held_nodes(&mesh.nodes, &sim.scenario.motion.held);
-        sim.meshes.model = mesh;
-        // Written beside the scene as `model.msh`.
-        sim.meshes.model_mesh_file = None;
-        let variant = write_scene(&sim, &scenario, &dir, false)
+    for (label, mesh) in [
+        (MODELS[1], ModelMesh::Refined),
+        (MODELS[2], ModelMesh::Fine),
+    ] {
+        let mut model = sim.clone();
+        model.remodel(mesh);
+        let dir = work.join(format!("{name}-{}", model.meshes.model.nodes.len()));
+        let variant = write_scene(&model, &scenario, &dir, false)
             .map_err(|e| e.to_string())
             .and_then(|_| Scene::load(&dir).map_err(|e| e.to_string()))
             .map_err(|e| format!("{name} with {label} mesh: {e}"))?;
