@@ -148,7 +148,7 @@ pub fn draw(o: &Overlay<'_>, legend_at: &mut Option<Corner>) -> Canvas {
     let corner = legend_corner(
         &canvas,
         &legend,
-        &[Some(o.model_mask), o.truth_mask],
+        (&[Some(o.model_mask), o.truth_mask], &drawn_lines(o)),
         *legend_at,
     );
     canvas.legend(&legend, corner);
@@ -156,14 +156,36 @@ pub fn draw(o: &Overlay<'_>, legend_at: &mut Option<Corner>) -> Canvas {
     canvas
 }
 
-/// The corner where the legend hides the least of the object: the fewest pixels of `masks`
-/// (the model's and the true silhouette) under its box, top right on a tie. A fixed corner
-/// hid whatever the scene put there (a band's pulled end, a lobe, a false line). The corner
-/// `keep` is kept unless another hides at least a fifth less.
+/// What one pixel of a drawn line (the cut lines, the detector's pairs) weighs against one
+/// pixel of the object when the legend's corner is chosen: the lines are what a picture of a
+/// cut is about, and a few pixels wide, so a legend over a stretch of them hides more than
+/// over as many pixels of the object's inside. Before, only the object counted, and with
+/// `--pairs` the legend could sit on the pairs and the line that reach past the silhouette.
+const LINE_WEIGHT: usize = 8;
+
+/// The segments of the lines an overlay draws: the detected and the true cut, and the
+/// detector's pairs when asked for.
+fn drawn_lines(o: &Overlay<'_>) -> Vec<[[f64; 2]; 2]> {
+    let polylines =
+        std::iter::once(o.cut_line).chain(o.true_cut.unwrap_or_default().iter().map(Vec::as_slice));
+    let mut lines: Vec<[[f64; 2]; 2]> = polylines
+        .flat_map(|line| line.windows(2).map(|w| [w[0], w[1]]))
+        .collect();
+    if let Some(pairs) = o.pairs {
+        lines.extend(pairs.outliers.iter().chain(&pairs.split));
+    }
+    lines
+}
+
+/// The corner where the legend hides the least of the picture: the fewest pixels of `masks`
+/// (the model's and the true silhouette) under its box, and of `lines` ([`LINE_WEIGHT`]
+/// each, sampled a pixel apart), top right on a tie. A fixed corner hid whatever the scene
+/// put there (a band's pulled end, a lobe, a false line). The corner `keep` is kept unless
+/// another hides at least a fifth less.
 fn legend_corner(
     canvas: &Canvas,
     legend: &[([u8; 3], &str)],
-    masks: &[Option<&Mask>],
+    (masks, lines): (&[Option<&Mask>], &[[[f64; 2]; 2]]),
     keep: Option<Corner>,
 ) -> Corner {
     let (w, h) = Canvas::legend_size(legend);
@@ -176,6 +198,18 @@ fn legend_corner(
             for y in ys {
                 n += xs.clone().filter(|&x| mask.get(x as u32, y as u32)).count();
             }
+        }
+        let inside = |p: [f64; 2]| {
+            let (x, y) = (p[0].floor() as i64, p[1].floor() as i64);
+            (x0..x0 + i64::from(w)).contains(&x) && (y0..y0 + i64::from(h)).contains(&y)
+        };
+        for &[a, b] in lines {
+            let samples = ((b[0] - a[0]).hypot(b[1] - a[1]).ceil() as usize).max(1);
+            let on = (0..=samples).filter(|&k| {
+                let t = k as f64 / samples as f64;
+                inside([a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])])
+            });
+            n += LINE_WEIGHT * on.count();
         }
         n
     };
@@ -209,25 +243,25 @@ mod tests {
         // Nothing to hide, or the object on the left: the preferred top right corner.
         let empty = Mask::from_fn(320, 200, |_, _| false);
         assert_eq!(
-            legend_corner(&canvas, &legend, &[Some(&empty), None], None),
+            legend_corner(&canvas, &legend, (&[Some(&empty), None], &[]), None),
             Corner::TopRight
         );
         let left = Mask::from_fn(320, 200, |x, _| x < 160);
         assert_eq!(
-            legend_corner(&canvas, &legend, &[Some(&left), None], None),
+            legend_corner(&canvas, &legend, (&[Some(&left), None], &[]), None),
             Corner::TopRight
         );
         // The object on the right: top left.
         let right = Mask::from_fn(320, 200, |x, _| x >= 160);
         assert_eq!(
-            legend_corner(&canvas, &legend, &[Some(&right), None], None),
+            legend_corner(&canvas, &legend, (&[Some(&right), None], &[]), None),
             Corner::TopLeft
         );
         // The model across the top, the truth down the left side: bottom right, where
         // neither is.
         let top = Mask::from_fn(320, 200, |_, y| y < 120);
         assert_eq!(
-            legend_corner(&canvas, &legend, &[Some(&top), Some(&left)], None),
+            legend_corner(&canvas, &legend, (&[Some(&top), Some(&left)], &[]), None),
             Corner::BottomRight
         );
         // A corner taken before stays while another would hide about as much (the object
@@ -237,7 +271,7 @@ mod tests {
         for corner in [Corner::TopRight, Corner::BottomLeft] {
             let keep = Some(corner);
             assert_eq!(
-                legend_corner(&canvas, &legend, &[Some(&strip), None], keep),
+                legend_corner(&canvas, &legend, (&[Some(&strip), None], &[]), keep),
                 corner
             );
         }
@@ -245,10 +279,37 @@ mod tests {
             legend_corner(
                 &canvas,
                 &legend,
-                &[Some(&right), None],
+                (&[Some(&right), None], &[]),
                 Some(Corner::TopRight)
             ),
             Corner::TopLeft
+        );
+        // The object under every corner alike (all of the picture): a line through the top
+        // right corner, where the legend would go on the tie, sends it to a corner free of
+        // lines.
+        let all = Mask::from_fn(320, 200, |_, _| true);
+        let (x, y) = canvas.legend_origin(&legend, Corner::TopRight);
+        let (lw, lh) = Canvas::legend_size(&legend);
+        let (x, y, lw, lh) = (x as f64, y as f64, f64::from(lw), f64::from(lh));
+        let across_top_right = [[x - 5.0, y + lh / 2.0], [x + lw + 5.0, y + lh / 2.0]];
+        let corner = legend_corner(
+            &canvas,
+            &legend,
+            (&[Some(&all), None], &[across_top_right]),
+            None,
+        );
+        assert_ne!(corner, Corner::TopRight);
+        // A line across the whole top, under both top corners: a bottom corner.
+        let across_the_top = [[0.0, y + lh / 2.0], [319.0, y + lh / 2.0]];
+        let corner = legend_corner(
+            &canvas,
+            &legend,
+            (&[Some(&all), None], &[across_the_top]),
+            None,
+        );
+        assert!(
+            matches!(corner, Corner::BottomLeft | Corner::BottomRight),
+            "{corner:?}"
         );
         // The box drawn there stays inside the picture, below the title band on top.
         for corner in Corner::ALL {
