@@ -14,7 +14,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 
 use crate::generate::family::{Family, Kind, variants};
-use crate::generate::pipeline::{generate_scenario, rebase_mesh_paths};
+use crate::generate::pipeline::{ModelMesh, generate_scenario, rebase_mesh_paths};
 use crate::generate::scenario::Scenario;
 use crate::run::{FilterTruth, RunOptions, Summary, run_scene};
 use crate::scene::Scene;
@@ -182,6 +182,9 @@ pub struct EvalOptions {
     /// A seed in place of each family's own: other variants drawn from the same ranges, to
     /// check that what the committed seeds show holds on variants nothing was tried on.
     pub seed: Option<u64>,
+    /// The mesh that models each variant's object ([`ModelMesh`]): a finer model of the same
+    /// truth, to see whether what the detection does carries over to it.
+    pub model_mesh: ModelMesh,
 }
 
 /// Whether `dir` holds the scene of scenario `s` (drawn relative to `base`) already.
@@ -210,6 +213,12 @@ pub fn eval_family(family_path: &Path, options: &EvalOptions) -> Result<FamilySu
             format!("{}-seed-{seed}", family.name)
         }
         _ => family.name.clone(),
+    };
+    // Remodelled variants too, each mesh in a directory of its own.
+    let work_name = match options.model_mesh {
+        ModelMesh::Scenario => work_name,
+        ModelMesh::Refined => format!("{work_name}-refined"),
+        ModelMesh::Fine => format!("{work_name}-fine"),
     };
     let scenarios = variants(&family, family_path).map_err(|e| e.to_string())?;
     let base = family.base_dir(family_path);
@@ -243,7 +252,8 @@ pub fn eval_family(family_path: &Path, options: &EvalOptions) -> Result<FamilySu
         let dir = work.join(&s.name);
         if options.fresh || !is_generated(s, &base, &dir) {
             bar.set_message(format!("{} (generating)", s.name));
-            generate_scenario(s, &base, &dir, false).map_err(|e| format!("{}: {e}", s.name))?;
+            generate_scenario(s, &base, &dir, (options.model_mesh, false))
+                .map_err(|e| format!("{}: {e}", s.name))?;
         }
         bar.set_message(format!("{} (running)", s.name));
         let mut scene = Scene::load(&dir).map_err(|e| format!("{}: {e}", s.name))?;

@@ -10,6 +10,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use incise::eval::{ACCEPTANCE, EvalOptions, Selection, eval_family, markdown_table};
+use incise::generate::pipeline::ModelMesh;
 
 fn families() -> Vec<PathBuf> {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/families");
@@ -146,6 +147,18 @@ fn another_seed_draws_other_variants_kept_apart() {
     // The family's own seed given again is the family's own variants, in its own folder.
     run(&["--seed", "1"]);
     assert!(!tmp.path().join("band-seed-1").exists());
+    // The same variants modelled by the refined mesh: their own folder, the same truth
+    // (the rest model's target error), eight times as many tetrahedra in the model.
+    let refined = run(&["--model-mesh", "refined"]);
+    let refined_dir = tmp.path().join("band-refined").join(&first);
+    let summary =
+        |v: &serde_json::Value, key: &str| v[0]["variants"][0]["summary"][key].as_f64().unwrap();
+    assert!(
+        (summary(&own, "tre_mm_final_rest") - summary(&refined, "tre_mm_final_rest")).abs() < 1e-9
+    );
+    assert!(summary(&refined, "nodes_initial") > summary(&own, "nodes_initial"));
+    let tets = |dir: &Path| incise::scene::Scene::load(dir).unwrap().tets.len();
+    assert_eq!(tets(&refined_dir), 8 * tets(&own_dir));
 }
 
 #[test]
@@ -159,6 +172,7 @@ fn families_meet_the_detection_acceptance() {
         progress: false,
         law: None,
         seed: None,
+        model_mesh: ModelMesh::Scenario,
     };
     let done: Vec<_> = families()
         .iter()

@@ -199,6 +199,10 @@ pub enum Command {
         /// setting was tried on (kept in their own folders under --work).
         #[arg(long)]
         seed: Option<u64>,
+        /// Model each variant's object by this mesh (as `incise gen --model-mesh`; kept in
+        /// their own folders under --work).
+        #[arg(long, value_enum, default_value_t = ModelMesh::Scenario)]
+        model_mesh: ModelMesh,
     },
     /// Write one scene as a Rust module for a firmware build (`firmware/`): mesh, camera,
     /// settings, capacities and `const` buffer lengths, the uncut mesh's precomputed ordering
@@ -356,6 +360,7 @@ pub fn run(cli: Cli) -> i32 {
             json,
             law,
             seed,
+            model_mesh,
         } => eval_command(
             &families,
             &crate::eval::EvalOptions {
@@ -365,6 +370,7 @@ pub fn run(cli: Cli) -> i32 {
                 progress: true,
                 law,
                 seed,
+                model_mesh,
             },
             variants,
             json,

@@ -45,7 +45,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::generate::live::extent;
 use crate::generate::pipeline::{
-    GenError, Generated, generate_scenario, object_meshes, spec_camera,
+    GenError, Generated, ModelMesh, generate_scenario, object_meshes, spec_camera,
 };
 use crate::generate::scenario::Scenario;
 use crate::render::silhouette;
@@ -456,8 +456,13 @@ pub fn generate_family(
     let mut done = Vec::with_capacity(scenarios.len());
     for s in &scenarios {
         bar.set_message(s.name.clone());
-        let g = generate_scenario(s, &base_dir, &out.join(&s.name), false)
-            .map_err(|e| GenError(format!("{}: {e}", s.name)))?;
+        let g = generate_scenario(
+            s,
+            &base_dir,
+            &out.join(&s.name),
+            (ModelMesh::Scenario, false),
+        )
+        .map_err(|e| GenError(format!("{}: {e}", s.name)))?;
         done.push(g);
         bar.inc(1);
     }

@@ -379,8 +379,9 @@ pub fn generate(scenario_path: &Path, out: &Path, progress: bool) -> Result<Gene
 
 /// Generates the scene of a scenario in memory into `out`: writes `out/scenario.toml` (the
 /// scenario, its mesh paths made relative to `out`) and then the scene, exactly as
-/// `incise gen out/scenario.toml` would. `base` is the directory the scenario's mesh paths
-/// are relative to (the directory of the file it was read from). Creates `out` if needed.
+/// `incise gen out/scenario.toml --model-mesh …` would, the object modelled by `mesh`.
+/// `base` is the directory the scenario's mesh paths are relative to (the directory of the
+/// file it was read from). Creates `out` if needed.
 ///
 /// # Errors
 /// As [`generate`], and a [`GenError`] if the scenario cannot be written.
@@ -388,15 +389,21 @@ pub fn generate_scenario(
     s: &Scenario,
     base: &Path,
     out: &Path,
-    progress: bool,
+    (mesh, progress): (ModelMesh, bool),
 ) -> Result<Generated, GenError> {
-    let sim = simulate_scenario(s, base, progress)?;
+    let mut sim = simulate_scenario(s, base, progress)?;
+    sim.remodel(mesh);
     std::fs::create_dir_all(out).map_err(|e| at_file(out)(&e))?;
     let mut written = s.clone();
     rebase_mesh_paths(&mut written, base, out);
     let file = out.join("scenario.toml");
+    let option = match mesh {
+        ModelMesh::Scenario => "",
+        ModelMesh::Refined => " --model-mesh refined",
+        ModelMesh::Fine => " --model-mesh fine",
+    };
     let text = format!(
-        "# The scenario of this scene, written by incise: `incise gen` on this file \
+        "# The scenario of this scene, written by incise: `incise gen` on this file{option} \
          regenerates the scene beside it.\n{}",
         written.to_toml().map_err(GenError)?
     );
