@@ -215,10 +215,9 @@ pub fn eval_family(family_path: &Path, options: &EvalOptions) -> Result<FamilySu
         _ => family.name.clone(),
     };
     // Remodelled variants too, each mesh in a directory of its own.
-    let work_name = match options.model_mesh {
-        ModelMesh::Scenario => work_name,
-        ModelMesh::Refined => format!("{work_name}-refined"),
-        ModelMesh::Fine => format!("{work_name}-fine"),
+    let work_name = match options.model_mesh.option() {
+        Some(mesh) => format!("{work_name}-{mesh}"),
+        None => work_name,
     };
     let scenarios = variants(&family, family_path).map_err(|e| e.to_string())?;
     let base = family.base_dir(family_path);
@@ -252,7 +251,7 @@ pub fn eval_family(family_path: &Path, options: &EvalOptions) -> Result<FamilySu
         let dir = work.join(&s.name);
         if options.fresh || !is_generated(s, &base, &dir) {
             bar.set_message(format!("{} (generating)", s.name));
-            generate_scenario(s, &base, &dir, (options.model_mesh, false))
+            generate_scenario(s, &base, &dir, options.model_mesh, false)
                 .map_err(|e| format!("{}: {e}", s.name))?;
         }
         bar.set_message(format!("{} (running)", s.name));

@@ -148,7 +148,8 @@ pub fn draw(o: &Overlay<'_>, legend_at: &mut Option<Corner>) -> Canvas {
     let corner = legend_corner(
         &canvas,
         &legend,
-        (&[Some(o.model_mask), o.truth_mask], &drawn_lines(o)),
+        &[Some(o.model_mask), o.truth_mask],
+        &drawn_lines(o),
         *legend_at,
     );
     canvas.legend(&legend, corner);
@@ -185,7 +186,8 @@ fn drawn_lines(o: &Overlay<'_>) -> Vec<[[f64; 2]; 2]> {
 fn legend_corner(
     canvas: &Canvas,
     legend: &[([u8; 3], &str)],
-    (masks, lines): (&[Option<&Mask>], &[[[f64; 2]; 2]]),
+    masks: &[Option<&Mask>],
+    lines: &[[[f64; 2]; 2]],
     keep: Option<Corner>,
 ) -> Corner {
     let (w, h) = Canvas::legend_size(legend);
@@ -243,25 +245,25 @@ mod tests {
         // Nothing to hide, or the object on the left: the preferred top right corner.
         let empty = Mask::from_fn(320, 200, |_, _| false);
         assert_eq!(
-            legend_corner(&canvas, &legend, (&[Some(&empty), None], &[]), None),
+            legend_corner(&canvas, &legend, &[Some(&empty), None], &[], None),
             Corner::TopRight
         );
         let left = Mask::from_fn(320, 200, |x, _| x < 160);
         assert_eq!(
-            legend_corner(&canvas, &legend, (&[Some(&left), None], &[]), None),
+            legend_corner(&canvas, &legend, &[Some(&left), None], &[], None),
             Corner::TopRight
         );
         // The object on the right: top left.
         let right = Mask::from_fn(320, 200, |x, _| x >= 160);
         assert_eq!(
-            legend_corner(&canvas, &legend, (&[Some(&right), None], &[]), None),
+            legend_corner(&canvas, &legend, &[Some(&right), None], &[], None),
             Corner::TopLeft
         );
         // The model across the top, the truth down the left side: bottom right, where
         // neither is.
         let top = Mask::from_fn(320, 200, |_, y| y < 120);
         assert_eq!(
-            legend_corner(&canvas, &legend, (&[Some(&top), Some(&left)], &[]), None),
+            legend_corner(&canvas, &legend, &[Some(&top), Some(&left)], &[], None),
             Corner::BottomRight
         );
         // A corner taken before stays while another would hide about as much (the object
@@ -271,7 +273,7 @@ mod tests {
         for corner in [Corner::TopRight, Corner::BottomLeft] {
             let keep = Some(corner);
             assert_eq!(
-                legend_corner(&canvas, &legend, (&[Some(&strip), None], &[]), keep),
+                legend_corner(&canvas, &legend, &[Some(&strip), None], &[], keep),
                 corner
             );
         }
@@ -279,7 +281,8 @@ mod tests {
             legend_corner(
                 &canvas,
                 &legend,
-                (&[Some(&right), None], &[]),
+                &[Some(&right), None],
+                &[],
                 Some(Corner::TopRight)
             ),
             Corner::TopLeft
@@ -295,7 +298,8 @@ mod tests {
         let corner = legend_corner(
             &canvas,
             &legend,
-            (&[Some(&all), None], &[across_top_right]),
+            &[Some(&all), None],
+            &[across_top_right],
             None,
         );
         assert_ne!(corner, Corner::TopRight);
@@ -304,7 +308,8 @@ mod tests {
         let corner = legend_corner(
             &canvas,
             &legend,
-            (&[Some(&all), None], &[across_the_top]),
+            &[Some(&all), None],
+            &[across_the_top],
             None,
         );
         assert!(

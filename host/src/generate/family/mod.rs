@@ -456,13 +456,8 @@ pub fn generate_family(
     let mut done = Vec::with_capacity(scenarios.len());
     for s in &scenarios {
         bar.set_message(s.name.clone());
-        let g = generate_scenario(
-            s,
-            &base_dir,
-            &out.join(&s.name),
-            (ModelMesh::Scenario, false),
-        )
-        .map_err(|e| GenError(format!("{}: {e}", s.name)))?;
+        let g = generate_scenario(s, &base_dir, &out.join(&s.name), ModelMesh::Scenario, false)
+            .map_err(|e| GenError(format!("{}: {e}", s.name)))?;
         done.push(g);
         bar.inc(1);
     }

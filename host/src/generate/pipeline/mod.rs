@@ -107,6 +107,17 @@ pub enum ModelMesh {
     Fine,
 }
 
+impl ModelMesh {
+    /// Its value of `--model-mesh`, `None` for the scenario's own (the option left out).
+    pub fn option(self) -> Option<&'static str> {
+        match self {
+            ModelMesh::Scenario => None,
+            ModelMesh::Refined => Some("refined"),
+            ModelMesh::Fine => Some("fine"),
+        }
+    }
+}
+
 impl Simulation {
     /// Models the object by `mesh` instead of the scenario's model mesh: its held nodes found
     /// anew, and the room for a cut's new nodes and tetrahedra grown with the cut's area in
@@ -389,7 +400,8 @@ pub fn generate_scenario(
     s: &Scenario,
     base: &Path,
     out: &Path,
-    (mesh, progress): (ModelMesh, bool),
+    mesh: ModelMesh,
+    progress: bool,
 ) -> Result<Generated, GenError> {
     let mut sim = simulate_scenario(s, base, progress)?;
     sim.remodel(mesh);
@@ -397,11 +409,9 @@ pub fn generate_scenario(
     let mut written = s.clone();
     rebase_mesh_paths(&mut written, base, out);
     let file = out.join("scenario.toml");
-    let option = match mesh {
-        ModelMesh::Scenario => "",
-        ModelMesh::Refined => " --model-mesh refined",
-        ModelMesh::Fine => " --model-mesh fine",
-    };
+    let option = mesh
+        .option()
+        .map_or(String::new(), |m| format!(" --model-mesh {m}"));
     let text = format!(
         "# The scenario of this scene, written by incise: `incise gen` on this file{option} \
          regenerates the scene beside it.\n{}",
