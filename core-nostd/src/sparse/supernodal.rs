@@ -217,10 +217,10 @@ fn micro<T: Real>(a: &[T], b: &[T]) -> [[T; MR]; NR] {
     let (b, _) = b.as_chunks::<{ NR * DUP }>();
     let mut acc = [[T::zero(); MR]; NR];
     for (ak, bk) in a.iter().zip(b) {
+        let (ak, _) = ak.as_chunks::<DUP>();
         let (bk, _) = bk.as_chunks::<DUP>();
         for (accj, bkj) in acc.iter_mut().zip(bk) {
             let (accj, _) = accj.as_chunks_mut::<DUP>();
-            let (ak, _) = ak.as_chunks::<DUP>();
             for (x, aki) in accj.iter_mut().zip(ak) {
                 for ((x, &a), &b) in x.iter_mut().zip(aki).zip(bkj) {
                     *x += a * b;
@@ -269,8 +269,10 @@ fn apply_update<T: Real>(
         while tb < nt {
             let nc = NC.min(nt - tb);
             let ntiles = nc.div_ceil(NR);
+            // One packed target tile: `kc` rows of `NR` coefficients, each `DUP` times.
+            let tile_len = kc * NR * DUP;
             // Pack the targets' coefficients L(R[t], k) D(k), tile by tile, k-major in a tile.
-            let bp = prefix_mut(bpack, ntiles * kc * NR * DUP, Resource::Workspace)?;
+            let bp = prefix_mut(bpack, ntiles * tile_len, Resource::Workspace)?;
             for k in 0..kc {
                 let col = kb + k;
                 let j = u.src_f + col;
@@ -279,7 +281,7 @@ fn apply_update<T: Real>(
                 };
                 let mut vals = pan.run(l, u.src_f, col, u.p0 + tb, nc)?.iter();
                 // Every tile has row `k` (k < kc); the targets past `nc` pad with zeros.
-                for tile in bp.chunks_exact_mut(kc * NR * DUP) {
+                for tile in bp.chunks_exact_mut(tile_len) {
                     let dst = packed_row::<T, { NR * DUP }>(tile, k)?;
                     for x in dst.as_chunks_mut::<DUP>().0 {
                         let v = vals.next().map_or(T::zero(), |&v| v * dk);
@@ -313,7 +315,7 @@ fn apply_update<T: Real>(
                 }
                 for (ic, a) in ap.chunks_exact(kc * MR).enumerate() {
                     let i0 = rb + ic * MR;
-                    for (jt, b) in bp.chunks_exact(kc * NR * DUP).enumerate() {
+                    for (jt, b) in bp.chunks_exact(tile_len).enumerate() {
                         let t0 = tb + jt * NR;
                         if i0 + MR <= t0 {
                             // Every row of the sliver lies above every target's diagonal.
