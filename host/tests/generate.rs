@@ -130,6 +130,64 @@ fn a_family_is_written_variant_by_variant_and_each_regenerates() {
     assert!(String::from_utf8_lossy(&output.stderr).contains("--out"));
 }
 
+/// `incise gen SCENARIO ARGS --out OUT`, which must succeed.
+fn gen_into(scenario: &Path, args: &[&str], out: &Path) {
+    succeeds(
+        incise()
+            .arg("gen")
+            .arg(scenario)
+            .args(args)
+            .arg("--out")
+            .arg(out),
+    );
+}
+
+/// `incise gen` with `args` but no `--out`, on a copy of `scenario` in its own directory under
+/// `tmp`: refused, naming `--out`, and nothing written beside the copy.
+fn refused_without_out(tmp: &Path, scenario: &Path, args: &[&str]) {
+    let elsewhere = tmp.join("unwritten");
+    std::fs::create_dir_all(&elsewhere).unwrap();
+    std::fs::copy(scenario, elsewhere.join("scenario.toml")).unwrap();
+    let output = incise()
+        .arg("gen")
+        .arg(elsewhere.join("scenario.toml"))
+        .args(args)
+        .output()
+        .unwrap();
+    assert!(!output.status.success());
+    assert!(String::from_utf8_lossy(&output.stderr).contains("--out"));
+    assert_eq!(files(&elsewhere), [PathBuf::from("scenario.toml")]);
+}
+
+/// `--intact` writes the scene with its object left whole, with the scenario it came from (no
+/// `[slit]`), so that `incise gen` on that file regenerates it: nothing opens, nothing is
+/// detected, and the model is never cut. Without `--out` it is refused before anything is
+/// written.
+#[test]
+fn gen_intact_writes_the_scene_with_its_object_left_whole() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scenario = fixtures().join("band-side-cut/scenario.toml");
+    let out = tmp.path().join("intact");
+    gen_into(&scenario, &["--intact"], &out);
+    let written: toml::Table =
+        toml::from_str(&std::fs::read_to_string(out.join("scenario.toml")).unwrap()).unwrap();
+    assert!(!written.contains_key("slit"));
+    assert_eq!(written["name"].as_str(), Some("band-side-cut"));
+    let cut = std::fs::read_to_string(out.join("gt/cut.csv")).unwrap();
+    assert_eq!(cut.lines().count(), 1, "the true cut has rows: {cut}");
+
+    let stdout = succeeds(incise().arg("run").arg(&out).arg("--json"));
+    let run: serde_json::Value = serde_json::from_slice(&stdout).unwrap();
+    assert!(run["cut_open_frame"].is_null());
+    assert!(run["cut_detected_frame"].is_null());
+    assert_eq!(run["cut_events"], 0);
+    assert_eq!(run["dice_final"], run["dice_final_uncut"]);
+    // The band pulled whole is followed closely (0.998 when written).
+    assert!(run["dice_final"].as_f64().unwrap() > 0.99);
+
+    refused_without_out(tmp.path(), &scenario, &["--intact"]);
+}
+
 /// `--model-mesh refined` writes the same scene modelled by the refined mesh: the same tracks
 /// and truth, the refined grid's nodes, and a run of it measures against the same rest
 /// baseline. Without `--out` it is refused before anything is written.
@@ -138,13 +196,7 @@ fn gen_models_the_object_by_another_mesh_beside_the_same_truth() {
     let tmp = tempfile::tempdir().unwrap();
     let scenario = fixtures().join("band-side-cut/scenario.toml");
     let out = tmp.path().join("refined");
-    succeeds(
-        incise()
-            .arg("gen")
-            .arg(&scenario)
-            .args(["--model-mesh", "refined", "--out"])
-            .arg(&out),
-    );
+    gen_into(&scenario, &["--model-mesh", "refined"], &out);
     let own = fixtures().join("band-side-cut");
     for f in ["tracks.csv", "gt/cut.csv", "gt/targets.csv"] {
         assert_eq!(
@@ -165,16 +217,5 @@ fn gen_models_the_object_by_another_mesh_beside_the_same_truth() {
     let rest = |v: &serde_json::Value| v["tre_mm_final_rest"].as_f64().unwrap();
     assert!((rest(&coarse) - rest(&fine)).abs() < 1e-9);
 
-    let elsewhere = tmp.path().join("unwritten");
-    std::fs::create_dir_all(&elsewhere).unwrap();
-    std::fs::copy(&scenario, elsewhere.join("scenario.toml")).unwrap();
-    let output = incise()
-        .arg("gen")
-        .arg(elsewhere.join("scenario.toml"))
-        .args(["--model-mesh", "fine"])
-        .output()
-        .unwrap();
-    assert!(!output.status.success());
-    assert!(String::from_utf8_lossy(&output.stderr).contains("--out"));
-    assert_eq!(files(&elsewhere), [PathBuf::from("scenario.toml")]);
+    refused_without_out(tmp.path(), &scenario, &["--model-mesh", "fine"]);
 }

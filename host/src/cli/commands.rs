@@ -206,6 +206,7 @@ pub(super) fn gen_command(
     out: Option<PathBuf>,
     video: bool,
     model_mesh: ModelMesh,
+    intact: bool,
 ) -> Result<(), Failure> {
     if out.is_some() && scenarios.len() > 1 {
         return Err("--out takes one scenario at a time".into());
@@ -221,6 +222,18 @@ pub(super) fn gen_command(
                 .parent()
                 .map_or_else(|| PathBuf::from("."), Path::to_path_buf),
         };
+        if intact {
+            // `--intact` needs `--out` and refuses `--video` (clap): the scenario without its
+            // slit goes beside the scene, so that `incise gen` on it regenerates the scene.
+            let mut s =
+                crate::generate::scenario::Scenario::load(path).map_err(|e| e.to_string())?;
+            s.slit = None;
+            let base = path.parent().unwrap_or(Path::new("."));
+            let g = crate::generate::pipeline::generate_scenario(&s, base, &dir, model_mesh, true)
+                .map_err(|e| format!("{}: {e}", path.display()))?;
+            print_generated(&g)?;
+            continue;
+        }
         // Their errors name the file at fault.
         let mut sim = crate::generate::pipeline::simulate(path, true).map_err(|e| e.to_string())?;
         sim.remodel(model_mesh);
@@ -232,18 +245,24 @@ pub(super) fn gen_command(
             write_video(&sim, &file)?;
             outln!("{}: textured video", file.display())?;
         }
-        outln!(
-            "{}: {} frames, {} features, real mesh {} nodes / {} tets, model {} nodes / {} tets, cut opens at frame {}",
-            g.dir.display(),
-            g.frames,
-            g.features,
-            g.fine_size.0,
-            g.fine_size.1,
-            g.model_size.0,
-            g.model_size.1,
-            g.cut_open_frame.map_or("-".to_string(), |f| f.to_string())
-        )?;
+        print_generated(&g)?;
     }
+    Ok(())
+}
+
+/// One line on a scene `gen` wrote.
+fn print_generated(g: &crate::generate::pipeline::Generated) -> Result<(), Failure> {
+    outln!(
+        "{}: {} frames, {} features, real mesh {} nodes / {} tets, model {} nodes / {} tets, cut opens at frame {}",
+        g.dir.display(),
+        g.frames,
+        g.features,
+        g.fine_size.0,
+        g.fine_size.1,
+        g.model_size.0,
+        g.model_size.1,
+        g.cut_open_frame.map_or("-".to_string(), |f| f.to_string())
+    )?;
     Ok(())
 }
 

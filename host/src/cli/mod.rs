@@ -250,6 +250,11 @@ pub enum Command {
         /// mesh (what the report's mesh-resolution axis runs); needs --out.
         #[arg(long, value_enum, default_value_t = ModelMesh::Scenario, requires = "out", conflicts_with = "family")]
         model_mesh: ModelMesh,
+        /// The same scene with its object left whole: the scenario without its `[slit]` (the
+        /// same motion, camera and tracking), written with its scenario to --out. What the
+        /// model reaches when nothing is cut, the baseline of a cut scene's Dice deficit.
+        #[arg(long, requires = "out", conflicts_with_all = ["family", "video"])]
+        intact: bool,
     },
 }
 
@@ -386,7 +391,8 @@ pub fn run(cli: Cli) -> i32 {
             out,
             video,
             model_mesh,
-        } => gen_command(&scenarios, out, video, model_mesh),
+            intact,
+        } => gen_command(&scenarios, out, video, model_mesh, intact),
         Command::Codegen {
             scene,
             out,
