@@ -157,37 +157,41 @@ pub fn draw(o: &Overlay<'_>, legend_at: &mut Option<Corner>) -> Canvas {
     canvas
 }
 
-/// What one pixel of a drawn line (the cut lines, the detector's pairs) weighs against one
-/// pixel of the object when the legend's corner is chosen: the lines are what a picture of a
-/// cut is about, and a few pixels wide, so a legend over a stretch of them hides more than
-/// over as many pixels of the object's inside. Before, only the object counted, and with
-/// `--pairs` the legend could sit on the pairs and the line that reach past the silhouette.
+/// What one pixel of a drawn pair of the detector weighs against one pixel of the object when
+/// the legend's corner is chosen: a few pixels wide, a legend over a stretch of them hides more
+/// than over as many pixels of the object's inside.
 const LINE_WEIGHT: usize = 8;
 
-/// The segments of the lines an overlay draws: the detected and the true cut, and the
-/// detector's pairs when asked for.
-fn drawn_lines(o: &Overlay<'_>) -> Vec<[[f64; 2]; 2]> {
+/// The segments an overlay draws that the legend should not hide: the detected and the true
+/// cut (`.0`), and the detector's pairs when asked for (`.1`).
+type DrawnLines = (Vec<[[f64; 2]; 2]>, Vec<[[f64; 2]; 2]>);
+
+fn drawn_lines(o: &Overlay<'_>) -> DrawnLines {
     let polylines =
         std::iter::once(o.cut_line).chain(o.true_cut.unwrap_or_default().iter().map(Vec::as_slice));
-    let mut lines: Vec<[[f64; 2]; 2]> = polylines
+    let cuts = polylines
         .flat_map(|line| line.windows(2).map(|w| [w[0], w[1]]))
         .collect();
-    if let Some(pairs) = o.pairs {
-        lines.extend(pairs.outliers.iter().chain(&pairs.split));
-    }
-    lines
+    let pairs = o
+        .pairs
+        .map(|p| p.outliers.iter().chain(&p.split).copied().collect())
+        .unwrap_or_default();
+    (cuts, pairs)
 }
 
-/// The corner where the legend hides the least of the picture: the fewest pixels of `masks`
-/// (the model's and the true silhouette) under its box, and of `lines` ([`LINE_WEIGHT`]
-/// each, sampled a pixel apart), top right on a tie. A fixed corner hid whatever the scene
-/// put there (a band's pulled end, a lobe, a false line). The corner `keep` is kept unless
-/// another hides at least a fifth less.
+/// The corner where the legend hides the least of the picture: first the fewest pixels of the
+/// cut lines (`lines.0`: a picture of a cut is about them, and weighed against the object's
+/// pixels, as before, a short line lost to a corner the object filled more elsewhere), then
+/// the fewest of `masks` (the model's and the true silhouette) and of the pairs (`lines.1`,
+/// [`LINE_WEIGHT`] each), lines sampled a pixel apart; top right on a tie. A fixed corner hid
+/// whatever the scene put there (a band's pulled end, a lobe, a false line). The corner `keep`
+/// is kept while it hides no more of the cut lines than the best and the best hides less than a
+/// fifth less of the rest.
 fn legend_corner(
     canvas: &Canvas,
     legend: &[([u8; 3], &str)],
     masks: &[Option<&Mask>],
-    lines: &[[[f64; 2]; 2]],
+    lines: &DrawnLines,
     keep: Option<Corner>,
 ) -> Corner {
     let (w, h) = Canvas::legend_size(legend);
@@ -205,15 +209,23 @@ fn legend_corner(
             let (x, y) = (p[0].floor() as i64, p[1].floor() as i64);
             (x0..x0 + i64::from(w)).contains(&x) && (y0..y0 + i64::from(h)).contains(&y)
         };
-        for &[a, b] in lines {
-            let samples = ((b[0] - a[0]).hypot(b[1] - a[1]).ceil() as usize).max(1);
-            let on = (0..=samples).filter(|&k| {
-                let t = k as f64 / samples as f64;
-                inside([a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])])
-            });
-            n += LINE_WEIGHT * on.count();
-        }
-        n
+        let samples_inside = |segments: &[[[f64; 2]; 2]]| {
+            let mut on = 0usize;
+            for &[a, b] in segments {
+                let samples = ((b[0] - a[0]).hypot(b[1] - a[1]).ceil() as usize).max(1);
+                on += (0..=samples)
+                    .filter(|&k| {
+                        let t = k as f64 / samples as f64;
+                        inside([a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])])
+                    })
+                    .count();
+            }
+            on
+        };
+        (
+            samples_inside(&lines.0),
+            n + LINE_WEIGHT * samples_inside(&lines.1),
+        )
     };
     // `min_by_key` keeps the first of equal keys: the preferred corner wins a tie.
     let best = Corner::ALL
@@ -222,9 +234,10 @@ fn legend_corner(
         .unwrap_or(Corner::TopRight);
     match keep {
         Some(k) => {
+            let (b, k_hides) = (covered(best), covered(k));
             // A fifth less hidden is worth a move; less is not (no flicker between corners
-            // that hide about as much).
-            if 5 * covered(best) >= 4 * covered(k) {
+            // that hide about as much). Uncovering a cut line always is.
+            if k_hides.0 <= b.0 && 5 * b.1 >= 4 * k_hides.1 {
                 k
             } else {
                 best
@@ -238,6 +251,10 @@ fn legend_corner(
 mod tests {
     use super::*;
 
+    fn no_lines() -> DrawnLines {
+        (vec![], vec![])
+    }
+
     #[test]
     fn the_legend_goes_where_it_hides_least_of_the_object() {
         let canvas = Canvas::new(320, 200, [0, 0, 0]);
@@ -245,25 +262,31 @@ mod tests {
         // Nothing to hide, or the object on the left: the preferred top right corner.
         let empty = Mask::from_fn(320, 200, |_, _| false);
         assert_eq!(
-            legend_corner(&canvas, &legend, &[Some(&empty), None], &[], None),
+            legend_corner(&canvas, &legend, &[Some(&empty), None], &no_lines(), None),
             Corner::TopRight
         );
         let left = Mask::from_fn(320, 200, |x, _| x < 160);
         assert_eq!(
-            legend_corner(&canvas, &legend, &[Some(&left), None], &[], None),
+            legend_corner(&canvas, &legend, &[Some(&left), None], &no_lines(), None),
             Corner::TopRight
         );
         // The object on the right: top left.
         let right = Mask::from_fn(320, 200, |x, _| x >= 160);
         assert_eq!(
-            legend_corner(&canvas, &legend, &[Some(&right), None], &[], None),
+            legend_corner(&canvas, &legend, &[Some(&right), None], &no_lines(), None),
             Corner::TopLeft
         );
         // The model across the top, the truth down the left side: bottom right, where
         // neither is.
         let top = Mask::from_fn(320, 200, |_, y| y < 120);
         assert_eq!(
-            legend_corner(&canvas, &legend, &[Some(&top), Some(&left)], &[], None),
+            legend_corner(
+                &canvas,
+                &legend,
+                &[Some(&top), Some(&left)],
+                &no_lines(),
+                None
+            ),
             Corner::BottomRight
         );
         // A corner taken before stays while another would hide about as much (the object
@@ -273,7 +296,7 @@ mod tests {
         for corner in [Corner::TopRight, Corner::BottomLeft] {
             let keep = Some(corner);
             assert_eq!(
-                legend_corner(&canvas, &legend, &[Some(&strip), None], &[], keep),
+                legend_corner(&canvas, &legend, &[Some(&strip), None], &no_lines(), keep),
                 corner
             );
         }
@@ -282,7 +305,7 @@ mod tests {
                 &canvas,
                 &legend,
                 &[Some(&right), None],
-                &[],
+                &no_lines(),
                 Some(Corner::TopRight)
             ),
             Corner::TopLeft
@@ -299,7 +322,7 @@ mod tests {
             &canvas,
             &legend,
             &[Some(&all), None],
-            &[across_top_right],
+            &(vec![], vec![across_top_right]),
             None,
         );
         assert_ne!(corner, Corner::TopRight);
@@ -309,13 +332,38 @@ mod tests {
             &canvas,
             &legend,
             &[Some(&all), None],
-            &[across_the_top],
+            &(vec![], vec![across_the_top]),
             None,
         );
         assert!(
             matches!(corner, Corner::BottomLeft | Corner::BottomRight),
             "{corner:?}"
         );
+        // A short cut line under the corner kept (band-01's slit under the legend, frame 10):
+        // the legend leaves it for a corner that hides more of the object but none of the
+        // line, however much more of the object.
+        // The object everywhere but the bottom left quarter.
+        let but_bottom_left = Mask::from_fn(320, 200, |x, y| x >= 160 || y < 100);
+        let (x, y) = canvas.legend_origin(&legend, Corner::BottomLeft);
+        let (x, y) = (x as f64, y as f64);
+        let slit = [[x + 10.0, y + 5.0], [x + 12.0, y + 15.0]];
+        let corner = legend_corner(
+            &canvas,
+            &legend,
+            &[Some(&but_bottom_left), None],
+            &(vec![slit], vec![]),
+            Some(Corner::BottomLeft),
+        );
+        assert_ne!(corner, Corner::BottomLeft);
+        // Without the line the legend stays where it hides none of the object.
+        let corner = legend_corner(
+            &canvas,
+            &legend,
+            &[Some(&but_bottom_left), None],
+            &no_lines(),
+            Some(Corner::BottomLeft),
+        );
+        assert_eq!(corner, Corner::BottomLeft);
         // The box drawn there stays inside the picture, below the title band on top.
         for corner in Corner::ALL {
             let (x, y) = canvas.legend_origin(&legend, corner);
