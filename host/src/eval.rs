@@ -16,7 +16,12 @@ use serde::Serialize;
 use crate::generate::family::{Family, Kind, variants};
 use crate::generate::pipeline::{ModelMesh, generate_scenario, rebase_mesh_paths};
 use crate::generate::scenario::Scenario;
-use crate::run::{FilterTruth, RunOptions, Summary, run_scene};
+use image::{RgbImage, imageops};
+
+use crate::render::Canvas;
+use crate::run::{
+    FilterTruth, FrameSink, RunError, RunOptions, Summary, TrackSource, run_scene, run_scene_with,
+};
 use crate::scene::Scene;
 
 /// The acceptance of issue 11, per family: what [`FamilySummary::passes`] checks.
@@ -185,6 +190,8 @@ pub struct EvalOptions {
     /// The mesh that models each variant's object ([`ModelMesh`]): a finer model of the same
     /// truth, to see whether what the detection does carries over to it.
     pub model_mesh: ModelMesh,
+    /// Where each variant's last overlay and the family's sheet of them go, if anywhere.
+    pub pictures: Option<PathBuf>,
 }
 
 /// Whether `dir` holds the scene of scenario `s` (drawn relative to `base`) already.
@@ -232,7 +239,7 @@ pub fn eval_family(family_path: &Path, options: &EvalOptions) -> Result<FamilySu
             options.selection.per_kind.is_none_or(|n| *slot <= n)
         })
         .collect();
-    let work = options.work.join(work_name);
+    let work = options.work.join(&work_name);
     std::fs::create_dir_all(&work).map_err(|e| format!("{}: {e}", work.display()))?;
     let bar = if options.progress {
         let b = ProgressBar::new(chosen.len() as u64);
@@ -247,6 +254,7 @@ pub fn eval_family(family_path: &Path, options: &EvalOptions) -> Result<FamilySu
         ProgressBar::hidden()
     };
     let mut results = Vec::with_capacity(chosen.len());
+    let mut pictures = vec![];
     for (s, kind) in chosen {
         let dir = work.join(&s.name);
         if options.fresh || !is_generated(s, &base, &dir) {
@@ -259,13 +267,111 @@ pub fn eval_family(family_path: &Path, options: &EvalOptions) -> Result<FamilySu
         if let Some(law) = options.law {
             scene.file.model.law = law;
         }
-        let (summary, _) =
-            run_scene(&scene, &RunOptions::default()).map_err(|e| format!("{}: {e}", s.name))?;
-        results.push(variant_result(s, kind, summary));
+        let result = match &options.pictures {
+            None => {
+                let (summary, _) = run_scene(&scene, &RunOptions::default())
+                    .map_err(|e| format!("{}: {e}", s.name))?;
+                variant_result(s, kind, summary)
+            }
+            Some(_) => {
+                scene.overlay_pairs = true;
+                let mut last = LastPicture(None);
+                let (summary, _) = run_scene_with(
+                    &scene,
+                    &mut TrackSource::new(&scene.frames),
+                    Some(&mut last),
+                    &RunOptions::default(),
+                )
+                .map_err(|e| format!("{}: {e}", s.name))?;
+                let result = variant_result(s, kind, summary);
+                if let Some(picture) = last.0 {
+                    pictures.push((picture, caption(&result)));
+                }
+                result
+            }
+        };
+        results.push(result);
         bar.inc(1);
     }
     bar.finish_and_clear();
+    if let Some(dir) = &options.pictures {
+        write_pictures(&dir.join(&work_name), &pictures)?;
+    }
     Ok(summarise(&family.name, results))
+}
+
+/// Keeps the last overlay of a run.
+struct LastPicture(Option<RgbImage>);
+
+impl FrameSink for LastPicture {
+    fn write(&mut self, picture: &RgbImage) -> Result<(), RunError> {
+        self.0 = Some(picture.clone());
+        Ok(())
+    }
+}
+
+/// What is written under a variant's picture: its name and kind, then when its cut opened
+/// and was detected, and how far the line ended from the true cut.
+struct Caption {
+    name: String,
+    lines: [String; 2],
+}
+
+fn caption(v: &VariantResult) -> Caption {
+    let detection = match (v.open_frame, v.detected_frame) {
+        (None, None) => "no cut".to_string(),
+        (None, Some(d)) => format!("FALSE CUT at {d}"),
+        (Some(o), None) => format!("opens {o}, MISSED"),
+        (Some(o), Some(d)) => format!("opens {o}, detected {d}"),
+    };
+    let detection = match v.hausdorff_percent {
+        Some(h) => format!("{detection}, line {h:.1} %"),
+        None => detection,
+    };
+    Caption {
+        name: v.name.clone(),
+        lines: [format!("{} {}", v.name, v.kind.name()), detection],
+    }
+}
+
+/// Writes each variant's picture as `dir/NAME.png` and a sheet of them all at half size, five
+/// to a row, each captioned, as `dir.png`.
+///
+/// # Errors
+/// A message naming the file that could not be written.
+fn write_pictures(dir: &Path, pictures: &[(RgbImage, Caption)]) -> Result<(), String> {
+    let Some((first, _)) = pictures.first() else {
+        return Ok(());
+    };
+    std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    const COLUMNS: u32 = 5;
+    // Two lines of the 8-pixel font.
+    const CAPTION: u32 = 24;
+    let (w, h) = (first.width() / 2, first.height() / 2);
+    let rows = (pictures.len() as u32).div_ceil(COLUMNS);
+    let mut sheet = Canvas {
+        image: RgbImage::from_pixel(COLUMNS * w, rows * (h + CAPTION), image::Rgb([12, 12, 14])),
+    };
+    for (k, (picture, caption)) in pictures.iter().enumerate() {
+        let file = dir.join(format!("{}.png", caption.name));
+        picture
+            .save(&file)
+            .map_err(|e| format!("{}: {e}", file.display()))?;
+        let tile = imageops::resize(picture, w, h, imageops::FilterType::Triangle);
+        let (x, y) = (
+            (k as u32 % COLUMNS) * w,
+            (k as u32 / COLUMNS) * (h + CAPTION),
+        );
+        imageops::overlay(&mut sheet.image, &tile, i64::from(x), i64::from(y));
+        for (line, text) in caption.lines.iter().enumerate() {
+            let top = i64::from(y + h) + 3 + 10 * line as i64;
+            sheet.text(i64::from(x) + 4, top, text, [240, 240, 240], 1);
+        }
+    }
+    let file = dir.with_extension("png");
+    sheet
+        .save(&file)
+        .map_err(|e| format!("{}: {e}", file.display()))
 }
 
 fn variant_result(s: &Scenario, kind: Kind, summary: Summary) -> VariantResult {

@@ -106,8 +106,33 @@ fn eval_runs_one_variant_of_each_kind_and_sums_them_up_consistently() {
         assert_eq!(f["false_cuts"], false_cuts, "{name}");
         assert_eq!(f["missed"], missed, "{name}");
     }
-    // A second run reuses the scenes it wrote and gives the same numbers (timings aside).
-    let second = eval_json(tmp.path());
+    // A second run reuses the scenes it wrote and gives the same numbers (timings aside),
+    // drawing its pictures or not.
+    let pictures = tmp.path().join("pictures");
+    let second = eval_json_of(
+        &families(),
+        tmp.path(),
+        &["--pictures", pictures.to_str().unwrap()],
+    );
+    for f in second.as_array().unwrap() {
+        let name = f["family"].as_str().unwrap();
+        let variants = f["variants"].as_array().unwrap();
+        // Each variant's last frame at full size, and a sheet of them at half size, five to a
+        // row under their captions.
+        let mut size = None;
+        for v in variants {
+            let file = pictures
+                .join(name)
+                .join(format!("{}.png", v["name"].as_str().unwrap()));
+            let picture = image::open(&file).unwrap();
+            assert!(picture.width() > 100, "{}", file.display());
+            size = Some((picture.width(), picture.height()));
+        }
+        let (w, h) = size.unwrap();
+        let sheet = image::open(pictures.join(format!("{name}.png"))).unwrap();
+        assert_eq!(sheet.width(), 5 * (w / 2), "{name}");
+        assert!(sheet.height() > h / 2, "{name}");
+    }
     let strip = |mut v: serde_json::Value| {
         for f in v.as_array_mut().unwrap() {
             for variant in f["variants"].as_array_mut().unwrap() {
@@ -173,6 +198,7 @@ fn families_meet_the_detection_acceptance() {
         law: None,
         seed: None,
         model_mesh: ModelMesh::Scenario,
+        pictures: None,
     };
     let done: Vec<_> = families()
         .iter()

@@ -203,6 +203,11 @@ pub enum Command {
         /// their own folders under --work).
         #[arg(long, value_enum, default_value_t = ModelMesh::Scenario)]
         model_mesh: ModelMesh,
+        /// Also write each variant's last frame (the overlay with the detector's pairs) to
+        /// DIR/FAMILY/VARIANT.png, and one sheet of them all per family, DIR/FAMILY.png, each
+        /// captioned with its kind, detection and line distance.
+        #[arg(long, value_name = "DIR")]
+        pictures: Option<PathBuf>,
     },
     /// Write one scene as a Rust module for a firmware build (`firmware/`): mesh, camera,
     /// settings, capacities and `const` buffer lengths, the uncut mesh's precomputed ordering
@@ -366,6 +371,7 @@ pub fn run(cli: Cli) -> i32 {
             law,
             seed,
             model_mesh,
+            pictures,
         } => eval_command(
             &families,
             &crate::eval::EvalOptions {
@@ -376,6 +382,7 @@ pub fn run(cli: Cli) -> i32 {
                 law,
                 seed,
                 model_mesh,
+                pictures,
             },
             variants,
             json,
