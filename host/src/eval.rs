@@ -20,7 +20,7 @@ use image::{RgbImage, imageops};
 
 use crate::render::Canvas;
 use crate::run::{
-    FilterTruth, FrameSink, RunError, RunOptions, Summary, TrackSource, run_scene, run_scene_with,
+    FilterTruth, FrameSink, RunError, RunOptions, Summary, TrackSource, run_scene_with,
 };
 use crate::scene::Scene;
 
@@ -267,29 +267,22 @@ pub fn eval_family(family_path: &Path, options: &EvalOptions) -> Result<FamilySu
         if let Some(law) = options.law {
             scene.file.model.law = law;
         }
-        let result = match &options.pictures {
-            None => {
-                let (summary, _) = run_scene(&scene, &RunOptions::default())
-                    .map_err(|e| format!("{}: {e}", s.name))?;
-                variant_result(s, kind, summary)
-            }
-            Some(_) => {
-                scene.overlay_pairs = true;
-                let mut last = LastPicture(None);
-                let (summary, _) = run_scene_with(
-                    &scene,
-                    &mut TrackSource::new(&scene.frames),
-                    Some(&mut last),
-                    &RunOptions::default(),
-                )
-                .map_err(|e| format!("{}: {e}", s.name))?;
-                let result = variant_result(s, kind, summary);
-                if let Some(picture) = last.0 {
-                    pictures.push((picture, caption(&result)));
-                }
-                result
-            }
-        };
+        // With pictures asked for, the overlays (with the detector's pairs) are drawn and the
+        // last one kept; without, none is drawn.
+        let drawing = options.pictures.is_some();
+        scene.overlay_pairs = drawing;
+        let mut last = LastPicture(None);
+        let (summary, _) = run_scene_with(
+            &scene,
+            &mut TrackSource::new(&scene.frames),
+            drawing.then_some(&mut last as &mut dyn FrameSink),
+            &RunOptions::default(),
+        )
+        .map_err(|e| format!("{}: {e}", s.name))?;
+        let result = variant_result(s, kind, summary);
+        if let Some(picture) = last.0 {
+            pictures.push((picture, caption(&result)));
+        }
         results.push(result);
         bar.inc(1);
     }

@@ -162,9 +162,13 @@ pub fn draw(o: &Overlay<'_>, legend_at: &mut Option<Corner>) -> Canvas {
 /// than over as many pixels of the object's inside.
 const LINE_WEIGHT: usize = 8;
 
-/// The segments an overlay draws that the legend should not hide: the detected and the true
-/// cut (`.0`), and the detector's pairs when asked for (`.1`).
-type DrawnLines = (Vec<[[f64; 2]; 2]>, Vec<[[f64; 2]; 2]>);
+/// The segments an overlay draws that the legend should not hide.
+struct DrawnLines {
+    /// The detected and the true cut.
+    cuts: Vec<[[f64; 2]; 2]>,
+    /// The detector's pairs, when asked for.
+    pairs: Vec<[[f64; 2]; 2]>,
+}
 
 fn drawn_lines(o: &Overlay<'_>) -> DrawnLines {
     let polylines =
@@ -176,13 +180,13 @@ fn drawn_lines(o: &Overlay<'_>) -> DrawnLines {
         .pairs
         .map(|p| p.outliers.iter().chain(&p.split).copied().collect())
         .unwrap_or_default();
-    (cuts, pairs)
+    DrawnLines { cuts, pairs }
 }
 
 /// The corner where the legend hides the least of the picture: first the fewest pixels of the
-/// cut lines (`lines.0`: a picture of a cut is about them, and weighed against the object's
+/// cut lines (`lines.cuts`: a picture of a cut is about them, and weighed against the object's
 /// pixels, as before, a short line lost to a corner the object filled more elsewhere), then
-/// the fewest of `masks` (the model's and the true silhouette) and of the pairs (`lines.1`,
+/// the fewest of `masks` (the model's and the true silhouette) and of the pairs (`lines.pairs`,
 /// [`LINE_WEIGHT`] each), lines sampled a pixel apart; top right on a tie. A fixed corner hid
 /// whatever the scene put there (a band's pulled end, a lobe, a false line). The corner `keep`
 /// is kept while it hides no more of the cut lines than the best and the best hides less than a
@@ -223,8 +227,8 @@ fn legend_corner(
             on
         };
         (
-            samples_inside(&lines.0),
-            n + LINE_WEIGHT * samples_inside(&lines.1),
+            samples_inside(&lines.cuts),
+            n + LINE_WEIGHT * samples_inside(&lines.pairs),
         )
     };
     // `min_by_key` keeps the first of equal keys: the preferred corner wins a tie.
@@ -252,7 +256,10 @@ mod tests {
     use super::*;
 
     fn no_lines() -> DrawnLines {
-        (vec![], vec![])
+        DrawnLines {
+            cuts: vec![],
+            pairs: vec![],
+        }
     }
 
     #[test]
@@ -322,7 +329,10 @@ mod tests {
             &canvas,
             &legend,
             &[Some(&all), None],
-            &(vec![], vec![across_top_right]),
+            &DrawnLines {
+                cuts: vec![],
+                pairs: vec![across_top_right],
+            },
             None,
         );
         assert_ne!(corner, Corner::TopRight);
@@ -332,7 +342,10 @@ mod tests {
             &canvas,
             &legend,
             &[Some(&all), None],
-            &(vec![], vec![across_the_top]),
+            &DrawnLines {
+                cuts: vec![],
+                pairs: vec![across_the_top],
+            },
             None,
         );
         assert!(
@@ -351,7 +364,10 @@ mod tests {
             &canvas,
             &legend,
             &[Some(&but_bottom_left), None],
-            &(vec![slit], vec![]),
+            &DrawnLines {
+                cuts: vec![slit],
+                pairs: vec![],
+            },
             Some(Corner::BottomLeft),
         );
         assert_ne!(corner, Corner::BottomLeft);
