@@ -82,6 +82,11 @@ pub struct VariantResult {
     pub hausdorff_percent: Option<f64>,
     /// The same to the stretches of the true cut whose lips are a pixel or more apart.
     pub open_hausdorff_percent: Option<f64>,
+    /// Of the Hausdorff distance, the farthest the line strays from the true cut.
+    pub line_to_cut_percent: Option<f64>,
+    /// And the farthest a point of the true cut lies from the line (the stretch of the cut
+    /// the line leaves uncovered); the Hausdorff distance is the larger of the two.
+    pub cut_to_line_percent: Option<f64>,
     /// The whole summary of the run.
     pub summary: Summary,
 }
@@ -144,6 +149,11 @@ pub struct FamilySummary {
     pub hausdorff_percent: Option<Spread>,
     /// The same to the stretches of the true cut whose lips are a pixel or more apart.
     pub open_hausdorff_percent: Option<Spread>,
+    /// Of the Hausdorff distance, the line's distance to the cut
+    /// ([`VariantResult::line_to_cut_percent`]).
+    pub line_to_cut_percent: Option<Spread>,
+    /// And the cut's distance to the line ([`VariantResult::cut_to_line_percent`]).
+    pub cut_to_line_percent: Option<Spread>,
     /// Dice at the last frame over the cut variants, without cutting the mesh.
     pub dice_uncut: Option<Spread>,
     /// The same with cutting.
@@ -406,6 +416,16 @@ fn variant_result(s: &Scenario, kind: Kind, summary: Summary) -> VariantResult {
         } else {
             summary.cut_open_hausdorff_percent
         },
+        line_to_cut_percent: if intact {
+            None
+        } else {
+            summary.cut_line_to_cut_percent
+        },
+        cut_to_line_percent: if intact {
+            None
+        } else {
+            summary.cut_to_line_percent
+        },
         summary,
     }
 }
@@ -436,6 +456,16 @@ pub fn summarise(family: &str, variants: Vec<VariantResult>) -> FamilySummary {
             .iter()
             .map(|v| v.open_hausdorff_percent.unwrap_or(f64::INFINITY)),
     );
+    let line_to_cut = Spread::of(
+        detected
+            .iter()
+            .map(|v| v.line_to_cut_percent.unwrap_or(f64::INFINITY)),
+    );
+    let cut_to_line = Spread::of(
+        detected
+            .iter()
+            .map(|v| v.cut_to_line_percent.unwrap_or(f64::INFINITY)),
+    );
     let false_cuts = variants.iter().filter(|v| v.false_cut).count();
     let missed = cut.iter().filter(|v| v.missed).count();
     let a = ACCEPTANCE;
@@ -461,6 +491,8 @@ pub fn summarise(family: &str, variants: Vec<VariantResult>) -> FamilySummary {
         start_wait,
         hausdorff_percent: hausdorff,
         open_hausdorff_percent: open_hausdorff,
+        line_to_cut_percent: line_to_cut,
+        cut_to_line_percent: cut_to_line,
         dice_uncut: over(&|v| v.summary.dice_final_uncut),
         dice: over(&|v| v.summary.dice_final),
         tre_uncut_mm: over(&|v| v.summary.tre_mm_final_uncut),
@@ -506,13 +538,13 @@ pub fn markdown_table(families: &[FamilySummary]) -> String {
     let mut t = String::from(
         "| family | intact | cut (live) | false cuts | missed | early | latency median / max (frames) \
          | of it, waiting for evidence / for the line's start (median / max) \
-         | Hausdorff median / max (% diag.) | to its open part | Dice uncut → cut (median) | target error uncut → cut, rest (mm, median) \
+         | Hausdorff median / max (% diag.) | of it, line → cut / cut → line (median) | to its open part | Dice uncut → cut (median) | target error uncut → cut, rest (mm, median) \
          | filter: jumps caught / made, genuine taken out | acceptance |\n\
-         |---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+         |---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for f in families {
         t.push_str(&format!(
-            "| {} | {} | {} ({}) | {} | {} | {} | {} | {}; {} | {} | {} | {} → {} | {} → {}, {} | {} | {} |\n",
+            "| {} | {} | {} ({}) | {} | {} | {} | {} | {}; {} | {} | {} / {} | {} | {} → {} | {} → {}, {} | {} | {} |\n",
             f.family,
             f.intact,
             f.cut,
@@ -524,6 +556,8 @@ pub fn markdown_table(families: &[FamilySummary]) -> String {
             spread(f.evidence_wait, 1),
             spread(f.start_wait, 1),
             spread(f.hausdorff_percent, 1),
+            median(f.line_to_cut_percent, 1),
+            median(f.cut_to_line_percent, 1),
             spread(f.open_hausdorff_percent, 1),
             median(f.dice_uncut, 3),
             median(f.dice, 3),
@@ -540,8 +574,8 @@ pub fn markdown_table(families: &[FamilySummary]) -> String {
 /// One line per variant, for finding the ones that fail.
 pub fn variant_table(f: &FamilySummary) -> String {
     let mut t = String::from(
-        "| variant | kind | noise px | jumps px | opens | evidence | detected | Hausdorff (% diag.) | to its open part | Dice uncut → cut | target error uncut → cut (mm) | filter: jumps caught / made, genuine taken out |\n\
-         |---|---|---|---|---|---|---|---|---|---|---|---|\n",
+        "| variant | kind | noise px | jumps px | opens | evidence | detected | Hausdorff (% diag.) | line → cut / cut → line | to its open part | Dice uncut → cut | target error uncut → cut (mm) | filter: jumps caught / made, genuine taken out |\n\
+         |---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     let frame = |v: Option<u32>| v.map_or("–".to_string(), |f| f.to_string());
     for v in &f.variants {
@@ -553,7 +587,7 @@ pub fn variant_table(f: &FamilySummary) -> String {
             ""
         };
         t.push_str(&format!(
-            "| {} | {} | {:.2} | {:.1} | {} | {} | {}{} | {} | {} | {:.3} → {:.3} | {:.2} → {:.2} | {} |\n",
+            "| {} | {} | {:.2} | {:.1} | {} | {} | {}{} | {} | {} / {} | {} | {:.3} → {:.3} | {:.2} → {:.2} | {} |\n",
             v.name,
             v.kind.name(),
             v.noise_px,
@@ -563,6 +597,10 @@ pub fn variant_table(f: &FamilySummary) -> String {
             frame(v.detected_frame),
             flag,
             v.hausdorff_percent
+                .map_or("–".to_string(), |h| format!("{h:.1}")),
+            v.line_to_cut_percent
+                .map_or("–".to_string(), |h| format!("{h:.1}")),
+            v.cut_to_line_percent
                 .map_or("–".to_string(), |h| format!("{h:.1}")),
             v.open_hausdorff_percent
                 .map_or("–".to_string(), |h| format!("{h:.1}")),

@@ -218,32 +218,68 @@ pub fn hausdorff_polyline(a: &[[f64; 2]], b: &[[f64; 2]]) -> f64 {
     }
 }
 
-/// Symmetric Hausdorff distance between a polyline and a set of polylines taken as one
-/// (pixels, sampled as [`hausdorff_polyline`]): from `a` to the nearest of the parts, and from
-/// every part to `a`. Infinite if exactly one side is empty.
-pub fn hausdorff_to_parts(a: &[[f64; 2]], parts: &[Vec<[f64; 2]>]) -> f64 {
+/// The two directed halves of the Hausdorff distance between a detected line and the true
+/// cut: how far the line strays from the cut (`line_to_cut`, the worst point of the line) and
+/// how much of the cut it leaves uncovered (`cut_to_line`, the worst point of the cut). The
+/// distance itself is the larger ([`DirectedHausdorff::distance`]); apart, they tell a line
+/// fitted off the cut from a line that is on it but too short.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DirectedHausdorff {
+    /// `sup` over the line of the distance to the nearest part of the cut, pixels.
+    pub line_to_cut: f64,
+    /// `sup` over the cut's parts of the distance to the line, pixels.
+    pub cut_to_line: f64,
+}
+
+impl DirectedHausdorff {
+    /// The symmetric Hausdorff distance: the larger half.
+    pub fn distance(&self) -> f64 {
+        self.line_to_cut.max(self.cut_to_line)
+    }
+}
+
+/// Both directed halves between a polyline `a` and a set of polylines taken as one (pixels,
+/// sampled as [`hausdorff_polyline`]): from `a` to the nearest of the parts, and from every
+/// part to `a`. `None` if either side is empty.
+pub fn directed_hausdorff_to_parts(
+    a: &[[f64; 2]],
+    parts: &[Vec<[f64; 2]>],
+) -> Option<DirectedHausdorff> {
     let parts: Vec<&[[f64; 2]]> = parts
         .iter()
         .map(Vec::as_slice)
         .filter(|p| !p.is_empty())
         .collect();
-    match (a.is_empty(), parts.is_empty()) {
+    if a.is_empty() || parts.is_empty() {
+        return None;
+    }
+    let mut line_to_cut: f64 = 0.0;
+    sample_polyline(a, 0.25, |p| {
+        let nearest = parts
+            .iter()
+            .map(|b| point_polyline_distance(p, b))
+            .fold(f64::INFINITY, f64::min);
+        line_to_cut = line_to_cut.max(nearest);
+    });
+    let cut_to_line = parts
+        .iter()
+        .map(|b| directed_hausdorff(b, a, 0.25))
+        .fold(0.0, f64::max);
+    Some(DirectedHausdorff {
+        line_to_cut,
+        cut_to_line,
+    })
+}
+
+/// Symmetric Hausdorff distance between a polyline and a set of polylines taken as one
+/// (pixels, the larger of [`directed_hausdorff_to_parts`]' halves). Infinite if exactly one
+/// side is empty, 0 if both are.
+pub fn hausdorff_to_parts(a: &[[f64; 2]], parts: &[Vec<[f64; 2]>]) -> f64 {
+    let none = parts.iter().all(Vec::is_empty);
+    match (a.is_empty(), none) {
         (true, true) => 0.0,
         (true, false) | (false, true) => f64::INFINITY,
-        _ => {
-            let mut worst: f64 = 0.0;
-            sample_polyline(a, 0.25, |p| {
-                let nearest = parts
-                    .iter()
-                    .map(|b| point_polyline_distance(p, b))
-                    .fold(f64::INFINITY, f64::min);
-                worst = worst.max(nearest);
-            });
-            parts
-                .iter()
-                .map(|b| directed_hausdorff(b, a, 0.25))
-                .fold(worst, f64::max)
-        }
+        _ => directed_hausdorff_to_parts(a, parts).map_or(f64::INFINITY, |h| h.distance()),
     }
 }
 
@@ -321,6 +357,25 @@ mod tests {
         );
         assert!(hausdorff_to_parts(&a, &[]).is_infinite());
         assert_eq!(hausdorff_to_parts(&[], &[]), 0.0);
+    }
+
+    #[test]
+    fn directed_halves_tell_a_short_line_from_a_line_off_the_cut() {
+        let cut = vec![vec![[0.0, 0.0], [20.0, 0.0]]];
+        // On the cut but covering its first quarter only: near it, most of it uncovered.
+        let short = [[0.0, 0.0], [5.0, 0.0]];
+        let h = directed_hausdorff_to_parts(&short, &cut).unwrap();
+        assert!(h.line_to_cut.abs() < 1e-12);
+        assert!((h.cut_to_line - 15.0).abs() < 1e-12);
+        // As long as the cut, 3 px beside it, and running on 4 px past its end (5 from it).
+        let off = [[0.0, 3.0], [24.0, 3.0]];
+        let h = directed_hausdorff_to_parts(&off, &cut).unwrap();
+        assert!((h.line_to_cut - 5.0).abs() < 1e-12);
+        assert!((h.cut_to_line - 3.0).abs() < 1e-12);
+        // The symmetric distance is the larger half.
+        assert_eq!(h.distance(), hausdorff_to_parts(&off, &cut));
+        assert_eq!(directed_hausdorff_to_parts(&[], &cut), None);
+        assert_eq!(directed_hausdorff_to_parts(&off, &[vec![]]), None);
     }
 
     #[test]

@@ -85,6 +85,14 @@ fn eval_runs_one_variant_of_each_kind_and_sums_them_up_consistently() {
                 match s["cut_detected_frame"].as_i64() {
                     Some(d) => {
                         assert_eq!(v["latency"].as_i64(), Some(d - open));
+                        // The Hausdorff distance is the larger of its two directed halves.
+                        let halves = [&v["line_to_cut_percent"], &v["cut_to_line_percent"]]
+                            .map(|h| h.as_f64().expect("both halves of a detected line"));
+                        assert_eq!(
+                            v["hausdorff_percent"].as_f64(),
+                            Some(halves[0].max(halves[1])),
+                            "{v}"
+                        );
                         // A line starts on as many separation points as its start needs, so
                         // a cut found after it opens had that evidence by then: the latency
                         // is the wait for it and then for the start.

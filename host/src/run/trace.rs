@@ -56,6 +56,12 @@ pub struct Summary {
     /// The same to the stretches of the true cut whose lips are a pixel or more apart in the
     /// image, in percent of the image diagonal.
     pub cut_open_hausdorff_percent: Option<f64>,
+    /// Of `cut_hausdorff_percent`, the farthest the line strays from the true cut (the larger
+    /// of the two directed distances is the Hausdorff distance), percent of the diagonal.
+    pub cut_line_to_cut_percent: Option<f64>,
+    /// The other half: the farthest a point of the true cut lies from the line, what the line
+    /// leaves uncovered, percent of the diagonal.
+    pub cut_to_line_percent: Option<f64>,
     /// Dice of the last frame with cutting switched off.
     pub dice_final_uncut: f64,
     /// Dice of the last frame.
@@ -194,6 +200,11 @@ pub struct DetectionTrace {
     /// Its Hausdorff distance to the true cut at the last frame (the slit where the camera
     /// sees it), pixels.
     pub hausdorff_px: Option<f64>,
+    /// Of it, the farthest the line strays from the true cut, pixels.
+    pub line_to_cut_px: Option<f64>,
+    /// And the farthest a point of the true cut is from the line (what it leaves uncovered),
+    /// pixels.
+    pub cut_to_line_px: Option<f64>,
     /// The same to the stretches of the true cut whose lips are a pixel or more apart.
     pub open_hausdorff_px: Option<f64>,
 }
@@ -372,6 +383,8 @@ impl Summary {
             cut_hausdorff_px: trace.detection.hausdorff_px,
             cut_hausdorff_percent: trace.detection.hausdorff_px.map(percent),
             cut_open_hausdorff_percent: trace.detection.open_hausdorff_px.map(percent),
+            cut_line_to_cut_percent: trace.detection.line_to_cut_px.map(percent),
+            cut_to_line_percent: trace.detection.cut_to_line_px.map(percent),
             dice_final_uncut: uncut.dice_final,
             dice_final: trace.dice_final,
             dice_mean_after_cut: after.iter().sum::<f64>() / after.len().max(1) as f64,

@@ -6,7 +6,9 @@ use std::path::PathBuf;
 use incise_core::{Camera, Model, Real};
 
 use super::to_f64;
-use crate::metrics::{dice, hausdorff_to_parts, paired_rms, surface_rms};
+use crate::metrics::{
+    DirectedHausdorff, dice, directed_hausdorff_to_parts, paired_rms, surface_rms,
+};
 use crate::render::{Mask, silhouette};
 use crate::scene::{
     CutParts, Scene, SceneError, Surface, TrueOutlier, read_cut_csv, read_obj, read_outliers_csv,
@@ -108,10 +110,11 @@ impl Truth {
     }
 
     /// Hausdorff distance of a detected cut line to the true cut at the last frame (every
-    /// part of the slit the camera sees), pixels; `None` when either is empty.
-    pub(crate) fn cut_distance(&self, polyline: &[[f64; 2]]) -> Option<f64> {
+    /// part of the slit the camera sees), both directed halves, pixels; `None` when either is
+    /// empty.
+    pub(crate) fn cut_distance(&self, polyline: &[[f64; 2]]) -> Option<DirectedHausdorff> {
         let parts = self.cut_at(self.cut.len().checked_sub(1)?)?;
-        (!polyline.is_empty()).then(|| hausdorff_to_parts(polyline, &parts))
+        directed_hausdorff_to_parts(polyline, &parts)
     }
 
     /// The same to the stretches of the true cut whose lips are a pixel or more apart in the
@@ -132,7 +135,7 @@ impl Truth {
                 open.push(run);
             }
         }
-        (!polyline.is_empty() && !open.is_empty()).then(|| hausdorff_to_parts(polyline, &open))
+        directed_hausdorff_to_parts(polyline, &open).map(|h| h.distance())
     }
 
     /// RMS distance between the true surface and the model's, both ways (true surface points
