@@ -14,7 +14,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 
 use crate::generate::family::{Family, Kind, variants};
-use crate::generate::pipeline::{ModelMesh, generate_scenario, rebase_mesh_paths};
+use crate::generate::pipeline::{ModelMesh, generate_scenario, header_prefix, rebase_mesh_paths};
 use crate::generate::scenario::Scenario;
 use image::{RgbImage, imageops};
 
@@ -209,6 +209,12 @@ fn is_generated(s: &Scenario, base: &Path, dir: &Path) -> bool {
     // A scene written before the generator wrote `gt/outliers.csv` is written again, so that
     // every variant's filter is measured.
     if !dir.join("scene.toml").is_file() || !dir.join("gt").join("outliers.csv").is_file() {
+        return false;
+    }
+    // Nor is one an earlier generator wrote (its ground truth measured otherwise).
+    let current = std::fs::read_to_string(dir.join("scene.toml"))
+        .is_ok_and(|text| text.starts_with(&header_prefix()));
+    if !current {
         return false;
     }
     let mut expected = s.clone();

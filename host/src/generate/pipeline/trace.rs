@@ -27,6 +27,8 @@ pub const OPEN_PX: f64 = 1.0;
 #[derive(Clone, Debug, Default)]
 pub struct CutTrace {
     chains: Vec<Vec<((u32, u32), u32)>>,
+    /// The trace nodes on the filmed surface (see [`CutTrace::film`]); all when `None`.
+    filmed: Option<BTreeSet<u32>>,
 }
 
 /// One row of `gt/cut.csv`: a point of the true cut in the image.
@@ -75,7 +77,37 @@ impl CutTrace {
             .into_iter()
             .map(|chain| chain.iter().map(|v| node[v]).collect())
             .collect();
-        CutTrace { chains }
+        CutTrace {
+            chains,
+            filmed: None,
+        }
+    }
+
+    /// Keeps the trace to the surface the camera films: the lip pairs whose node the camera
+    /// sees at frame 0 (positions `x0`, depth buffer `depth0`), where the slit is closed and
+    /// the tracker's features are sampled. The slit also meets the surfaces facing away (a
+    /// band's underside, a lobe's far face), whose trace shows through the opening once the
+    /// lips part; no feature lies there, and measured against it a line drawn along the cut
+    /// on the filmed surface stood off by the object's thickness as the image shows it (about
+    /// 30 px on the band family, 4 % of its diagonal).
+    pub fn film(
+        &mut self,
+        x0: &[[f64; 3]],
+        camera: &Camera<f64>,
+        depth0: &DepthBuffer,
+        tolerance: f64,
+    ) {
+        let filmed = self
+            .chains
+            .iter()
+            .flatten()
+            .map(|&((a, _), _)| a)
+            .filter(|&a| {
+                x0.get(a as usize)
+                    .is_some_and(|&p| depth0.visible(camera, p, tolerance).is_some())
+            })
+            .collect();
+        self.filmed = Some(filmed);
     }
 
     /// The true cut at `frame` (node positions `x`, seen through `camera` with this frame's
@@ -99,7 +131,8 @@ impl CutTrace {
         for chain in &self.chains {
             let mut in_part = false;
             for &((a, b), r) in chain {
-                let shown_now = started && (r <= frame || r == front);
+                let filmed = self.filmed.as_ref().is_none_or(|f| f.contains(&a));
+                let shown_now = filmed && started && (r <= frame || r == front);
                 let seen = |v: u32| depth.visible(camera, x[v as usize], tolerance).is_some();
                 let project = |v: u32| {
                     camera
@@ -237,6 +270,60 @@ mod tests {
         // Every edge once.
         let edges: usize = chains.iter().map(|c| c.len() - 1).sum();
         assert_eq!(edges, 3);
+    }
+
+    #[test]
+    fn the_trace_keeps_to_the_surface_filmed_at_rest() {
+        use crate::generate::live::OPEN;
+        // A camera at z = -1 looking along +z. Two lip pairs on the face it films (z = 0) and
+        // two on a face behind it (z = 0.5), hidden at rest by a triangle of the front face.
+        let camera = Camera::new(
+            incise_core::Intrinsics {
+                fx: 100.0,
+                fy: 100.0,
+                cx: 50.0,
+                cy: 50.0,
+                width: 100,
+                height: 100,
+            },
+            incise_core::nalgebra::Matrix3::identity(),
+            Vector3::new(0.0, 0.0, 1.0),
+            1e-4,
+        )
+        .unwrap();
+        let x = [
+            [-0.05, 0.0, 0.0],
+            [-0.04, 0.0, 0.0],
+            [0.05, 0.0, 0.0],
+            [0.06, 0.0, 0.0],
+            [-0.05, 0.0, 0.5],
+            [-0.04, 0.0, 0.5],
+            [0.05, 0.0, 0.5],
+            [0.06, 0.0, 0.5],
+            [-1.0, -1.0, 0.0],
+            [1.0, -1.0, 0.0],
+            [0.0, 1.0, 0.0],
+        ];
+        let at_rest = DepthBuffer::render(&camera, &x, &[[8, 9, 10]]);
+        // Later the lips part and the far face shows through the opening.
+        let opened = DepthBuffer::render(&camera, &x, &[]);
+        let chain = vec![
+            ((0, 1), OPEN),
+            ((2, 3), OPEN),
+            ((6, 7), OPEN),
+            ((4, 5), OPEN),
+        ];
+        let mut trace = CutTrace {
+            chains: vec![chain],
+            filmed: None,
+        };
+        let all = trace.rows(1, &x, &camera, &opened, 1e-3);
+        assert_eq!(all.len(), 4);
+        trace.film(&x, &camera, &at_rest, 1e-3);
+        let filmed = trace.rows(1, &x, &camera, &opened, 1e-3);
+        let uv: Vec<[f64; 2]> = filmed.iter().map(|r| r.uv).collect();
+        assert_eq!(uv, [[45.5, 50.0], [55.5, 50.0]]);
+        assert!(filmed.iter().all(|r| r.part == 0 && r.open));
     }
 
     #[test]
