@@ -23,6 +23,11 @@ fn demo_writes_pictures_and_a_summary() {
     );
     let stdout = String::from_utf8_lossy(&output.stdout);
     assert!(stdout.contains("Dice last frame"), "{stdout}");
+    // The demo's cut is detected: how far its line ends from the true cut.
+    assert!(
+        stdout.contains("cut line at the last frame:") && stdout.contains("% from the line"),
+        "{stdout}"
+    );
     for f in [
         "overview.png",
         "dice.svg",

@@ -18,7 +18,7 @@ pub fn human_summary(s: &Summary) -> String {
     format!(
         "scene {}: {} frames, {} features ({} missed the model)\n\
          cut: opens at {} (truth), detected at {}, mesh cut {} time(s) ({} nodes, {} tetrahedra at the end){}\n\
-         Dice last frame {:.3} (uncut {:.3}), mean after the cut opens {:.3}\n\
+         {}Dice last frame {:.3} (uncut {:.3}), mean after the cut opens {:.3}\n\
          surface RMS {:.2} mm, target error {:.2} mm (uncut {:.2} mm, rest model {:.2} mm) at the last frame\n\
          step time median {:.2} ms, max {:.2} ms{}; model storage {:.1} KiB\n{}",
         s.scene,
@@ -33,6 +33,7 @@ pub fn human_summary(s: &Summary) -> String {
         s.cut_refused
             .as_ref()
             .map_or(String::new(), |r| format!("; a cut was refused at {r}")),
+        line_distance(s),
         s.dice_final,
         s.dice_final_uncut,
         s.dice_mean_after_cut,
@@ -51,6 +52,25 @@ pub fn human_summary(s: &Summary) -> String {
             s.frames_rejected
         )),
     )
+}
+
+/// How far the last frame's cut line ended from the true cut, and which of its two halves
+/// that is: the line straying from the cut, or the cut left uncovered by it. Empty without a
+/// line or a true cut.
+fn line_distance(s: &Summary) -> String {
+    match (
+        s.cut_hausdorff_px,
+        s.cut_hausdorff_percent,
+        s.cut_line_to_cut_percent,
+        s.cut_to_line_percent,
+    ) {
+        (Some(px), Some(h), Some(line), Some(cut)) => format!(
+            "cut line at the last frame: {px:.1} px from the true cut (Hausdorff, {h:.1} % of the \
+             image diagonal); the line strays up to {line:.1} % from the cut, the cut lies up to \
+             {cut:.1} % from the line\n"
+        ),
+        _ => String::new(),
+    }
 }
 
 /// The results of several runs as a Markdown table.
