@@ -452,26 +452,14 @@ pub fn summarise(family: &str, variants: Vec<VariantResult>) -> FamilySummary {
             .iter()
             .filter_map(|v| v.start_wait.map(|l| l as f64)),
     );
-    let hausdorff = Spread::of(
-        detected
-            .iter()
-            .map(|v| v.hausdorff_percent.unwrap_or(f64::INFINITY)),
-    );
-    let open_hausdorff = Spread::of(
-        detected
-            .iter()
-            .map(|v| v.open_hausdorff_percent.unwrap_or(f64::INFINITY)),
-    );
-    let line_to_cut = Spread::of(
-        detected
-            .iter()
-            .map(|v| v.line_to_cut_percent.unwrap_or(f64::INFINITY)),
-    );
-    let cut_to_line = Spread::of(
-        detected
-            .iter()
-            .map(|v| v.cut_to_line_percent.unwrap_or(f64::INFINITY)),
-    );
+    // A distance over the detected cut variants, a variant without one as infinitely far.
+    let distance = |f: fn(&VariantResult) -> Option<f64>| {
+        Spread::of(detected.iter().map(|v| f(v).unwrap_or(f64::INFINITY)))
+    };
+    let hausdorff = distance(|v| v.hausdorff_percent);
+    let open_hausdorff = distance(|v| v.open_hausdorff_percent);
+    let line_to_cut = distance(|v| v.line_to_cut_percent);
+    let cut_to_line = distance(|v| v.cut_to_line_percent);
     let false_cuts = variants.iter().filter(|v| v.false_cut).count();
     let missed = cut.iter().filter(|v| v.missed).count();
     let a = ACCEPTANCE;

@@ -244,20 +244,7 @@ mod tests {
             camera: None,
             grow: Some([5, 11]),
         };
-        let camera = Camera::new(
-            incise_core::Intrinsics {
-                fx: 100.0,
-                fy: 100.0,
-                cx: 50.0,
-                cy: 50.0,
-                width: 100,
-                height: 100,
-            },
-            incise_core::nalgebra::Matrix3::identity(),
-            Vector3::new(0.0, 0.0, 1.0),
-            1e-4,
-        )
-        .unwrap();
+        let camera = crate::generate::test_camera();
         let g = growth(&sl, &band.nodes, &camera).unwrap();
         assert!(matches!(g, Growth::Axis { axis: 1, sign } if sign == 1.0));
         let release = release_frames(&slit, &slit.mesh.nodes, &g, [5, 11]);

@@ -26,3 +26,23 @@ pub mod scenario;
 pub mod sim;
 pub mod texture;
 pub mod tracking;
+
+/// A camera the generator's tests look through: 100 × 100 pixels, focal 100, at `z = -1`
+/// looking along `+z` (world `z = 0` is one unit in front of it).
+#[cfg(test)]
+pub(crate) fn test_camera() -> incise_core::Camera<f64> {
+    incise_core::Camera::new(
+        incise_core::Intrinsics {
+            fx: 100.0,
+            fy: 100.0,
+            cx: 50.0,
+            cy: 50.0,
+            width: 100,
+            height: 100,
+        },
+        incise_core::nalgebra::Matrix3::identity(),
+        incise_core::nalgebra::Vector3::new(0.0, 0.0, 1.0),
+        1e-4,
+    )
+    .unwrap()
+}

@@ -277,20 +277,7 @@ mod tests {
         use crate::generate::live::OPEN;
         // A camera at z = -1 looking along +z. Two lip pairs on the face it films (z = 0) and
         // two on a face behind it (z = 0.5), hidden at rest by a triangle of the front face.
-        let camera = Camera::new(
-            incise_core::Intrinsics {
-                fx: 100.0,
-                fy: 100.0,
-                cx: 50.0,
-                cy: 50.0,
-                width: 100,
-                height: 100,
-            },
-            incise_core::nalgebra::Matrix3::identity(),
-            Vector3::new(0.0, 0.0, 1.0),
-            1e-4,
-        )
-        .unwrap();
+        let camera = crate::generate::test_camera();
         let x = [
             [-0.05, 0.0, 0.0],
             [-0.04, 0.0, 0.0],
