@@ -384,12 +384,9 @@ fn run_pass_in<T: Real, F: Real>(
     bar.finish_and_clear();
     outputs.finish(&pass.frames)?;
     let mut detection = pass.detection;
-    let distance = truth
+    detection.distance_px = truth
         .as_ref()
         .and_then(|t| t.cut_distance(&detection.polyline));
-    detection.hausdorff_px = distance.map(|h| h.distance());
-    detection.line_to_cut_px = distance.map(|h| h.line_to_cut);
-    detection.cut_to_line_px = distance.map(|h| h.cut_to_line);
     detection.open_hausdorff_px = truth
         .as_ref()
         .and_then(|t| t.open_cut_distance(&detection.polyline));

@@ -4,6 +4,7 @@
 use incise_core::{CutWork, DetectionWork, LineWork, Observation, WorkCount};
 use serde::Serialize;
 
+use crate::metrics::DirectedHausdorff;
 use crate::scene::{ModelLaw, Precision, Scene};
 
 /// What `incise run --json` prints.
@@ -197,14 +198,9 @@ pub struct DetectionTrace {
     pub spacing_px: f64,
     /// The cut line at the last frame, pixels.
     pub polyline: Vec<[f64; 2]>,
-    /// Its Hausdorff distance to the true cut at the last frame (the slit where the camera
-    /// sees it), pixels.
-    pub hausdorff_px: Option<f64>,
-    /// Of it, the farthest the line strays from the true cut, pixels.
-    pub line_to_cut_px: Option<f64>,
-    /// And the farthest a point of the true cut is from the line (what it leaves uncovered),
-    /// pixels.
-    pub cut_to_line_px: Option<f64>,
+    /// Its distance to the true cut at the last frame (the slit where the camera sees it),
+    /// pixels, in its two directed halves; the Hausdorff distance is the larger.
+    pub distance_px: Option<DirectedHausdorff>,
     /// The same to the stretches of the true cut whose lips are a pixel or more apart.
     pub open_hausdorff_px: Option<f64>,
 }
@@ -358,6 +354,8 @@ impl Summary {
         let camera = &scene.file.camera;
         let diagonal = f64::from(camera.width).hypot(f64::from(camera.height));
         let percent = |h: f64| 100.0 * h / diagonal;
+        let distance = trace.detection.distance_px;
+        let hausdorff_px = distance.map(|h| h.distance());
         Summary {
             scene: scene.file.name.clone(),
             frames: trace.frames.len(),
@@ -380,11 +378,11 @@ impl Summary {
                 open.unwrap_or(1),
                 scene.file.detection.init_points,
             ),
-            cut_hausdorff_px: trace.detection.hausdorff_px,
-            cut_hausdorff_percent: trace.detection.hausdorff_px.map(percent),
+            cut_hausdorff_px: hausdorff_px,
+            cut_hausdorff_percent: hausdorff_px.map(percent),
             cut_open_hausdorff_percent: trace.detection.open_hausdorff_px.map(percent),
-            cut_line_to_cut_percent: trace.detection.line_to_cut_px.map(percent),
-            cut_to_line_percent: trace.detection.cut_to_line_px.map(percent),
+            cut_line_to_cut_percent: distance.map(|h| percent(h.line_to_cut)),
+            cut_to_line_percent: distance.map(|h| percent(h.cut_to_line)),
             dice_final_uncut: uncut.dice_final,
             dice_final: trace.dice_final,
             dice_mean_after_cut: after.iter().sum::<f64>() / after.len().max(1) as f64,

@@ -12,7 +12,7 @@ pub use prepare::{
     Meshes, Prepared, held_nodes, object_meshes, prepare, prepare_scenario, rest_silhouette_dice,
     scenario_camera, spec_camera,
 };
-pub use write::{FORMAT, Generated, header_prefix, rebase_mesh_paths, write_scene};
+pub use write::{Generated, header_prefix, rebase_mesh_paths, write_scene};
 
 use std::fmt;
 use std::io::Write;
