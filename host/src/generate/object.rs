@@ -258,8 +258,8 @@ pub struct Slit {
     pub mesh: TetMesh,
     /// `(original, duplicate)` node pairs: the two lips of the slit.
     pub pairs: Vec<(u32, u32)>,
-    /// Number of mesh faces that form the slit.
-    pub faces: usize,
+    /// The mesh faces that form the slit (node numbers of the mesh before it, sorted).
+    pub faces: Vec<[u32; 3]>,
     /// Nodes on the slit that were not split: its front, where the lips meet.
     pub front: Vec<u32>,
 }
@@ -374,7 +374,7 @@ pub fn cut_slit_where(
     Slit {
         mesh: out,
         pairs,
-        faces: cut.len(),
+        faces: cut,
         front,
     }
 }
@@ -521,7 +521,7 @@ mod tests {
             [[0.4, -0.1, -0.1], [0.6, 0.5, 1.0]],
         );
         // Faces on x = 0.5 with centroid y < 0.5: 2 cells × 2 triangles each.
-        assert_eq!(slit.faces, 4);
+        assert_eq!(slit.faces.len(), 4);
         // Nodes on x = 0.5 with y in {0, 0.25} at z = 0 and 0.25 are split; y = 0.5 (the front)
         // is not.
         assert_eq!(slit.pairs.len(), 4);

@@ -87,6 +87,8 @@ pub struct Meshes {
     pub release: Vec<u32>,
     /// Nodes of the slit's front, where its lips meet.
     pub slit_front: Vec<u32>,
+    /// The faces of `fine` that form the slit.
+    pub slit_faces: Vec<[u32; 3]>,
 }
 
 /// The real object and the model of a scenario at rest, before any frame is simulated.
@@ -189,7 +191,7 @@ fn make_slit(s: &Scenario, fine: &TetMesh, camera: &Camera<f64>) -> Result<Optio
             ));
         }
     };
-    if cut.faces == 0 {
+    if cut.faces.is_empty() {
         return Err(GenError(
             "[slit] region holds no mesh face: nothing is cut".into(),
         ));
@@ -271,7 +273,7 @@ pub fn prepare_scenario(s: Scenario, base: &Path) -> Result<Prepared, GenError> 
         .map_err(err)?;
     let camera = scenario_camera(&s)?;
     let cut_camera = slit_camera(&s, &camera)?;
-    let (real, pairs, slit_front, release) = match make_slit(&s, &fine, &cut_camera)? {
+    let (real, pairs, slit_front, slit_faces, release) = match make_slit(&s, &fine, &cut_camera)? {
         Some(cut) => {
             let release = match s.slit.as_ref().and_then(|sl| sl.grow) {
                 None => vec![OPEN; cut.pairs.len()],
@@ -288,9 +290,9 @@ pub fn prepare_scenario(s: Scenario, base: &Path) -> Result<Prepared, GenError> 
                     live::release_frames(&cut, &cut.mesh.nodes, &growth, [start, end])
                 }
             };
-            (cut.mesh, cut.pairs, cut.front, release)
+            (cut.mesh, cut.pairs, cut.front, cut.faces, release)
         }
-        None => (fine.clone(), vec![], vec![], vec![]),
+        None => (fine.clone(), vec![], vec![], vec![], vec![]),
     };
 
     // Held and grasped nodes of the real mesh; the model holds its nodes in the held boxes.
@@ -331,6 +333,7 @@ pub fn prepare_scenario(s: Scenario, base: &Path) -> Result<Prepared, GenError> 
             lips: pairs,
             release,
             slit_front,
+            slit_faces,
         },
         prescribed,
     })

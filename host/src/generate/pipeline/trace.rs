@@ -2,11 +2,11 @@
 //! chains of lip pairs ordered along that trace, shown where the camera sees it.
 //!
 //! The trace is ordered by the mesh, not by the image: two lip nodes follow each other when
-//! an edge of a boundary triangle joins them. Ordering them along the main direction of their
-//! projections (what this replaced) zig-zags wherever the trace is not a straight line in the
-//! image, which a slit seen obliquely never is: the liver family's true cuts crossed their lobe
-//! back and forth, and a detected line along the real cut was measured against segments that
-//! were no cut at all.
+//! an edge of a boundary triangle that is also an edge of a slit face joins them. Ordering
+//! them along the main direction of their projections (what this replaced) zig-zags wherever
+//! the trace is not a straight line in the image, which a slit seen obliquely never is: the
+//! liver family's true cuts crossed their lobe back and forth, and a detected line along the
+//! real cut was measured against segments that were no cut at all.
 
 use std::collections::{BTreeMap, BTreeSet};
 
@@ -44,9 +44,19 @@ pub struct TraceRow {
 
 impl CutTrace {
     /// The trace of the lips `pairs` (released at `release`, one per pair) and the front
-    /// nodes `front` on the surface of `fine` (the object before the slit, whose boundary
-    /// triangles join consecutive lip nodes).
-    pub fn new(fine: &TetMesh, pairs: &[(u32, u32)], release: &[u32], front: &[u32]) -> Self {
+    /// nodes `front` on the surface of `fine` (the object before the slit): two of its nodes
+    /// follow each other where an edge of a boundary triangle joins them that is also an edge
+    /// of one of the slit's `faces`. Any boundary edge between two trace nodes is not enough:
+    /// where the surface's triangles are large against the slit (SOFA's liver), an edge may
+    /// join two lip nodes across a face the slit never meets, and the chains then looped over
+    /// chords of the lobe that no cut follows (a chord of 220 px in one liver variant).
+    pub fn new(
+        fine: &TetMesh,
+        pairs: &[(u32, u32)],
+        release: &[u32],
+        front: &[u32],
+        faces: &[[u32; 3]],
+    ) -> Self {
         let boundary = fine.boundary();
         let on_surface: BTreeSet<u32> = boundary.iter().flat_map(|b| b.0).collect();
         // Each trace node (the original of a lip pair, or a front node) with its pair and
@@ -62,12 +72,18 @@ impl CutTrace {
                 node.entry(v).or_insert(((v, v), NEVER));
             }
         }
+        let key = |u: u32, v: u32| (u.min(v), u.max(v));
+        let slit_edges: BTreeSet<(u32, u32)> = faces
+            .iter()
+            .flat_map(|f| [key(f[0], f[1]), key(f[1], f[2]), key(f[2], f[0])])
+            .collect();
         let mut adjacent: BTreeMap<u32, BTreeSet<u32>> =
             node.keys().map(|&v| (v, BTreeSet::new())).collect();
         for (tri, _) in &boundary {
             for k in 0..3 {
                 let (u, v) = (tri[k], tri[(k + 1) % 3]);
-                if node.contains_key(&u) && node.contains_key(&v) {
+                if node.contains_key(&u) && node.contains_key(&v) && slit_edges.contains(&key(u, v))
+                {
                     adjacent.entry(u).or_default().insert(v);
                     adjacent.entry(v).or_default().insert(u);
                 }
@@ -311,6 +327,55 @@ mod tests {
         let uv: Vec<[f64; 2]> = filmed.iter().map(|r| r.uv).collect();
         assert_eq!(uv, [[45.5, 50.0], [55.5, 50.0]]);
         assert!(filmed.iter().all(|r| r.part == 0 && r.open));
+    }
+
+    #[test]
+    fn only_the_slit_s_own_edges_join_the_trace() {
+        use crate::generate::live::OPEN;
+        use crate::generate::object::{TetMesh, cut_slit};
+        // A 4 × 4 × 1 band slit at x = 0.5 from its edge y = 0 up to the front at y = 0.5.
+        let band = TetMesh::band([1.0, 1.0, 0.25], [4, 4, 1]);
+        let slit = cut_slit(
+            &band,
+            [0.5, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [[0.4, -0.1, -0.1], [0.6, 0.5, 1.0]],
+        );
+        let at = |p: [f64; 3]| {
+            band.nodes
+                .iter()
+                .position(|q| (0..3).all(|k| (q[k] - p[k]).abs() < 1e-9))
+                .unwrap() as u32
+        };
+        let release = vec![OPEN; slit.pairs.len()];
+        // A node beside the slit, joined to its lip node at (0.5, 0, 0.25) by an edge of the
+        // top face that no slit face has, is given as a front node: it stays a chain of its own.
+        let beside = at([0.75, 0.0, 0.25]);
+        let mut front = slit.front.clone();
+        front.push(beside);
+        let trace = CutTrace::new(&band, &slit.pairs, &release, &front, &slit.faces);
+        let chains: Vec<Vec<u32>> = trace
+            .chains
+            .iter()
+            .map(|c| c.iter().map(|&((a, _), _)| a).collect())
+            .collect();
+        assert!(chains.contains(&vec![beside]));
+        // The top face's trace runs along the slit, edge to front.
+        let top = [
+            at([0.5, 0.0, 0.25]),
+            at([0.5, 0.25, 0.25]),
+            at([0.5, 0.5, 0.25]),
+        ];
+        assert!(chains.iter().any(|c| {
+            c.windows(3)
+                .any(|w| w == top || w.iter().rev().eq(top.iter()))
+        }));
+        // No chain steps off the slit's plane.
+        for c in &chains {
+            for w in c.windows(2) {
+                assert!(w.iter().all(|&v| band.nodes[v as usize][0] == 0.5), "{c:?}");
+            }
+        }
     }
 
     #[test]

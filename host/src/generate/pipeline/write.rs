@@ -21,8 +21,9 @@ use super::{GenError, Progress, Simulation, at_file, write_file};
 
 /// Revision of what the generator writes, named in the first line of each `scene.toml` it
 /// writes; `incise eval` writes a family's kept variant again when its revision is another
-/// (2: the true cut only on the surface the camera films, `CutTrace::film`).
-pub const FORMAT: u32 = 2;
+/// (2: the true cut only on the surface the camera films, `CutTrace::film`; 3: the trace
+/// joins its nodes only along the slit's own edges, `CutTrace::new`).
+pub const FORMAT: u32 = 3;
 
 /// The first line of a `scene.toml` the generator of this [`FORMAT`] wrote starts so.
 pub fn header_prefix() -> String {
@@ -125,7 +126,13 @@ pub fn write_scene(
     let targets = sample_targets(real, s.object.targets, &mut rng);
 
     // The true cut: the slit's trace on the surface, in chains along it (`trace`).
-    let mut trace = CutTrace::new(fine, pairs, &meshes.release, &meshes.slit_front);
+    let mut trace = CutTrace::new(
+        fine,
+        pairs,
+        &meshes.release,
+        &meshes.slit_front,
+        &meshes.slit_faces,
+    );
     if let Some(x0) = sim.positions.first() {
         trace.film(x0, camera, &depth0, tolerance);
     }
