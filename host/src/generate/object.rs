@@ -390,6 +390,20 @@ pub fn interpolate(mesh_nodes: &[[f64; 3]], tet: [u32; 4], w: [f64; 4]) -> [f64;
     p
 }
 
+/// A 4 × 4 × 1 band over 1 × 1 × 0.25, slit at x = 0.5 from its edge y = 0 up to y = 0.5
+/// (half its width, where the slit's front is): the small slit tests cut.
+#[cfg(test)]
+pub(crate) fn half_side_slit() -> (TetMesh, Slit) {
+    let band = TetMesh::band([1.0, 1.0, 0.25], [4, 4, 1]);
+    let slit = cut_slit(
+        &band,
+        [0.5, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [[0.4, -0.1, -0.1], [0.6, 0.5, 1.0]],
+    );
+    (band, slit)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -512,14 +526,7 @@ mod tests {
 
     #[test]
     fn side_slit_duplicates_the_lips_but_not_the_front() {
-        // A 4 × 4 × 1 band, slit at x = 0.5 from y = 0 up to y = 0.5 (half the width).
-        let band = TetMesh::band([1.0, 1.0, 0.25], [4, 4, 1]);
-        let slit = cut_slit(
-            &band,
-            [0.5, 0.0, 0.0],
-            [1.0, 0.0, 0.0],
-            [[0.4, -0.1, -0.1], [0.6, 0.5, 1.0]],
-        );
+        let (band, slit) = half_side_slit();
         // Faces on x = 0.5 with centroid y < 0.5: 2 cells × 2 triangles each.
         assert_eq!(slit.faces.len(), 4);
         // Nodes on x = 0.5 with y in {0, 0.25} at z = 0 and 0.25 are split; y = 0.5 (the front)

@@ -332,15 +332,8 @@ mod tests {
     #[test]
     fn only_the_slit_s_own_edges_join_the_trace() {
         use crate::generate::live::OPEN;
-        use crate::generate::object::{TetMesh, cut_slit};
         // A 4 × 4 × 1 band slit at x = 0.5 from its edge y = 0 up to the front at y = 0.5.
-        let band = TetMesh::band([1.0, 1.0, 0.25], [4, 4, 1]);
-        let slit = cut_slit(
-            &band,
-            [0.5, 0.0, 0.0],
-            [1.0, 0.0, 0.0],
-            [[0.4, -0.1, -0.1], [0.6, 0.5, 1.0]],
-        );
+        let (band, slit) = crate::generate::object::half_side_slit();
         let at = |p: [f64; 3]| {
             band.nodes
                 .iter()
