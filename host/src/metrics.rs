@@ -153,6 +153,16 @@ pub fn principal_axis(points: &[[f64; 2]]) -> Option<([f64; 2], [f64; 2])> {
 
 /// Distance from `p` to the segment `a–b` in the image plane.
 pub fn point_segment_distance_2d(p: [f64; 2], a: [f64; 2], b: [f64; 2]) -> f64 {
+    distance_2d(p, closest_on_segment(p, a, b))
+}
+
+fn distance_2d(p: [f64; 2], q: [f64; 2]) -> f64 {
+    let (dx, dy) = (q[0] - p[0], q[1] - p[1]);
+    (dx * dx + dy * dy).sqrt()
+}
+
+/// The point of segment `ab` nearest `p`.
+fn closest_on_segment(p: [f64; 2], a: [f64; 2], b: [f64; 2]) -> [f64; 2] {
     let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
     let len2 = dx * dx + dy * dy;
     let t = if len2 > 0.0 {
@@ -160,19 +170,24 @@ pub fn point_segment_distance_2d(p: [f64; 2], a: [f64; 2], b: [f64; 2]) -> f64 {
     } else {
         0.0
     };
-    let (cx, cy) = (a[0] + t * dx - p[0], a[1] + t * dy - p[1]);
-    (cx * cx + cy * cy).sqrt()
+    [a[0] + t * dx, a[1] + t * dy]
+}
+
+/// The point of `line` nearest `p` and its distance; `None` for an empty line.
+fn closest_on_polyline(p: [f64; 2], line: &[[f64; 2]]) -> Option<([f64; 2], f64)> {
+    let nearest = |q: [f64; 2]| (q, distance_2d(p, q));
+    match line {
+        [] => None,
+        [a] => Some(nearest(*a)),
+        _ => line
+            .windows(2)
+            .map(|w| nearest(closest_on_segment(p, w[0], w[1])))
+            .min_by(|x, y| x.1.total_cmp(&y.1)),
+    }
 }
 
 fn point_polyline_distance(p: [f64; 2], line: &[[f64; 2]]) -> f64 {
-    match line {
-        [] => f64::INFINITY,
-        [a] => point_segment_distance_2d(p, *a, *a),
-        _ => line
-            .windows(2)
-            .map(|w| point_segment_distance_2d(p, w[0], w[1]))
-            .fold(f64::INFINITY, f64::min),
-    }
+    closest_on_polyline(p, line).map_or(f64::INFINITY, |(_, d)| d)
 }
 
 /// Directed distance `sup_{p ∈ a} d(p, b)`, with `a` sampled every `step` pixels along its
@@ -222,13 +237,18 @@ pub fn hausdorff_polyline(a: &[[f64; 2]], b: &[[f64; 2]]) -> f64 {
 /// cut: how far the line strays from the cut (`line_to_cut`, the worst point of the line) and
 /// how much of the cut it leaves uncovered (`cut_to_line`, the worst point of the cut). The
 /// distance itself is the larger ([`DirectedHausdorff::distance`]); apart, they tell a line
-/// fitted off the cut from a line that is on it but too short.
+/// fitted off the cut from a line that is on it but too short. Where each is attained is kept
+/// too, for the overlays to point at.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct DirectedHausdorff {
     /// `sup` over the line of the distance to the nearest part of the cut, pixels.
     pub line_to_cut: f64,
     /// `sup` over the cut's parts of the distance to the line, pixels.
     pub cut_to_line: f64,
+    /// The line's point farthest from the cut, and the point of the cut nearest it.
+    pub line_worst: [[f64; 2]; 2],
+    /// The cut's point farthest from the line, and the point of the line nearest it.
+    pub cut_worst: [[f64; 2]; 2],
 }
 
 impl DirectedHausdorff {
@@ -253,21 +273,32 @@ pub fn directed_hausdorff_to_parts(
     if a.is_empty() || parts.is_empty() {
         return None;
     }
-    let mut line_to_cut: f64 = 0.0;
-    sample_polyline(a, 0.25, |p| {
-        let nearest = parts
-            .iter()
-            .map(|b| point_polyline_distance(p, b))
-            .fold(f64::INFINITY, f64::min);
-        line_to_cut = line_to_cut.max(nearest);
-    });
-    let cut_to_line = parts
-        .iter()
-        .map(|b| directed_hausdorff(b, a, 0.25))
-        .fold(0.0, f64::max);
+    // The farthest sample of `from` from its nearest point on `to` (nearest over `to`'s
+    // parts): its distance, the sample and that nearest point.
+    let farthest = |from: &[&[[f64; 2]]], to: &[&[[f64; 2]]]| {
+        let mut worst = (-1.0, [[0.0; 2]; 2]);
+        for line in from {
+            sample_polyline(line, 0.25, |p| {
+                let nearest = to
+                    .iter()
+                    .filter_map(|b| closest_on_polyline(p, b))
+                    .min_by(|x, y| x.1.total_cmp(&y.1));
+                if let Some((q, d)) = nearest
+                    && d > worst.0
+                {
+                    worst = (d, [p, q]);
+                }
+            });
+        }
+        worst
+    };
+    let (line_to_cut, line_worst) = farthest(&[a], &parts);
+    let (cut_to_line, cut_worst) = farthest(&parts, &[a]);
     Some(DirectedHausdorff {
         line_to_cut,
         cut_to_line,
+        line_worst,
+        cut_worst,
     })
 }
 
@@ -357,11 +388,17 @@ mod tests {
         let h = directed_hausdorff_to_parts(&short, &cut).unwrap();
         assert!(h.line_to_cut.abs() < 1e-12);
         assert!((h.cut_to_line - 15.0).abs() < 1e-12);
+        assert_eq!(h.cut_worst, [[20.0, 0.0], [5.0, 0.0]]);
         // As long as the cut, 3 px beside it, and running on 4 px past its end (5 from it).
         let off = [[0.0, 3.0], [24.0, 3.0]];
         let h = directed_hausdorff_to_parts(&off, &cut).unwrap();
         assert!((h.line_to_cut - 5.0).abs() < 1e-12);
         assert!((h.cut_to_line - 3.0).abs() < 1e-12);
+        // Where: the line's far end and the cut's end below it; the cut's first point (a
+        // vertex, the first sample at 3 px) and the line's point above it.
+        let near = |p: [f64; 2], q: [f64; 2]| (p[0] - q[0]).hypot(p[1] - q[1]) < 1e-9;
+        assert!(near(h.line_worst[0], [24.0, 3.0]) && near(h.line_worst[1], [20.0, 0.0]));
+        assert!(near(h.cut_worst[0], [0.0, 0.0]) && near(h.cut_worst[1], [0.0, 3.0]));
         // The symmetric distance is the larger half.
         assert!((h.distance() - 5.0).abs() < 1e-12);
     }

@@ -243,6 +243,8 @@ pub mod colour {
     pub const SPLIT_PAIR: [u8; 3] = [255, 160, 0];
     /// Features the temporal filter took out (rings about their tracked positions).
     pub const FILTERED: [u8; 3] = [170, 110, 255];
+    /// Where the detected and the true cut are farthest apart (rings, with a stroke across).
+    pub const FARTHEST: [u8; 3] = [255, 0, 0];
 }
 
 impl Canvas {

@@ -7,6 +7,7 @@ use incise_core::{Camera, Observation};
 use nalgebra::Vector3;
 
 use super::{Canvas, Corner, Mask, colour};
+use crate::metrics::DirectedHausdorff;
 
 /// Everything one frame's overlay shows.
 pub struct Overlay<'a> {
@@ -43,6 +44,11 @@ pub struct Overlay<'a> {
     pub filtered: &'a [[f64; 2]],
     /// The detected cut line, pixels.
     pub cut_line: &'a [[f64; 2]],
+    /// Its distance to the true cut in the frame, with where each half is attained (the
+    /// line's point farthest from the cut, the cut's farthest from the line): drawn as a ring
+    /// at each with a stroke to the nearest point across, so that a picture shows where the
+    /// Hausdorff distance comes from.
+    pub farthest: Option<DirectedHausdorff>,
     /// The internal targets where the model carries them.
     pub targets: &'a [[f64; 3]],
     /// Dice of the frame (NaN without a ground truth).
@@ -111,6 +117,12 @@ pub fn draw(o: &Overlay<'_>, legend_at: &mut Option<Corner>) -> Canvas {
         canvas.dot(p, 1.0, colour::CUT);
     }
     canvas.polyline(o.cut_line, colour::CUT, 3);
+    if let Some(h) = &o.farthest {
+        for [p, q] in [h.line_worst, h.cut_worst] {
+            canvas.line(p, q, colour::FARTHEST);
+            canvas.ring(p, 6.0, colour::FARTHEST);
+        }
+    }
     for p in o.targets {
         if let Ok(uv) = o.camera.project(&Vector3::from(*p), 0) {
             canvas.cross_mark([uv.x, uv.y], 3.0, colour::TARGET);
@@ -141,6 +153,9 @@ pub fn draw(o: &Overlay<'_>, legend_at: &mut Option<Corner>) -> Canvas {
         legend.push((colour::TRUE_CUT, "true cut"));
     }
     legend.push((colour::CUT, "detected cut"));
+    if o.farthest.is_some() {
+        legend.push((colour::FARTHEST, "farthest apart"));
+    }
     if o.pairs.is_some() {
         legend.push((colour::OUTLIER_PAIR, "outlier pairs"));
         legend.push((colour::SPLIT_PAIR, "split pairs"));
@@ -164,7 +179,7 @@ const LINE_WEIGHT: usize = 8;
 
 /// The segments an overlay draws that the legend should not hide.
 struct DrawnLines {
-    /// The detected and the true cut.
+    /// The detected and the true cut, and the strokes between where they are farthest apart.
     cuts: Vec<[[f64; 2]; 2]>,
     /// The detector's pairs, when asked for.
     pairs: Vec<[[f64; 2]; 2]>,
@@ -173,8 +188,10 @@ struct DrawnLines {
 fn drawn_lines(o: &Overlay<'_>) -> DrawnLines {
     let polylines =
         std::iter::once(o.cut_line).chain(o.true_cut.unwrap_or_default().iter().map(Vec::as_slice));
+    let farthest = o.farthest.iter().flat_map(|h| [h.line_worst, h.cut_worst]);
     let cuts = polylines
         .flat_map(|line| line.windows(2).map(|w| [w[0], w[1]]))
+        .chain(farthest)
         .collect();
     let pairs = o
         .pairs
@@ -260,6 +277,48 @@ mod tests {
             cuts: vec![],
             pairs: vec![],
         }
+    }
+
+    #[test]
+    fn the_farthest_points_are_ringed_and_joined_across() {
+        let camera = crate::generate::test_camera();
+        let mask = Mask::from_fn(320, 200, |_, _| false);
+        let (line, cut) = (
+            [[40.0, 150.0], [80.0, 150.0]],
+            vec![vec![[40.0, 160.0], [120.0, 160.0]]],
+        );
+        let farthest = crate::metrics::directed_hausdorff_to_parts(&line, &cut);
+        let overlay = |farthest| Overlay {
+            scene: "test",
+            frame: 0,
+            camera: &camera,
+            picture: None,
+            virtual_features: &[],
+            separation_points: &[],
+            pairs: None,
+            positions: &[],
+            surface: &[],
+            model_mask: &mask,
+            truth_mask: None,
+            true_cut: Some(&cut),
+            observations: &[],
+            filtered: &[],
+            cut_line: &line,
+            farthest,
+            targets: &[],
+            dice: f64::NAN,
+            target_error_mm: f64::NAN,
+        };
+        let pixel = |c: &Canvas, p: [u32; 2]| c.image.get_pixel(p[0], p[1]).0;
+        let drawn = draw(&overlay(farthest), &mut None);
+        // The cut's end (120, 160) is farthest from the line (its nearest point (80, 150)):
+        // ringed, and the stroke between them drawn half way along.
+        assert_eq!(pixel(&drawn, [126, 160]), colour::FARTHEST);
+        assert_eq!(pixel(&drawn, [100, 155]), colour::FARTHEST);
+        // Without a distance, neither.
+        let plain = draw(&overlay(None), &mut None);
+        assert_ne!(pixel(&plain, [126, 160]), colour::FARTHEST);
+        assert_ne!(pixel(&plain, [100, 155]), colour::FARTHEST);
     }
 
     #[test]

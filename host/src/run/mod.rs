@@ -31,6 +31,7 @@ pub use trace::{
     Summary, Trace,
 };
 
+use crate::metrics::directed_hausdorff_to_parts;
 use crate::render::overlay::{self, DetectorPairs, Overlay};
 use crate::render::silhouette;
 use crate::scene::{Precision, Scene, SceneError};
@@ -348,6 +349,9 @@ fn run_pass_in<T: Real, F: Real>(
                 .collect();
             let pairs = scene.overlay_pairs.then(|| detector_pairs(&model));
             let true_cut = truth.as_ref().and_then(|t| t.cut_at(f));
+            let farthest = true_cut
+                .as_ref()
+                .and_then(|parts| directed_hausdorff_to_parts(&pass.detection.polyline, parts));
             let canvas = overlay::draw(
                 &Overlay {
                     scene: &scene.file.name,
@@ -365,6 +369,7 @@ fn run_pass_in<T: Real, F: Real>(
                     observations: &frame.observations,
                     filtered: &filtered,
                     cut_line: &pass.detection.polyline,
+                    farthest,
                     targets: &measure.targets,
                     dice: measure.dice,
                     target_error_mm: measure.tre * 1e3,
