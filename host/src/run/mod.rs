@@ -31,7 +31,6 @@ pub use trace::{
     Summary, Trace,
 };
 
-use crate::metrics::directed_hausdorff_to_parts;
 use crate::render::overlay::{self, DetectorPairs, Overlay};
 use crate::render::silhouette;
 use crate::scene::{Precision, Scene, SceneError};
@@ -349,9 +348,9 @@ fn run_pass_in<T: Real, F: Real>(
                 .collect();
             let pairs = scene.overlay_pairs.then(|| detector_pairs(&model));
             let true_cut = truth.as_ref().and_then(|t| t.cut_at(f));
-            let farthest = true_cut
+            let farthest = truth
                 .as_ref()
-                .and_then(|parts| directed_hausdorff_to_parts(&pass.detection.polyline, parts));
+                .and_then(|t| t.cut_distance(f, &pass.detection.polyline));
             let canvas = overlay::draw(
                 &Overlay {
                     scene: &scene.file.name,
@@ -391,7 +390,7 @@ fn run_pass_in<T: Real, F: Real>(
     let mut detection = pass.detection;
     detection.distance_px = truth
         .as_ref()
-        .and_then(|t| t.cut_distance(&detection.polyline));
+        .and_then(|t| t.cut_distance(t.cut_frames().checked_sub(1)?, &detection.polyline));
     detection.open_hausdorff_px = truth
         .as_ref()
         .and_then(|t| t.open_cut_distance(&detection.polyline));

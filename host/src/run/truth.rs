@@ -109,12 +109,19 @@ impl Truth {
             .map_or(f64::NAN, |gt| paired_rms(rest, gt))
     }
 
-    /// Hausdorff distance of a detected cut line to the true cut at the last frame (every
-    /// part of the slit the camera sees), both directed halves, pixels; `None` when either is
-    /// empty.
-    pub(crate) fn cut_distance(&self, polyline: &[[f64; 2]]) -> Option<DirectedHausdorff> {
-        let parts = self.cut_at(self.cut.len().checked_sub(1)?)?;
-        directed_hausdorff_to_parts(polyline, &parts)
+    /// Hausdorff distance of a detected cut line to the true cut at `frame` (every part of the
+    /// slit the camera sees), both directed halves, pixels; `None` when either is empty.
+    pub(crate) fn cut_distance(
+        &self,
+        frame: usize,
+        polyline: &[[f64; 2]],
+    ) -> Option<DirectedHausdorff> {
+        directed_hausdorff_to_parts(polyline, &self.cut_at(frame)?)
+    }
+
+    /// The frames the true cut is given for (the last is `cut_frames() - 1`).
+    pub(crate) fn cut_frames(&self) -> usize {
+        self.cut.len()
     }
 
     /// The same to the stretches of the true cut whose lips are a pixel or more apart in the
