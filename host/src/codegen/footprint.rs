@@ -275,8 +275,12 @@ pub fn isolated_release_build(
 }
 
 /// Builds the firmware program for the generated module `module` with `set`'s features (and the
-/// core's `neo-hookean` where the scene's `law` needs it) in `target_dir`, links it with the C
-/// `main` and measures it.
+/// core's `neo-hookean` where the scene's `law` needs it) in the cargo target directory
+/// `target_dir`, links it with the C `main` into `target_dir/SET` ([`FeatureSet::dir_name`])
+/// and measures it. The feature sets of one module can share `target_dir`: the dependencies
+/// are then built once, and each set's build stays apart (cargo keeps one artifact per feature
+/// set and puts the set's library in place whenever it is asked for, built or not), so that a
+/// second round over the same sets and an unchanged module builds nothing.
 ///
 /// # Errors
 /// The build, link or measurement that failed, with its output.
@@ -297,11 +301,13 @@ pub fn build(
     cmd.env("INCISE_FIRMWARE_SCENE", &module);
     run(&mut cmd, "building the firmware program")?;
     let lib = target_dir.join("release").join("libincise_firmware.a");
-    let main_c = target_dir.join("main.c");
+    let out = target_dir.join(set.dir_name());
+    std::fs::create_dir_all(&out).map_err(|e| CodegenError(format!("{}: {e}", out.display())))?;
+    let main_c = out.join("main.c");
     std::fs::write(&main_c, MAIN_C)
         .map_err(|e| CodegenError(format!("{}: {e}", main_c.display())))?;
-    let exe = target_dir.join("firmware");
-    let base = target_dir.join("baseline");
+    let exe = out.join("firmware");
+    let base = out.join("baseline");
     // --gc-sections keeps only what the program reaches; no PIE, so that constants holding
     // addresses stay in .rodata rather than in relocated data.
     let link = |out: &Path, extra: &[&std::ffi::OsStr]| {

@@ -189,6 +189,11 @@ pub fn generate(scene: &Scene, options: &CodegenOptions) -> Result<Generated, Co
 /// # Errors
 /// The file system's error, naming the path.
 pub fn write(generated: &Generated, out: &Path) -> Result<(), CodegenError> {
+    // A module that is already there as it would be written is left alone, its time stamp
+    // too: a firmware build that includes it (`footprint::build`) is then still fresh.
+    if std::fs::read(out).is_ok_and(|old| old == generated.source.as_bytes()) {
+        return Ok(());
+    }
     let tmp: PathBuf = out.with_extension("rs.tmp");
     let fail = |p: &Path, e: std::io::Error| CodegenError(format!("{}: {e}", p.display()));
     if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
