@@ -121,8 +121,8 @@ pub(super) fn codegen_command(
             "| feature set | static RAM, KiB | code (.text), KiB | constants (.rodata), KiB | leaves out |"
         )?;
         outln!("|---|---:|---:|---:|---|")?;
+        let target = fp::firmware_dir().join("target");
         for set in &fp::feature_sets(generated.strategy, generated.projection) {
-            let target = fp::firmware_dir().join("target").join(set.dir_name());
             let built = fp::build(out, set, generated.law, &target).map_err(|e| e.to_string())?;
             let f = built.footprint;
             outln!(
