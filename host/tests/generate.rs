@@ -69,6 +69,12 @@ fn the_live_cut_scene_regenerates_to_its_committed_bytes() {
     assert_same_files(&committed, &out);
     // The cut starts growing at frame 5 and opens behind the scissors.
     assert!(g.cut_open_frame.is_some_and(|f| f > 5), "{g:?}");
+    // Pulled 3 cm along the 9 cm between its held and its grasped end, the band stretches by
+    // a third on average there, so by more somewhere (most at the slit's tip), and most once
+    // the pull is complete (frame 28).
+    let s = g.stretch;
+    assert!(s.largest > 1.3 && s.frame >= 28, "{g:?}");
+    assert!((1.0..=s.largest).contains(&s.one_percent), "{g:?}");
 }
 
 #[test]

@@ -253,7 +253,7 @@ pub(super) fn gen_command(
 /// One line on a scene `gen` wrote.
 fn print_generated(g: &crate::generate::pipeline::Generated) -> Result<(), Failure> {
     outln!(
-        "{}: {} frames, {} features, real mesh {} nodes / {} tets, model {} nodes / {} tets, cut opens at frame {}",
+        "{}: {} frames, {} features, real mesh {} nodes / {} tets, model {} nodes / {} tets, cut opens at frame {}, real object stretched by at most {:.0} % (frame {}; 1 % of its volume by more than {:.0} %)",
         g.dir.display(),
         g.frames,
         g.features,
@@ -261,7 +261,10 @@ fn print_generated(g: &crate::generate::pipeline::Generated) -> Result<(), Failu
         g.fine_size.1,
         g.model_size.0,
         g.model_size.1,
-        g.cut_open_frame.map_or("-".to_string(), |f| f.to_string())
+        g.cut_open_frame.map_or("-".to_string(), |f| f.to_string()),
+        100.0 * (g.stretch.largest - 1.0),
+        g.stretch.frame,
+        100.0 * (g.stretch.one_percent - 1.0),
     )?;
     Ok(())
 }

@@ -19,11 +19,11 @@ use std::io::Write;
 use std::path::Path;
 
 use incise_core::Camera;
-use incise_core::nalgebra::{Rotation3, Unit, Vector3};
+use incise_core::nalgebra::{Matrix3, Rotation3, Unit, Vector3};
 use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::generate::live::{self};
-use crate::generate::object::interpolate;
+use crate::generate::object::{interpolate, signed_volume6};
 use crate::generate::scenario::{GraspSpec, Scenario};
 use crate::generate::sim::Simulator;
 
@@ -139,6 +139,56 @@ impl Simulation {
         self.meshes.model_mesh_file = None;
     }
 
+    /// How far the real object is stretched ([`principal_stretch`] of each tetrahedron; 1 at
+    /// rest): the largest stretch over every element and frame, the frame it is reached in, and
+    /// the stretch that 1 % of the object's volume exceeds in that frame. The largest is where
+    /// strain concentrates (at a slit's tip, at the edge of a grasped region); the volume share
+    /// says how much of the tissue is stretched that far. What a scene asks of its tissue, to
+    /// hold against what the tissue bears (`fixtures/README.md`).
+    pub fn stretch(&self) -> Stretch {
+        let real = &self.meshes.real;
+        let corners = |x: &[[f64; 3]], t: &[u32; 4]| t.map(|v| x[v as usize]);
+        let stretches = |x: &[[f64; 3]]| {
+            real.tets
+                .iter()
+                .map(|t| principal_stretch(corners(&real.nodes, t), corners(x, t)))
+                .collect::<Vec<_>>()
+        };
+        let mut largest = (1.0, 0);
+        for (frame, x) in self.positions.iter().enumerate() {
+            for stretch in stretches(x).into_iter().flatten() {
+                if stretch > largest.0 {
+                    largest = (stretch, frame);
+                }
+            }
+        }
+        // The elements of that frame from the most stretched down, until 1 % of the volume.
+        let mut by_stretch: Vec<(f64, f64)> = stretches(&self.positions[largest.1])
+            .into_iter()
+            .zip(&real.tets)
+            .filter_map(|(s, t)| {
+                let [a, b, c, d] = corners(&real.nodes, t);
+                Some((s?, (signed_volume6(a, b, c, d) / 6.0).abs()))
+            })
+            .collect();
+        by_stretch.sort_by(|x, y| y.0.total_cmp(&x.0));
+        let volume: f64 = by_stretch.iter().map(|e| e.1).sum();
+        let mut above = 0.0;
+        let mut one_percent = 1.0;
+        for (stretch, v) in by_stretch {
+            above += v;
+            one_percent = stretch;
+            if above >= 0.01 * volume {
+                break;
+            }
+        }
+        Stretch {
+            largest: largest.0,
+            frame: largest.1,
+            one_percent,
+        }
+    }
+
     /// Boundary triangles of the real mesh.
     pub fn triangles(&self) -> Vec<[u32; 3]> {
         self.boundary.iter().map(|b| b.0).collect()
@@ -189,6 +239,35 @@ impl Simulation {
         let uv = self.camera.project(&Vector3::from(p), 0).ok()?;
         Some([uv.x, uv.y])
     }
+}
+
+/// How far a simulation stretches its real object ([`Simulation::stretch`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Stretch {
+    /// The largest principal stretch of any element in any frame (1 at rest).
+    pub largest: f64,
+    /// The frame it is reached in.
+    pub frame: usize,
+    /// The principal stretch that 1 % of the object's volume exceeds in that frame.
+    pub one_percent: f64,
+}
+
+/// The largest principal stretch of a tetrahedron moved from corners `rest` to `now`: the
+/// largest singular value of its deformation gradient `F = Ds Dm⁻¹` (the square root of the
+/// largest eigenvalue of `FᵀF`), 1 for a rigid motion. `None` for a degenerate rest element.
+pub fn principal_stretch(rest: [[f64; 3]; 4], now: [[f64; 3]; 4]) -> Option<f64> {
+    let edges = |p: [[f64; 3]; 4]| {
+        let p = p.map(Vector3::from);
+        Matrix3::from_columns(&[p[1] - p[0], p[2] - p[0], p[3] - p[0]])
+    };
+    let f = edges(now) * edges(rest).try_inverse()?;
+    Some(
+        (f.transpose() * f)
+            .symmetric_eigenvalues()
+            .max()
+            .max(0.0)
+            .sqrt(),
+    )
 }
 
 /// Builds the real object of the scenario at `scenario_path` and simulates every frame.
@@ -687,6 +766,32 @@ damping = 0.01
         );
         let e = prepare(&middle).unwrap_err();
         assert!(e.0.contains("cannot tell where the slit starts"), "{e}");
+    }
+
+    /// A tetrahedron stretched by 1.5 along one axis, squeezed to 0.8 along another and turned
+    /// about a third: its largest principal stretch is 1.5 whatever the turn; a rigid motion
+    /// gives 1 and a flat rest element nothing.
+    #[test]
+    fn principal_stretch_is_the_largest_singular_value() {
+        let rest = [
+            [0.0, 0.0, 0.0],
+            [1.0, 0.1, 0.0],
+            [0.2, 1.0, 0.1],
+            [0.1, 0.3, 1.0],
+        ];
+        let turn = Rotation3::from_axis_angle(&Vector3::z_axis(), 0.7);
+        let map = |scale: [f64; 3]| {
+            rest.map(|p| {
+                let q = turn * Vector3::new(scale[0] * p[0], scale[1] * p[1], scale[2] * p[2]);
+                [q.x + 0.3, q.y - 2.0, q.z + 1.0]
+            })
+        };
+        let stretched = principal_stretch(rest, map([1.5, 0.8, 1.0])).unwrap();
+        assert!((stretched - 1.5).abs() < 1e-12, "{stretched}");
+        let rigid = principal_stretch(rest, map([1.0, 1.0, 1.0])).unwrap();
+        assert!((rigid - 1.0).abs() < 1e-12, "{rigid}");
+        let flat = [[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 1.0, 0.0]];
+        assert_eq!(principal_stretch(flat, flat), None);
     }
 
     /// The liver scene: the model is SOFA's coarse liver, the real object SOFA's fine liver

@@ -17,7 +17,7 @@ use crate::scene::{
 
 use super::prepare::rest_silhouette_dice;
 use super::trace::CutTrace;
-use super::{GenError, Progress, Simulation, at_file, write_file};
+use super::{GenError, Progress, Simulation, Stretch, at_file, write_file};
 
 /// Revision of what the generator writes, named in the first line of each `scene.toml` it
 /// writes; `incise eval` writes a family's kept variant again when its revision is another
@@ -48,6 +48,8 @@ pub struct Generated {
     /// Dice of the rest silhouettes of the model and the real object
     /// ([`rest_silhouette_dice`]).
     pub rest_silhouette_dice: f64,
+    /// How far the real object is stretched ([`Simulation::stretch`]).
+    pub stretch: Stretch,
 }
 
 /// `target` relative to `base` (both existing paths or their parents), for scene.toml.
@@ -276,6 +278,7 @@ pub fn write_scene(
         model_size: (model.nodes.len(), model.tets.len()),
         cut_open_frame,
         rest_silhouette_dice: rest_silhouette_dice(camera, model, real),
+        stretch: sim.stretch(),
     })
 }
 
