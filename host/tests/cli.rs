@@ -197,3 +197,61 @@ fn instructions_counts_every_frame_or_says_why_not() {
         format!("7,{},true", lines[7].split(',').nth(1).unwrap())
     );
 }
+
+/// The counting program `incise report` runs under callgrind steps a scene as `incise
+/// count-frames` does and refuses what it refuses; built with the video driver, it still loads
+/// a small part of the shared libraries `incise` loads (valgrind starts every counted run with
+/// them: about 6 s more each with all of OpenCV's).
+#[test]
+fn the_counting_program_steps_a_scene_and_links_little() {
+    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/../fixtures/band-no-cut");
+    let setting = [
+        "--strategy",
+        "refactor",
+        "--newton",
+        "1",
+        "--pcg",
+        "10",
+        "--line-search",
+        "1",
+        "--frames",
+        "2",
+    ];
+    let counter = || Command::new(env!("CARGO_BIN_EXE_incise-count-frames"));
+    for mut command in [counter(), {
+        let mut c = incise();
+        c.arg("count-frames");
+        c
+    }] {
+        let ok = command.arg(scene).args(setting).output().unwrap();
+        assert!(
+            ok.status.success(),
+            "{}",
+            String::from_utf8_lossy(&ok.stderr)
+        );
+        assert!(ok.stdout.is_empty());
+    }
+    let mut sideways = setting;
+    sideways[1] = "sideways";
+    let bad = counter().arg(scene).args(sideways).output().unwrap();
+    assert_eq!(bad.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("unknown strategy \"sideways\""));
+    // The shared libraries each loads, where `ldd` can tell.
+    let libraries = |exe: &str| {
+        Command::new("ldd")
+            .arg(exe)
+            .output()
+            .ok()
+            .map(|o| String::from_utf8_lossy(&o.stdout).lines().count())
+    };
+    if let (Some(counting), Some(all)) = (
+        libraries(env!("CARGO_BIN_EXE_incise-count-frames")),
+        libraries(env!("CARGO_BIN_EXE_incise")),
+    ) && cfg!(feature = "opencv")
+    {
+        assert!(
+            4 * counting < all,
+            "{counting} libraries against incise's {all}"
+        );
+    }
+}

@@ -180,24 +180,17 @@ pub(super) fn report_command(dirs: &[PathBuf], out: &Path, quick: bool) -> Resul
     Ok(())
 }
 
-pub(super) fn count_frames_command(
-    dir: &Path,
-    strategy: &str,
-    [newton, pcg]: [u32; 2],
-    line_search: u32,
-    frames: usize,
-    real: Precision,
-) -> Result<(), Failure> {
-    let strategy = crate::report::SweepSetting::strategy_name(strategy)
-        .ok_or_else(|| format!("unknown strategy {strategy:?}"))?;
+pub(super) fn count_frames_command(args: &super::CountFramesArgs) -> Result<(), Failure> {
+    let strategy = crate::report::SweepSetting::strategy_name(&args.strategy)
+        .ok_or_else(|| format!("unknown strategy {:?}", args.strategy))?;
     let setting = crate::report::SweepSetting {
         strategy,
-        newton,
-        pcg,
-        precision: real,
-        line_search,
+        newton: args.newton,
+        pcg: args.pcg,
+        precision: args.real,
+        line_search: args.line_search,
     };
-    crate::report::page::count_frames(dir, &setting, frames)?;
+    crate::report::page::count_frames(&args.scene, &setting, args.frames)?;
     Ok(())
 }
 

@@ -4,7 +4,7 @@ use std::fmt;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
-use clap::{Parser, Subcommand};
+use clap::{Args, Parser, Subcommand};
 
 use crate::generate::pipeline::ModelMesh;
 use crate::run::{RunOptions, run_scene};
@@ -121,30 +121,9 @@ pub enum Command {
         quick: bool,
     },
     /// Steps a scene's model with one solver setting and prints nothing: what `report` counts
-    /// under callgrind.
+    /// under callgrind (the `incise-count-frames` program does the same, linking less).
     #[command(hide = true)]
-    CountFrames {
-        /// The scene directory.
-        scene: PathBuf,
-        /// `refactor`, `frozen` or `factor-once`.
-        #[arg(long)]
-        strategy: String,
-        /// Newton steps per frame.
-        #[arg(long)]
-        newton: u32,
-        /// PCG steps.
-        #[arg(long)]
-        pcg: u32,
-        /// Line-search trials per Newton step.
-        #[arg(long)]
-        line_search: u32,
-        /// Frames to step after frame 0.
-        #[arg(long)]
-        frames: usize,
-        /// The scalar type the core computes in.
-        #[arg(long, value_enum, default_value_t = Precision::F64)]
-        real: Precision,
-    },
+    CountFrames(CountFramesArgs),
     /// Count the instructions of every frame of a scene with callgrind (needs valgrind), with
     /// the scene's own solver setting: one CSV line per frame (frame, instructions, whether it
     /// cut the mesh). Deterministic: the numbers a worst-case timing test can assert.
@@ -330,6 +309,46 @@ macro_rules! outln {
 mod commands;
 use commands::*;
 
+/// What the hidden `count-frames` subcommand and the `incise-count-frames` program take: one
+/// scene and one solver setting, stepped with nothing printed, for callgrind to count.
+#[derive(Args, Debug)]
+pub struct CountFramesArgs {
+    /// The scene directory.
+    pub scene: PathBuf,
+    /// `refactor`, `frozen` or `factor-once`.
+    #[arg(long)]
+    pub strategy: String,
+    /// Newton steps per frame.
+    #[arg(long)]
+    pub newton: u32,
+    /// PCG steps.
+    #[arg(long)]
+    pub pcg: u32,
+    /// Line-search trials per Newton step.
+    #[arg(long)]
+    pub line_search: u32,
+    /// Frames to step after frame 0.
+    #[arg(long)]
+    pub frames: usize,
+    /// The scalar type the core computes in.
+    #[arg(long, value_enum, default_value_t = Precision::F64)]
+    pub real: Precision,
+}
+
+/// Runs `count-frames` with `args` and returns the exit status (0, or 1 after a message on
+/// standard error): the whole of the `incise-count-frames` program, which calls this alone so
+/// that it links neither the video driver nor the rest of the command line.
+pub fn count_frames(args: &CountFramesArgs) -> i32 {
+    match count_frames_command(args) {
+        Ok(()) => 0,
+        Err(Failure::BrokenPipe) => BROKEN_PIPE_STATUS,
+        Err(Failure::Message(message)) => {
+            let _ = writeln!(std::io::stderr(), "incise-count-frames: {message}");
+            1
+        }
+    }
+}
+
 /// Runs the parsed command line; returns the process exit code: 0, 1 after an error (printed
 /// on standard error), or [`BROKEN_PIPE_STATUS`] if standard output was closed early.
 pub fn run(cli: Cli) -> i32 {
@@ -421,15 +440,7 @@ pub fn run(cli: Cli) -> i32 {
             real,
         } => instructions_command(&scene, frames, real),
         Command::Report { scenes, out, quick } => report_command(&scenes, &out, quick),
-        Command::CountFrames {
-            scene,
-            strategy,
-            newton,
-            pcg,
-            line_search,
-            frames,
-            real,
-        } => count_frames_command(&scene, &strategy, [newton, pcg], line_search, frames, real),
+        Command::CountFrames(args) => count_frames_command(&args),
     };
     match result {
         Ok(()) => 0,

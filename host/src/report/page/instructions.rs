@@ -29,12 +29,16 @@ pub fn per_frame(
     let exe = std::env::current_exe().map_err(|e| format!("the incise binary: {e}"))?;
     let dir = super::scratch_dir("callgrind")?;
     let out = dir.path().join("cg");
-    let output = Command::new("valgrind")
+    let mut valgrind = Command::new("valgrind");
+    valgrind
         .arg("--tool=callgrind")
         .arg("--dump-before=*incise_core*Model*step*")
-        .arg(format!("--callgrind-out-file={}", out.display()))
-        .arg(&exe)
-        .arg("count-frames")
+        .arg(format!("--callgrind-out-file={}", out.display()));
+    match counting_program(&exe) {
+        Some(counter) => valgrind.arg(counter),
+        None => valgrind.arg(&exe).arg("count-frames"),
+    };
+    let output = valgrind
         .arg(scene_dir)
         .args(["--strategy", setting.strategy])
         .args(["--newton", &setting.newton.to_string()])
@@ -75,6 +79,18 @@ pub(super) fn mean_of_own_setting(
     Ok(Some(
         counts.iter().map(|&c| c as f64).sum::<f64>() / counts.len().max(1) as f64,
     ))
+}
+
+/// The `incise-count-frames` program beside the binary `exe`, if it was built there (`cargo
+/// build` builds it with `incise`; `cargo run` builds only the program it runs): it steps the
+/// model as `incise count-frames` does, but without the video driver's shared libraries, which
+/// valgrind would load and run the start-up code of on every counted run. The counts are the
+/// same step by step, up to the few thousand instructions between two steps that differ with
+/// the binary.
+fn counting_program(exe: &Path) -> Option<std::path::PathBuf> {
+    let name = format!("incise-count-frames{}", std::env::consts::EXE_SUFFIX);
+    let counter = exe.with_file_name(name);
+    counter.is_file().then_some(counter)
 }
 
 /// Whether callgrind can be run here.
