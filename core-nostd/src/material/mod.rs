@@ -15,7 +15,7 @@
 //!    [`element_energy_gradient_tangent`]): `W = V Ψ(F)`, its gradient `∂W/∂x_a = V P g_a` and
 //!    its 12 × 12 tangent, the latter optionally made positive semidefinite
 //!    ([`TangentProjection`]) so that the assembled stiffness can be handed to a Cholesky /
-//!    LDLᵀ factorization; the projection's small dense kernel, a fixed-cost 3 × 3 Jacobi
+//!    LDLᵀ factorization; the projection's small dense kernel, a fixed-cost closed-form 3 × 3
 //!    eigen-solve, is `eigen3`.
 //! 4. **Inversion barrier** (`barrier`: [`InversionBarrier`]): an energy on `det F`, zero
 //!    unless an element is compressed below a floor, that SVK lacks; the assembly adds it to
@@ -29,8 +29,9 @@
 //!
 //! SVK is a polynomial in `F`, so every quantity here is finite for finite, moderately sized
 //! inputs, including inverted (`det F < 0`) and collapsed (`F = 0`) elements: nothing divides by
-//! a quantity of the current configuration. The one place that divides, the Jacobi rotation of
-//! the positive semidefinite projection, guards its divisor.
+//! a quantity of the current configuration. The one place that divides, the eigen-solve of
+//! the positive semidefinite projection, scales the stress by its largest entry first and
+//! guards each of its divisors.
 
 mod barrier;
 mod eigen3;
@@ -42,7 +43,7 @@ mod neohookean;
 use nalgebra::{Matrix3, Vector3};
 
 use crate::real::Real;
-use eigen3::symmetric_eigen3;
+use eigen3::positive_part_closed_form;
 use law::{energy_density_of_strain, green_strain_of_displacement, stress_from_strain};
 
 pub use barrier::InversionBarrier;
@@ -165,7 +166,7 @@ pub enum TangentProjection {
     /// A positive semidefinite modification, cheap and PSD by construction:
     ///
     /// - The geometric term `(g_aᵀ S g_b) I` uses `S⁺ = Q max(Λ, 0) Qᵀ` in place of `S`, from a
-    ///   fixed-cost Jacobi eigen-decomposition `S = Q Λ Qᵀ`. As a quadratic form it is
+    ///   fixed-cost closed-form eigen-decomposition `S = Q Λ Qᵀ`. As a quadratic form it is
     ///   `Σ_i v_iᵀ S⁺ v_i` over the rows `v_i` of `δF`, hence PSD. When no eigenvalue of `S` is
     ///   negative, `S` itself is used, so the tangent is then the exact one. The eigen-solve
     ///   runs for every element, so a frame's cost does not follow the strain; the
@@ -250,7 +251,7 @@ fn gradient_from_stress<T: Real>(
 /// With `f_a = F g_a`, the tangent blocks are
 /// `K_ab = V [(g_aᵀ S g_b) I + λ f_a f_bᵀ + μ f_b f_aᵀ + μ (g_a · g_b) F Fᵀ]`
 /// (the first term geometric, the rest material), modified per `projection`. The cost is
-/// bounded independently of the data: the projection runs a fixed number of Jacobi sweeps, and
+/// bounded independently of the data: the projection runs the same closed-form eigen-solve, and
 /// is skipped (cheaper, never dearer) when the stress is positive definite.
 pub fn element_energy_gradient_tangent<T: Real>(
     lame: &Lame<T>,
@@ -386,15 +387,7 @@ fn positive_part<T: Real>(s: &Matrix3<T>) -> Matrix3<T> {
     if cfg!(feature = "psd-shortcut") && positive_definite(s) {
         return *s;
     }
-    let (lam, q) = symmetric_eigen3(s);
-    if lam.iter().all(|&l| l >= T::zero()) {
-        return *s;
-    }
-    let mut out = Matrix3::zeros();
-    for (qi, &l) in q.column_iter().zip(lam.iter()) {
-        out += qi * qi.transpose() * l.max(T::zero());
-    }
-    out
+    positive_part_closed_form(s)
 }
 
 /// Whether symmetric `s` is positive definite, by Sylvester's criterion (its leading principal

@@ -1,7 +1,9 @@
 //! Unit tests of the laws and the element quantities: finite differences, closed forms,
 //! eigen-solves and extreme deformations.
 
-use super::eigen3::{JACOBI_SWEEPS, jacobi};
+use super::eigen3::{
+    JACOBI_SWEEPS, eigensystem, jacobi, positive_part_closed_form, symmetric_eigen3,
+};
 use super::element::nodes;
 use super::*;
 use crate::error::{Error, Parameter, Resource};
@@ -697,6 +699,104 @@ fn jacobi_is_accurate_after_fixed_sweeps() {
     assert_eq!(
         symmetric_eigen3(&d),
         (Vector3::new(3.0, -1.0, 0.0), Matrix3::identity())
+    );
+}
+
+/// `S⁺` through the Jacobi eigen-decomposition: `Q max(Λ, 0) Qᵀ`, the projection the closed
+/// form replaced.
+fn positive_part_by_jacobi(s: &Matrix3<f64>) -> Matrix3<f64> {
+    let (lam, q) = symmetric_eigen3(s);
+    let mut out = Matrix3::zeros();
+    for (qi, &l) in q.column_iter().zip(lam.iter()) {
+        out += qi * qi.transpose() * l.max(0.0);
+    }
+    out
+}
+
+#[test]
+fn the_closed_form_projection_matches_jacobi_and_stays_semidefinite() {
+    let mut rng = Rng(13);
+    let mut cases = [Matrix3::<f64>::zeros(); 20006];
+    cases[1] = Matrix3::identity() * -2.0;
+    cases[2] = Matrix3::from_diagonal(&Vector3::new(3.0, -1.0, 2.0));
+    cases[3] = Matrix3::from_diagonal(&Vector3::new(-3.0, -1.0, 2.0));
+    cases[4] = Matrix3::from_diagonal(&Vector3::new(0.0, -1.0, 0.0));
+    cases[5] = Matrix3::new(1.0, 2.0, 0.0, 2.0, 1.0, 0.0, 0.0, 0.0, -0.5);
+    for case in cases.iter_mut().skip(6) {
+        let q = rng.rotation();
+        let scale = 10f64.powf(rng.range(-8.0, 8.0));
+        let d = match rng.next_u64() % 6 {
+            0 => rng.vec3(1.0),
+            // A double eigenvalue, negative or not, beside a third of either sign.
+            1 => {
+                let a = rng.range(-1.0, 1.0);
+                Vector3::new(a, a, rng.range(-1.0, 1.0))
+            }
+            // Clustered about zero: the sign decisions and the eigenvector are hardest.
+            2 => Vector3::new(
+                rng.range(-1e-9, 1e-9),
+                rng.range(-1e-9, 1e-9),
+                rng.range(-1.0, 1.0),
+            ),
+            3 => {
+                let a = rng.range(-1.0, 1.0);
+                Vector3::new(a, a + 1e-9, a - 1e-7)
+            }
+            // One eigenvalue dominating.
+            4 => Vector3::new(1.0, rng.range(-1e-8, 1e-8), rng.range(-1e-3, 1e-3)),
+            // Tension with one slightly compressed direction, the common indefinite stress.
+            _ => Vector3::new(1.0, rng.range(0.0, 1.0), -rng.range(0.0, 1e-2)),
+        };
+        let a = q * Matrix3::from_diagonal(&(d * scale)) * q.transpose();
+        *case = (a + a.transpose()) * 0.5;
+    }
+    let mut worst: f64 = 0.0;
+    for s in &cases {
+        let norm = s.norm().max(f64::MIN_POSITIVE);
+        let ours = positive_part_closed_form(s);
+        let jacobi = positive_part_by_jacobi(s);
+        let error = (ours - jacobi).norm() / norm;
+        worst = worst.max(error);
+        assert!(
+            error <= 1e-14,
+            "{error:e} off the Jacobi projection for {s}"
+        );
+        assert_eq!(ours, ours.transpose(), "not symmetric for {s}");
+        let eig = SymmetricEigen::new(ours).eigenvalues;
+        assert!(
+            eig.min() >= -1e-14 * norm,
+            "not semidefinite ({eig}) for {s}"
+        );
+        // The eigensystem in closed form against nalgebra's eigenvalues, and as eigenpairs.
+        let a = s / s.amax().max(f64::MIN_POSITIVE);
+        let pairs = eigensystem(&a);
+        let mut closed = pairs.map(|(l, _)| l);
+        closed.sort_by(f64::total_cmp);
+        let mut reference: [f64; 3] = SymmetricEigen::new(a).eigenvalues.into();
+        reference.sort_by(f64::total_cmp);
+        for (c, r) in closed.iter().zip(reference) {
+            assert!(
+                (c - r).abs() <= 1e-14,
+                "eigenvalues {closed:?} against {reference:?}"
+            );
+        }
+        for (l, v) in pairs {
+            assert!(
+                (a * v - v * l).norm() <= 1e-14,
+                "({l}, {v}) not an eigenpair of {a}"
+            );
+            assert!((v.norm() - 1.0).abs() <= 1e-14);
+        }
+    }
+    // A semidefinite stress comes back bit for bit, as the projected tangent's exactness needs.
+    let pd = Matrix3::new(4.0, 1.0, 0.5, 1.0, 3.0, -0.2, 0.5, -0.2, 2.0);
+    assert_eq!(positive_part_closed_form(&pd), pd);
+    // Not finite: handed back for the caller's checks, never a panic.
+    let inf = Matrix3::from_diagonal(&Vector3::new(f64::INFINITY, -1.0, 2.0));
+    assert_eq!(positive_part_closed_form(&inf), inf);
+    assert!(
+        worst > 0.0,
+        "the two projections never differed: the comparison ran on nothing"
     );
 }
 
