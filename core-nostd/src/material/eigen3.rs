@@ -14,7 +14,7 @@ use crate::real::Real;
 /// four sweeps in the tests (random, clustered and repeated spectra), so five leaves a sweep of
 /// margin. Fewer sweeps never break positive semidefiniteness of the projection (that holds
 /// for any orthogonal `Q`), they only make `S⁺` a slightly less accurate projection.
-#[cfg(any(feature = "neo-hookean", test))]
+#[cfg(any(feature = "neo-hookean", all(test, feature = "f64")))]
 pub(crate) const JACOBI_SWEEPS: usize = 5;
 
 /// Eigen-decomposition `A ≈ Q diag(λ) Qᵀ` of `a` by cyclic Jacobi with a fixed
@@ -22,13 +22,13 @@ pub(crate) const JACOBI_SWEEPS: usize = 5;
 /// Returns the eigenvalues (unsorted) and `Q` (orthogonal up to rounding, eigenvectors as
 /// columns). Finite input gives finite output: the one division is skipped for a zero
 /// off-diagonal entry, and an overflowing ratio leads to the identity rotation, not NaN.
-#[cfg(any(feature = "neo-hookean", test))]
+#[cfg(any(feature = "neo-hookean", all(test, feature = "f64")))]
 pub(crate) fn symmetric_eigen3<T: Real>(a: &Matrix3<T>) -> (Vector3<T>, Matrix3<T>) {
     jacobi(a, JACOBI_SWEEPS)
 }
 
 /// [`symmetric_eigen3`] with `sweeps` cyclic sweeps.
-#[cfg(any(feature = "neo-hookean", test))]
+#[cfg(any(feature = "neo-hookean", all(test, feature = "f64")))]
 pub(crate) fn jacobi<T: Real>(a: &Matrix3<T>, sweeps: usize) -> (Vector3<T>, Matrix3<T>) {
     // The symmetric matrix by its six entries: the diagonal and `M_01`, `M_02`, `M_12` (read
     // from the upper triangle). A rotation changes only the entries of its rows and columns,
@@ -49,14 +49,14 @@ pub(crate) fn jacobi<T: Real>(a: &Matrix3<T>, sweeps: usize) -> (Vector3<T>, Mat
 }
 
 /// A symmetric 3 × 3 matrix: its diagonal and its entries `(0, 1)`, `(0, 2)`, `(1, 2)`.
-#[cfg(any(feature = "neo-hookean", test))]
+#[cfg(any(feature = "neo-hookean", all(test, feature = "f64")))]
 struct Symmetric<T> {
     diag: [T; 3],
     off: [T; 3],
 }
 
 /// An index pair `(p, r)`, `p < r`, of a cyclic sweep.
-#[cfg(any(feature = "neo-hookean", test))]
+#[cfg(any(feature = "neo-hookean", all(test, feature = "f64")))]
 #[derive(Clone, Copy)]
 enum Pair {
     P01,
@@ -64,7 +64,7 @@ enum Pair {
     P12,
 }
 
-#[cfg(any(feature = "neo-hookean", test))]
+#[cfg(any(feature = "neo-hookean", all(test, feature = "f64")))]
 impl Pair {
     /// Entries `p` and `r` of `v`, mutable.
     #[inline(always)]
@@ -91,7 +91,7 @@ impl Pair {
 
 /// One Jacobi rotation on `(p, r)`: `M ← Jᵀ M J` with `M_pr = M_rp = 0`, `Q ← Q J`; `q` by
 /// columns.
-#[cfg(any(feature = "neo-hookean", test))]
+#[cfg(any(feature = "neo-hookean", all(test, feature = "f64")))]
 #[inline(always)]
 fn rotate_pair<T: Real>(m: &mut Symmetric<T>, q: &mut [[T; 3]; 3], pair: Pair) {
     let one = T::one();
@@ -127,7 +127,7 @@ fn rotate_pair<T: Real>(m: &mut Symmetric<T>, q: &mut [[T; 3]; 3], pair: Pair) {
 }
 
 /// `(x_p, x_r) ← (c x_p − s x_r, s x_p + c x_r)`.
-#[cfg(any(feature = "neo-hookean", test))]
+#[cfg(any(feature = "neo-hookean", all(test, feature = "f64")))]
 #[inline(always)]
 fn rotate<T: Real>(xp: &mut T, xr: &mut T, c: T, s: T) {
     let (p, r) = (*xp, *xr);
