@@ -648,6 +648,29 @@ fn small_strain_matches_linear_elasticity() {
     }
 }
 
+/// A random spectrum of one of four kinds (`kind` below 4): uniform, a repeated eigenvalue,
+/// clustered eigenvalues, one eigenvalue dominating.
+fn spectrum(rng: &mut Rng, kind: u64) -> Vector3<f64> {
+    match kind {
+        0 => rng.vec3(1.0),
+        1 => {
+            let a = rng.range(-1.0, 1.0);
+            Vector3::new(a, a, rng.range(-1.0, 1.0))
+        }
+        2 => {
+            let a = rng.range(-1.0, 1.0);
+            Vector3::new(a, a + 1e-9, a - 1e-7)
+        }
+        _ => Vector3::new(1.0, rng.range(-1e-8, 1e-8), rng.range(-1e-3, 1e-3)),
+    }
+}
+
+/// `Q diag(d) Qᵀ`, symmetrised to the last bit.
+fn symmetric_with(q: &Matrix3<f64>, d: &Vector3<f64>) -> Matrix3<f64> {
+    let a = q * Matrix3::from_diagonal(d) * q.transpose();
+    (a + a.transpose()) * 0.5
+}
+
 #[test]
 fn jacobi_is_accurate_after_fixed_sweeps() {
     let mut rng = Rng(11);
@@ -657,23 +680,8 @@ fn jacobi_is_accurate_after_fixed_sweeps() {
     for case in cases.iter_mut().skip(3) {
         let q = rng.rotation();
         let scale = 10f64.powf(rng.range(-6.0, 6.0));
-        let d = match rng.next_u64() % 4 {
-            0 => rng.vec3(1.0),
-            // Repeated eigenvalue.
-            1 => {
-                let a = rng.range(-1.0, 1.0);
-                Vector3::new(a, a, rng.range(-1.0, 1.0))
-            }
-            // Clustered eigenvalues.
-            2 => {
-                let a = rng.range(-1.0, 1.0);
-                Vector3::new(a, a + 1e-9, a - 1e-7)
-            }
-            // One eigenvalue dominating.
-            _ => Vector3::new(1.0, rng.range(-1e-8, 1e-8), rng.range(-1e-3, 1e-3)),
-        };
-        let a = q * Matrix3::from_diagonal(&(d * scale)) * q.transpose();
-        *case = (a + a.transpose()) * 0.5;
+        let kind = rng.next_u64() % 4;
+        *case = symmetric_with(&q, &(spectrum(&mut rng, kind) * scale));
     }
     let mut worst_rec: f64 = 0.0;
     let mut worst_orth: f64 = 0.0;
@@ -726,29 +734,17 @@ fn the_closed_form_projection_matches_jacobi_and_stays_semidefinite() {
         let q = rng.rotation();
         let scale = 10f64.powf(rng.range(-8.0, 8.0));
         let d = match rng.next_u64() % 6 {
-            0 => rng.vec3(1.0),
-            // A double eigenvalue, negative or not, beside a third of either sign.
-            1 => {
-                let a = rng.range(-1.0, 1.0);
-                Vector3::new(a, a, rng.range(-1.0, 1.0))
-            }
             // Clustered about zero: the sign decisions and the eigenvector are hardest.
-            2 => Vector3::new(
+            4 => Vector3::new(
                 rng.range(-1e-9, 1e-9),
                 rng.range(-1e-9, 1e-9),
                 rng.range(-1.0, 1.0),
             ),
-            3 => {
-                let a = rng.range(-1.0, 1.0);
-                Vector3::new(a, a + 1e-9, a - 1e-7)
-            }
-            // One eigenvalue dominating.
-            4 => Vector3::new(1.0, rng.range(-1e-8, 1e-8), rng.range(-1e-3, 1e-3)),
             // Tension with one slightly compressed direction, the common indefinite stress.
-            _ => Vector3::new(1.0, rng.range(0.0, 1.0), -rng.range(0.0, 1e-2)),
+            5 => Vector3::new(1.0, rng.range(0.0, 1.0), -rng.range(0.0, 1e-2)),
+            kind => spectrum(&mut rng, kind),
         };
-        let a = q * Matrix3::from_diagonal(&(d * scale)) * q.transpose();
-        *case = (a + a.transpose()) * 0.5;
+        *case = symmetric_with(&q, &(d * scale));
     }
     let mut worst: f64 = 0.0;
     for s in &cases {
