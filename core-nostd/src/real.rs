@@ -26,14 +26,6 @@ pub trait Real: nalgebra::RealField + Copy + Default {
     fn libm_atan2(self, x: Self) -> Self;
     /// Sine and cosine, by the `libm` crate in every build (see [`Real::libm_atan2`]).
     fn libm_sin_cos(self) -> (Self, Self);
-    /// Bits of [`Real::order_key`] that can differ: the type's width.
-    const KEY_BITS: u32;
-    /// An integer key in the order of the values: `a < b` exactly when
-    /// `a.order_key() < b.order_key()` for finite `a`, `b` (`-0.0` and `+0.0` share a key),
-    /// and every non-finite value (`±∞`, NaN) has the largest key, after every finite one.
-    /// The key fits in the low [`Real::KEY_BITS`] bits. What the radix selection of
-    /// [`crate::robust::select_in`] sorts by.
-    fn order_key(self) -> u64;
 }
 
 #[cfg(feature = "f64")]
@@ -59,21 +51,6 @@ impl Real for f64 {
     fn libm_sin_cos(self) -> (Self, Self) {
         libm::sincos(self)
     }
-    const KEY_BITS: u32 = 64;
-    #[inline]
-    fn order_key(self) -> u64 {
-        if !self.is_finite() {
-            return u64::MAX;
-        }
-        // `+ 0.0` turns `-0.0` into `+0.0`. A negative value's bits, flipped, order it
-        // before the positives and reverse the order of the magnitudes.
-        let bits = (self + 0.0).to_bits();
-        if bits >> 63 == 1 {
-            !bits
-        } else {
-            bits | 1 << 63
-        }
-    }
 }
 
 #[cfg(feature = "f32")]
@@ -98,19 +75,5 @@ impl Real for f32 {
     #[inline]
     fn libm_sin_cos(self) -> (Self, Self) {
         libm::sincosf(self)
-    }
-    const KEY_BITS: u32 = 32;
-    #[inline]
-    fn order_key(self) -> u64 {
-        if !self.is_finite() {
-            return u64::from(u32::MAX);
-        }
-        // As for `f64`, on the 32 bits of an `f32`.
-        let bits = (self + 0.0).to_bits();
-        u64::from(if bits >> 31 == 1 {
-            !bits
-        } else {
-            bits | 1 << 31
-        })
     }
 }

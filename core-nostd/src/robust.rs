@@ -4,23 +4,23 @@
 //! The detector calibrates its thresholds from the data of each frame (see
 //! [`crate::detect`]); the median and the median absolute deviation (MAD) ignore the few large
 //! values a cut or a tracking failure produces, where the mean and the standard deviation
-//! follow them. Both need one value of known rank, not the whole order, and [`select_in`]
-//! finds it in one of two ways, each doing the same work whatever the data:
-//! - on fewer than [`RADIX_MIN`] values (a feature's few neighbour pairs), or without room for
-//!   keys, with a heap of the `h` values nearest that end (`h` at most half the values): at
-//!   most `2 n ⌈log₂ n⌉` comparisons, about half of [`sort`]'s heapsort
-//!   (`2 n ⌈log₂ n⌉ + 2 n`), since the heap is half as large and no value is taken out of it
-//!   again; up to [`KEYED_HEAP_MAX`] values the heap holds their order keys (on the stack),
-//!   whose comparisons are single integer ones;
-//! - on more (all the pairs of a frame), by radix: each value's [`Real::order_key`] is written
-//!   once to the caller's key storage ([`KEY_WORDS`] per value), then read a digit of
+//! follow them. Both need one value of known rank, not the whole order, and
+//! [`select_rounded`] finds it, rounded to single precision (a noise level needs no more; see
+//! there), in one of three ways, each doing the same work whatever the data:
+//! - on up to [`RANK_MAX`] values (a feature's neighbour pairs) by counting, for every value,
+//!   the values below it: `m²` comparisons of 32-bit integer keys, four at a time, no branch;
+//! - on more, but fewer than [`RADIX_MIN`] (or without room for keys), with a heap of the `h`
+//!   values nearest that end (`h` at most half the values): at most `2 n ⌈log₂ n⌉`
+//!   comparisons, about half of [`sort`]'s heapsort (`2 n ⌈log₂ n⌉ + 2 n`), since the heap is
+//!   half as large and no value is taken out of it again;
+//! - on more still (all the pairs of a frame), by radix: each value's [`single_key`] is
+//!   written once to the caller's key storage ([`KEY_WORDS`] per value), then read a digit of
 //!   [`RADIX_BITS`] bits at a time from the top, one pass over the keys per digit counting
-//!   those that share the digits found so far, and one pass fetches the value: `n` visits per
-//!   pass and [`RADIX_BINS`] per digit. On the liver's 4,600 pairs it takes a third of the
-//!   heap's instructions.
+//!   those that share the digits found so far: `n` visits per pass and [`RADIX_BINS`] per
+//!   digit, four passes; the rank's key is the value.
 //!
-//! Neither recursion nor storage beyond the caller's and one array of [`RADIX_BINS`] counts on
-//! the stack.
+//! Neither recursion nor storage beyond the caller's, one array of [`RADIX_BINS`] counts and
+//! one of [`RANK_MAX`] keys on the stack.
 
 use crate::real::Real;
 
@@ -89,8 +89,8 @@ fn sift<X: Copy>(
     }
 }
 
-/// Values from which [`select_in`] finds a rank by radix instead of with a heap: from here on
-/// the radix's fixed steps stay below the heap's bound (from 257 values on), and it takes fewer
+/// Values from which [`select_rounded`] finds a rank by radix instead of with a heap: from
+/// here on the radix's fixed steps stay well below the heap's bound, and it takes fewer
 /// instructions than the heap (a frame's 400 feature changes: about a third); below it the
 /// per-digit count of [`RADIX_BINS`] would weigh.
 pub const RADIX_MIN: usize = 300;
@@ -101,33 +101,61 @@ pub const RADIX_BITS: u32 = 8;
 /// Counts per radix pass, one per digit value.
 pub const RADIX_BINS: usize = 1 << RADIX_BITS;
 
-/// Key storage per value of the radix selection: a key's high and low 32 bits.
-pub const KEY_WORDS: usize = 2;
+/// Key storage per value of the radix selection: one word, the single-precision order key
+/// ([`single_key`]).
+pub const KEY_WORDS: usize = 1;
 
-/// Most steps [`select_in`] makes on `n` values with room for their keys, whatever the rank
-/// and the scalar type: comparisons of the heap (`2 n ⌈log₂ n⌉`) below [`RADIX_MIN`] values,
-/// and from there the radix's visits: `n` to write the keys, `n + RADIX_BINS` per digit of a
-/// 64-bit key and `n` to fetch the value (an `f32` key has half as many digits). Never above
-/// `2 n ⌈log₂ n⌉`.
+/// Values up to which [`select_rounded`] finds a rank by counting, for each value, the
+/// values below it: `m²` comparisons of integer keys, four to a vector
+/// (SSE2's `pcmpgtd`), with no branch on the data; the keys are held in an array of this
+/// many on the stack. On a feature's 20 to 30 pairs this takes about as many instructions as
+/// the heap on order keys it replaced (on the liver, about 2,000 a tertile), whose
+/// comparisons (`2 m ⌈log₂ m⌉`) each branched on the data and swapped.
+pub const RANK_MAX: usize = 64;
+
+/// Lanes of the rank count: the keys are padded to a multiple of this many.
+const RANK_LANES: usize = 4;
+
+/// Most steps [`select_rounded`] makes on `n` values with room for their keys, whatever the
+/// rank and the scalar type: up to [`RANK_MAX`] values the rank count's comparisons
+/// (`n · ⌈n/4⌉·4`), below [`RADIX_MIN`] the heap's (`2 n ⌈log₂ n⌉`), and from there the
+/// radix's visits: `n` to write the keys and `n + RADIX_BINS` per digit of a 32-bit key.
 pub const fn select_bound(n: u64) -> u64 {
-    if n < RADIX_MIN as u64 {
+    if n <= RANK_MAX as u64 {
+        rank_steps(n)
+    } else if n < RADIX_MIN as u64 {
         heap_select_bound(n)
     } else {
-        radix_steps(n, 64)
+        radix_steps(n)
     }
 }
 
-/// Most comparisons of the heap selection on `n` values ([`select`]), and so a bound on
-/// [`select_in`]'s steps too. `m ↦ heap_select_bound(m) / m` grows with `m`, so it also bounds
-/// the sum of selections on parts of `n` values ([`select_bound`] is lower, but not monotone
-/// that way).
+/// Most steps of [`select_rounded`] per value, over selections of at most `m` values each:
+/// a bound on `Σ select_bound(mᵢ) / Σ mᵢ` for any parts `mᵢ ≤ m`. The rank count takes
+/// `⌈mᵢ/4⌉·4 ≤ 64` per value, the heap `2 ⌈log₂ mᵢ⌉ < 64` and the radix fewer than 9.
+pub const fn select_rate_bound(m: u64) -> u64 {
+    if m <= RANK_MAX as u64 {
+        m.div_ceil(RANK_LANES as u64) * RANK_LANES as u64
+    } else {
+        RANK_MAX as u64
+    }
+}
+
+/// Comparisons of the rank count on `n` values: each against the padded `n`.
+const fn rank_steps(n: u64) -> u64 {
+    n * (n.div_ceil(RANK_LANES as u64) * RANK_LANES as u64)
+}
+
+/// Most comparisons of the heap selection on `n` values ([`select`]).
+/// `m ↦ heap_select_bound(m) / m` grows with `m`, so it also bounds the sum of heap
+/// selections on parts of `n` values.
 pub const fn heap_select_bound(n: u64) -> u64 {
     2 * n * ceil_log2(n)
 }
 
-/// Steps of the radix selection on `n` values with keys of `key_bits` bits.
-const fn radix_steps(n: u64, key_bits: u32) -> u64 {
-    (key_bits / RADIX_BITS) as u64 * (n + RADIX_BINS as u64) + 2 * n
+/// Steps of the radix selection on `n` values (32-bit keys).
+const fn radix_steps(n: u64) -> u64 {
+    (32 / RADIX_BITS) as u64 * (n + RADIX_BINS as u64) + n
 }
 
 /// Whether `a` orders before `b`: ascending, with every non-finite value (`±∞`, NaN) after
@@ -140,15 +168,11 @@ fn less<T: Real>(a: T, b: T) -> bool {
 
 /// The value of rank `k` (0-based, ascending as [`sort`] orders) of `v` by the heap
 /// selection (see the module's docs), and the comparisons made (within
-/// [`heap_select_bound`]); zero (and none) when `k` is out of range. `v` may be reordered
-/// (above [`KEYED_HEAP_MAX`] values, where the heap runs on the values themselves).
+/// [`heap_select_bound`]); zero (and none) when `k` is out of range. `v` may be reordered.
 pub fn select<T: Real>(v: &mut [T], k: usize) -> (T, u64) {
     let n = v.len();
     if k >= n {
         return (T::zero(), 0);
-    }
-    if n <= KEYED_HEAP_MAX {
-        return keyed_select(v, k);
     }
     // A heap holds the `h = min(k + 1, n − k)` values nearest the nearer end, the rank-`k`
     // one at its root (a max-heap of the `k + 1` smallest, or a min-heap of the `n − k`
@@ -165,125 +189,154 @@ pub fn select<T: Real>(v: &mut [T], k: usize) -> (T, u64) {
     (v.first().copied().unwrap_or_else(T::zero), comparisons)
 }
 
-/// Values up to which [`select`] runs its heap on the values' order keys
-/// ([`Real::order_key`], in an array of this many on the stack) instead of on the values: the
-/// same comparisons with the same outcomes (the keys order as the values' comparison does),
-/// each one integer comparison instead of that comparison's tests for finite values. The
-/// liver's per-feature tertiles (about 23 pairs each) took about a tenth fewer instructions
-/// so: the heap's walk, not its comparisons, is most of its cost.
-pub const KEYED_HEAP_MAX: usize = 64;
-
-/// [`select`] on the order keys of `v` (at most [`KEYED_HEAP_MAX`] values, `k` below their
-/// count): the heap runs on the keys, then the first value with the rank's key is fetched.
-/// Values with equal keys are equal (or both non-finite, as for [`select`]), so the value is
-/// the rank's; `v` is left as it was.
-fn keyed_select<T: Real>(v: &[T], k: usize) -> (T, u64) {
-    let n = v.len();
-    let mut keys = [0u64; KEYED_HEAP_MAX];
-    let keys = match keys.get_mut(..n) {
-        Some(keys) => keys,
-        None => return (T::zero(), 0),
-    };
-    for (key, x) in keys.iter_mut().zip(v) {
-        *key = x.order_key();
-    }
-    let comparisons = if k < n - k {
-        heap_select(keys, k + 1, |a, b| b < a)
+/// `x` rounded to single precision (to nearest; a finite value beyond `f32`'s range to
+/// `±f32::MAX`, so that the rounding keeps the order), as a value of `T`: what
+/// [`select_rounded`] returns of the rank's value. Non-finite values are left as they are;
+/// the identity for `f32`.
+pub fn round_single<T: Real>(x: T) -> T {
+    if x.finite() {
+        T::of(f64::from(to_single(x)))
     } else {
-        heap_select(keys, n - k, |a, b| a < b)
+        x
+    }
+}
+
+/// A finite `x` rounded to single precision, `±f32::MAX` beyond its range.
+fn to_single<T: Real>(x: T) -> f32 {
+    let max = f64::from(f32::MAX);
+    x.to_f64().max(-max).min(max) as f32
+}
+
+/// The order key of `x` rounded to single precision ([`round_single`]): `a` orders before
+/// `b` (as [`sort`] orders, `-0.0` and `+0.0` alike, every non-finite value last) only if
+/// `single_key(a) <= single_key(b)`, and the keys are equal exactly when the rounded values
+/// are (or both are non-finite). The rounding is monotone, so the rank `k` of the keys is the
+/// key of the rounded rank-`k` value. Without a branch, so that a loop of them vectorises.
+#[inline]
+pub fn single_key<T: Real>(x: T) -> u32 {
+    // `+ 0.0` turns `-0.0` into `+0.0`. A negative value's bits, flipped, order it before
+    // the positives and reverse the order of the magnitudes; a positive one's sign bit set
+    // orders it after them.
+    let bits = (to_single(x) + 0.0).to_bits();
+    let negative = ((bits as i32) >> 31) as u32;
+    let key = bits ^ (negative | 1 << 31);
+    if x.finite() { key } else { u32::MAX }
+}
+
+/// The value whose [`single_key`] is `key` (`+∞` for the non-finite values' key).
+fn from_single_key<T: Real>(key: u32) -> T {
+    let bits = if key == u32::MAX {
+        return T::of(f64::INFINITY);
+    } else if key >> 31 == 1 {
+        key & !(1 << 31)
+    } else {
+        !key
     };
-    let rank_key = keys.first().copied().unwrap_or(u64::MAX);
-    // Every value is visited, found or not: the instructions do not follow the data.
-    let mut value = None;
-    for &x in v {
-        if value.is_none() && x.order_key() == rank_key {
-            value = Some(x);
-        }
-    }
-    (value.unwrap_or_else(T::zero), comparisons)
+    T::of(f64::from(f32::from_bits(bits)))
 }
 
-/// The value of rank `k` of `v` as [`select`], by radix when there are at least
-/// [`RADIX_MIN`] values and `keys` holds [`KEY_WORDS`] per value (its contents are
-/// overwritten), otherwise by the heap; and the steps made (within [`select_bound`] in the
-/// first case). `v` may be reordered.
-pub fn select_in<T: Real>(v: &mut [T], k: usize, keys: &mut [u32]) -> (T, u64) {
+/// The value of rank `k` of `v` rounded to single precision ([`round_single`] of the value
+/// [`select`] finds; zero when `k` is out of range), and the steps made (within
+/// [`select_bound`] when `keys` holds [`KEY_WORDS`] per value, whose contents are then
+/// overwritten). Up to [`RANK_MAX`] values by counting ranks, from
+/// [`RADIX_MIN`] on by radix, between the two (or without room for keys) with a heap. `v`
+/// may be reordered.
+///
+/// Why rounded: the detector's medians, deviations and tertiles are noise levels, for which
+/// a relative 6·10⁻⁸ is nothing, and a 32-bit key halves the radix's passes and its storage
+/// against a 64-bit one and lets the rank count compare four keys at once.
+pub fn select_rounded<T: Real>(v: &mut [T], k: usize, keys: &mut [u32]) -> (T, u64) {
     let n = v.len();
+    if k >= n {
+        return (T::zero(), 0);
+    }
+    if n <= RANK_MAX {
+        return rank_select(v, k);
+    }
     match keys.get_mut(..KEY_WORDS.saturating_mul(n)) {
-        Some(keys) if n >= RADIX_MIN && k < n => radix_select(v, k, keys),
-        _ => select(v, k),
+        Some(keys) if n >= RADIX_MIN => radix_select(v, k, keys),
+        _ => {
+            let (value, comparisons) = select(v, k);
+            (round_single(value), comparisons)
+        }
     }
 }
 
-/// The value of rank `k < v.len()` by radix on [`Real::order_key`], most significant digit
-/// first, and its steps ([`radix_steps`]); `keys` holds two words per value. Every pass visits
-/// every key, so the work is the same for any data. Equal keys are equal values (or both
-/// non-finite), so the value fetched at the end, the first with the rank's key, is the rank's
-/// value.
-fn radix_select<T: Real>(v: &[T], k: usize, keys: &mut [u32]) -> (T, u64) {
+/// The rank-`k` value (`k < v.len() ≤ RANK_MAX`) rounded to single precision, by counting
+/// for each value the values below it: the rank-`k` key is the largest key with at most `k`
+/// keys below it (any larger key has the `k + 1` keys up to the rank's below it). Every
+/// value is compared with every other, four keys at a time (padded with the largest key,
+/// which is below none), so the work is [`rank_steps`] whatever the data, and no branch
+/// depends on it. `v` is left as it was.
+fn rank_select<T: Real>(v: &[T], k: usize) -> (T, u64) {
     let n = v.len();
-    let (high, low) = keys.split_at_mut(n);
-    for ((x, h), l) in v.iter().zip(high.iter_mut()).zip(low.iter_mut()) {
-        let key = x.order_key();
-        *h = (key >> 32) as u32;
-        *l = key as u32;
+    // Signed keys in the same order (`x ^ 2³¹`), for the signed vector comparison.
+    let mut keys = [[i32::MAX; RANK_LANES]; RANK_MAX / RANK_LANES];
+    for (key, &x) in keys.as_flattened_mut().iter_mut().zip(v) {
+        *key = (single_key(x) ^ 1 << 31) as i32;
     }
-    // The key's digits found so far, and the rank still to find among the keys that share
-    // them. An `f32` key has no high word (it is zero): its passes start on the low one.
-    let mut prefix = [0u32; 2];
-    let mut rank = k;
-    let mut counts = [0u32; RADIX_BINS];
-    let words: &[usize] = if T::KEY_BITS > 32 { &[0, 1] } else { &[1] };
-    for &word in words {
-        let mut shift = 32;
-        while shift >= RADIX_BITS {
-            // The bits of this word above the digit this pass reads.
-            let known = if shift >= 32 { 0 } else { u32::MAX << shift };
-            shift -= RADIX_BITS;
-            let [high_prefix, low_prefix] = prefix;
-            counts.fill(0);
-            if word == 0 {
-                for &h in high.iter() {
-                    if h & known == high_prefix {
-                        count(&mut counts, h >> shift);
-                    }
-                }
-            } else {
-                for (&h, &l) in high.iter().zip(low.iter()) {
-                    if h == high_prefix && l & known == low_prefix {
-                        count(&mut counts, l >> shift);
-                    }
-                }
-            }
-            // The digit whose keys hold the rank: the counts before it are ranks below.
-            // Every count is read, found or not: the instructions do not follow the data.
-            let mut found = false;
-            for (digit, &c) in counts.iter().enumerate() {
-                let c = c as usize;
-                if found {
-                    continue;
-                }
-                if rank < c {
-                    if let Some(p) = prefix.get_mut(word) {
-                        *p |= (digit as u32) << shift;
-                    }
-                    found = true;
-                } else {
-                    rank -= c;
-                }
+    let keys = keys.get(..n.div_ceil(RANK_LANES)).unwrap_or_default();
+    let mut rank_key = i32::MIN;
+    for &x in keys.as_flattened().iter().take(n) {
+        let mut below = [0i32; RANK_LANES];
+        for chunk in keys {
+            for (b, &y) in below.iter_mut().zip(chunk) {
+                *b += i32::from(y < x);
             }
         }
-    }
-    let mut value = None;
-    for ((&x, &h), &l) in v.iter().zip(high.iter()).zip(low.iter()) {
-        if value.is_none() && [h, l] == prefix {
-            value = Some(x);
+        let below: i32 = below.iter().sum();
+        if below as usize <= k {
+            rank_key = rank_key.max(x);
         }
     }
     (
-        value.unwrap_or_else(T::zero),
-        radix_steps(n as u64, T::KEY_BITS),
+        from_single_key((rank_key as u32) ^ 1 << 31),
+        rank_steps(n as u64),
     )
+}
+
+/// The rank-`k` value (`k < v.len()`) rounded to single precision, by radix on
+/// [`single_key`], most significant digit first, and its steps ([`radix_steps`]); `keys`
+/// holds a word per value. Every pass visits every key, so the work is the same for any
+/// data; the value is the rank's key decoded, with no pass to fetch it.
+fn radix_select<T: Real>(v: &[T], k: usize, keys: &mut [u32]) -> (T, u64) {
+    let n = v.len();
+    for (x, key) in v.iter().zip(keys.iter_mut()) {
+        *key = single_key(*x);
+    }
+    // The key's digits found so far, and the rank still to find among the keys that share
+    // them.
+    let mut prefix = 0u32;
+    let mut rank = k;
+    let mut counts = [0u32; RADIX_BINS];
+    let mut shift = 32;
+    while shift >= RADIX_BITS {
+        // The bits above the digit this pass reads.
+        let known = if shift >= 32 { 0 } else { u32::MAX << shift };
+        shift -= RADIX_BITS;
+        counts.fill(0);
+        for &key in keys.iter() {
+            if key & known == prefix {
+                count(&mut counts, key >> shift);
+            }
+        }
+        // The digit whose keys hold the rank: the counts before it are ranks below.
+        // Every count is read, found or not: the instructions do not follow the data.
+        let mut found = false;
+        for (digit, &c) in counts.iter().enumerate() {
+            let c = c as usize;
+            if found {
+                continue;
+            }
+            if rank < c {
+                prefix |= (digit as u32) << shift;
+                found = true;
+            } else {
+                rank -= c;
+            }
+        }
+    }
+    (from_single_key(prefix), radix_steps(n as u64))
 }
 
 /// Counts one key whose digit is the low [`RADIX_BITS`] bits of `digit`.
@@ -339,13 +392,14 @@ pub fn quantile_sorted<T: Real>(v: &[T], q: T) -> T {
 }
 
 /// The value at fraction `q` of the first `count` values of `v` (as [`quantile_sorted`] of
-/// them sorted), and the steps made ([`select_in`], with `keys` its key storage); zero for
+/// them sorted, rounded to single precision), and the steps made ([`select_rounded`], with
+/// `keys` its key storage); zero for
 /// `count` 0. The values from `count` on are overwritten with `+∞` and take part, so that the
 /// work depends on `v.len()`, not on `count` (see [`median_mad_of`]); `v` may be reordered.
 pub fn quantile_of<T: Real>(v: &mut [T], count: usize, q: T, keys: &mut [u32]) -> (T, u64) {
     let count = count.min(v.len());
     pad(v, count);
-    let (value, comparisons) = select_in(v, quantile_index(count, q), keys);
+    let (value, comparisons) = select_rounded(v, quantile_index(count, q), keys);
     if count == 0 {
         (T::zero(), comparisons)
     } else {
@@ -353,7 +407,8 @@ pub fn quantile_of<T: Real>(v: &mut [T], count: usize, q: T, keys: &mut [u32]) -
     }
 }
 
-/// Median and MAD of `v` (reordered and then overwritten with the absolute deviations);
+/// Median and MAD of `v` (reordered and then overwritten with the absolute deviations), each
+/// rounded to single precision (the MAD that of the deviations from the rounded median);
 /// returns `(median, mad, comparisons)`. The MAD of normally distributed values is 0.6745
 /// standard deviations.
 pub fn median_mad<T: Real>(v: &mut [T]) -> (T, T, u64) {
@@ -367,7 +422,7 @@ pub fn median_mad<T: Real>(v: &mut [T]) -> (T, T, u64) {
 /// frame select among as many, however many of them it measured. The `+∞`s order after every
 /// finite value, and their deviations from a finite median are `+∞` again (from any other
 /// median, NaN: still after every finite value), so the result is [`median_mad`] of
-/// `v[..count]`. `keys` is the selections' key storage ([`select_in`]).
+/// `v[..count]`. `keys` is the selections' key storage ([`select_rounded`]).
 pub fn median_mad_of<T: Real>(v: &mut [T], count: usize, keys: &mut [u32]) -> (T, T, u64) {
     let count = count.min(v.len());
     let (median, mut comparisons) = quantile_of(v, count, T::of(0.5), keys);
@@ -375,7 +430,7 @@ pub fn median_mad_of<T: Real>(v: &mut [T], count: usize, keys: &mut [u32]) -> (T
     for x in v.iter_mut() {
         *x = (*x - median).abs();
     }
-    let (mad, more) = select_in(v, quantile_index(count, T::of(0.5)), keys);
+    let (mad, more) = select_rounded(v, quantile_index(count, T::of(0.5)), keys);
     comparisons += more;
     if count == 0 {
         (T::zero(), T::zero(), comparisons)
@@ -432,6 +487,12 @@ mod tests {
         v
     }
 
+    /// Whether `got` is `expected` in the order: the same value (a `±0.0` may be the other),
+    /// or both non-finite.
+    fn same_in_order(got: f64, expected: f64) -> bool {
+        got == expected || !(got.is_finite() || expected.is_finite())
+    }
+
     #[test]
     fn select_finds_the_sorted_value_of_every_rank_within_its_bound() {
         for n in 0..=64 {
@@ -442,20 +503,18 @@ mod tests {
                     let mut v = shuffled(n, seed, seed % 2 == 1);
                     let (got, comparisons) = select(&mut v[..n], k);
                     let expected = sorted.get(k).filter(|_| k < n).copied().unwrap_or(0.0);
-                    // The same value of the order (a `±0.0` or a non-finite value may be
-                    // another of its equals).
                     assert!(
-                        got == expected || !(got.is_finite() || expected.is_finite()),
+                        same_in_order(got, expected),
                         "n {n} seed {seed} rank {k}: {got} against {expected}"
                     );
                     assert!(
-                        comparisons <= select_bound(n as u64),
+                        comparisons <= heap_select_bound(n as u64),
                         "{n} {k} {comparisons}"
                     );
                     // The values are only moved about (sorted again, equals may swap).
                     let mut after = v;
                     sort(&mut after[..n]);
-                    let same = |(a, b): (&f64, &f64)| a == b || !(a.is_finite() || b.is_finite());
+                    let same = |(a, b): (&f64, &f64)| same_in_order(*a, *b);
                     assert!(after[..n].iter().zip(&sorted[..n]).all(same));
                 }
             }
@@ -463,31 +522,51 @@ mod tests {
     }
 
     #[test]
-    fn the_keyed_heap_compares_as_the_value_heap_does() {
-        // Up to `KEYED_HEAP_MAX` values the heap runs on order keys: the same comparisons
-        // with the same outcomes as on the values under `less`, so the same count and value.
-        for n in 1..=KEYED_HEAP_MAX {
+    fn the_rank_count_finds_the_rounded_sorted_value_of_every_rank() {
+        // Up to `RANK_MAX` values: duplicates, both zeros, a NaN and `+∞`; then values that
+        // single precision rounds together (a tie it makes) or beyond its range.
+        for n in 0..=RANK_MAX {
             for seed in 0..4 {
-                for k in 0..n {
+                let mut sorted = shuffled(n, seed, seed % 2 == 1);
+                sort(&mut sorted[..n]);
+                for k in 0..=n {
                     let mut v = shuffled(n, seed, seed % 2 == 1);
-                    let (got, comparisons) = select(&mut v[..n], k);
-                    let mut w = shuffled(n, seed, seed % 2 == 1);
-                    let on_values = if k < n - k {
-                        heap_select(&mut w[..n], k + 1, |a, b| less(b, a))
-                    } else {
-                        heap_select(&mut w[..n], n - k, less)
-                    };
-                    assert_eq!(comparisons, on_values, "n {n} seed {seed} rank {k}");
-                    let expected = w[0];
+                    let before = v;
+                    let (got, steps) = select_rounded(&mut v[..n], k, &mut []);
+                    let expected = sorted.get(k).filter(|_| k < n).copied().unwrap_or(0.0);
                     assert!(
-                        got.to_bits() == expected.to_bits()
-                            || got == expected
-                            || !(got.is_finite() || expected.is_finite()),
+                        same_in_order(got, round_single(expected)),
                         "n {n} seed {seed} rank {k}: {got} against {expected}"
                     );
+                    if k < n {
+                        assert_eq!(steps, rank_steps(n as u64));
+                        assert!(steps <= select_bound(n as u64));
+                    }
+                    // Left as it was.
+                    let same = |(a, b): (&f64, &f64)| a.to_bits() == b.to_bits();
+                    assert!(v.iter().zip(&before).all(same));
                 }
             }
         }
+        let near = [
+            1.0 + 1e-12,
+            1.0,
+            -3e300,
+            1.0 - 1e-12,
+            5e300,
+            2.0,
+            1.0 + 2e-12,
+        ];
+        let mut sorted = near;
+        sort(&mut sorted);
+        for k in 0..near.len() {
+            let mut v = near;
+            let (got, _) = select_rounded(&mut v, k, &mut []);
+            assert_eq!(got, round_single(sorted[k]), "rank {k}");
+        }
+        assert_eq!(round_single(5e300), f64::from(f32::MAX));
+        assert_eq!(round_single(1.0 + 1e-12), 1.0);
+        assert!(round_single(f64::NAN).is_nan());
     }
 
     #[test]
@@ -501,9 +580,9 @@ mod tests {
             let descending: [f64; N] = core::array::from_fn(|k| (N - 1 - k) as f64);
             let mut w = scrambled;
             let sorted = sort(&mut w);
-            let mut keys = [0u32; 8002];
+            let mut keys = [0u32; 4001];
             let counts = [scrambled, ascending, descending].map(|mut v| {
-                let (median, steps) = select_in(&mut v, N / 2, &mut keys);
+                let (median, steps) = select_rounded(&mut v, N / 2, &mut keys);
                 assert_eq!(median, (N / 2) as f64);
                 assert!(steps <= select_bound(N as u64));
                 steps
@@ -540,9 +619,9 @@ mod tests {
     }
 
     #[test]
-    fn radix_selection_finds_the_sorted_value_of_every_rank() {
-        // Values across signs and magnitudes (tiny, huge, subnormal, both zeros), with
-        // duplicates, then with a NaN and infinities among them.
+    fn radix_selection_finds_the_rounded_sorted_value_of_every_rank() {
+        // Values across signs and magnitudes (tiny, huge beyond single precision's range,
+        // subnormal, both zeros), with duplicates, then with a NaN and infinities among them.
         let n = 700;
         let value = |k: usize| {
             let m = ((k * 7919) % 97) as f64 - 48.0;
@@ -552,6 +631,7 @@ mod tests {
                 2 => m * f64::MIN_POSITIVE * 1e-3,
                 3 => -0.0,
                 4 => 0.0,
+                5 => 1.0 + m * 1e-12,
                 _ => m / 3.0,
             }
         };
@@ -566,11 +646,11 @@ mod tests {
             sort(&mut sorted);
             for k in (0..n).step_by(7).chain([n - 3, n - 2, n - 1]) {
                 let mut w = v;
-                let mut keys = [0u32; 2 * 700];
-                let (got, steps) = select_in(&mut w, k, &mut keys);
-                let expected = sorted[k];
+                let mut keys = [0u32; 700];
+                let (got, steps) = select_rounded(&mut w, k, &mut keys);
+                let expected = round_single(sorted[k]);
                 assert!(
-                    got == expected || !(got.is_finite() || expected.is_finite()),
+                    same_in_order(got, expected),
                     "rank {k}: {got} against {expected}"
                 );
                 assert_eq!(steps, select_bound(n as u64));
@@ -578,12 +658,26 @@ mod tests {
         }
         // Without room for the keys, the heap does it.
         let mut w: [f64; 700] = core::array::from_fn(value);
-        let (got, steps) = select_in(&mut w, 350, &mut [0u32; 1399]);
-        assert_eq!(got, sorted_without_non_finite(value)[350]);
+        let (got, steps) = select_rounded(&mut w, 350, &mut [0u32; 699]);
+        assert_eq!(got, round_single(sorted_without_non_finite(value)[350]));
         assert!(steps <= heap_select_bound(700) && steps != select_bound(700));
         // The bound stays under the heap's, from the radix's first size on.
         for n in (RADIX_MIN as u64..100_000).chain([1 << 20, 1 << 30]) {
             assert!(select_bound(n) <= heap_select_bound(n), "{n}");
+        }
+    }
+
+    #[test]
+    fn the_rate_bound_bounds_selections_on_parts() {
+        // Every part size up to 2,000 against the rate of the largest: Σ S(mᵢ) ≤ rate · Σ mᵢ
+        // follows from S(m) ≤ rate(M) · m for m ≤ M.
+        for largest in 1..2000u64 {
+            for m in 1..=largest {
+                assert!(
+                    select_bound(m) <= select_rate_bound(largest) * m,
+                    "{m} {largest}"
+                );
+            }
         }
     }
 

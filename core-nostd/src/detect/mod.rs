@@ -240,8 +240,9 @@ pub struct DetectionWork {
     pub feature_visits: u64,
     /// Pair visits (differences, thresholds, persistence).
     pub pair_visits: u64,
-    /// Steps of the robust statistics' selections ([`crate::robust::select_in`]: comparisons of
-    /// its heap on few values, visits of its radix passes on many).
+    /// Steps of the robust statistics' selections ([`crate::robust::select_rounded`]:
+    /// comparisons of its rank count or heap on few values, visits of its radix passes on
+    /// many).
     pub selection_steps: u64,
 }
 
@@ -253,17 +254,17 @@ impl DetectionWork {
     ///   per-feature lists, levels, outliers, persistence;
     /// - selection steps: the median and MAD of the changes (`2 S(n)`) and of the differences
     ///   (`2 S(P)`), with `S(m)` the bound of one selection ([`crate::robust::select_bound`]),
-    ///   and each feature's lower tertile (`Σ H(dᵢ) ≤ H(2P)` as `Σ dᵢ = 2P` and `H(m) / m`
-    ///   grows with `m`, where `H(m) = 2 m ⌈log₂ m⌉ ≥ S(m)`,
-    ///   [`crate::robust::heap_select_bound`]).
+    ///   and each feature's lower tertile over its `dᵢ` pairs (`Σ S(dᵢ) ≤ r · 2P` as
+    ///   `Σ dᵢ = 2P`, with `r` the selections' most steps per value,
+    ///   [`crate::robust::select_rate_bound`]`(2P)`).
     pub const fn bound(features: u64, pairs: u64) -> DetectionWork {
-        use crate::robust::{heap_select_bound, select_bound};
+        use crate::robust::{select_bound, select_rate_bound};
         DetectionWork {
             feature_visits: 4 * features,
             pair_visits: 7 * pairs,
             selection_steps: 2 * select_bound(features)
                 + 2 * select_bound(pairs)
-                + heap_select_bound(2 * pairs),
+                + select_rate_bound(2 * pairs) * 2 * pairs,
         }
     }
 

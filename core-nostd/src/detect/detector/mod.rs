@@ -46,8 +46,8 @@ pub struct Detector<'a, T> {
     length: &'a mut [T],
     /// Sort space for the robust statistics.
     scratch: &'a mut [T],
-    /// Key space of their radix selections ([`crate::robust::select_in`]): as many values as
-    /// `scratch`, [`KEY_WORDS`] words each.
+    /// Key space of their radix selections ([`crate::robust::select_rounded`]): as many
+    /// values as `scratch`, [`KEY_WORDS`] words each.
     keys: &'a mut [u32],
     points: &'a mut [[T; 2]],
     /// Per point: the frame its pair (last) became split.
