@@ -14,7 +14,8 @@
 //! A third table (callgrind too) splits a steady frame's instructions by stage: assembly,
 //! factorization, triangular solves, PCG products, line search, detection and the cut line,
 //! averaged over the run with the cut events taken out, for each scene's own setting and, on
-//! `liver-lobe`, for `Refactor` (a factorization at every Newton step) as a comparison.
+//! `liver-lobe`, for `Refactor` (a factorization at every Newton step) and for the quasi-Newton
+//! strategy (no tangent after the frozen one) as comparisons.
 //!
 //! `cargo bench --bench cut_event` runs all (the callgrind ones only if valgrind is installed);
 //! `-- --no-callgrind` skips them, `-- --split-only` runs only the split. The binary re-runs itself under callgrind with
@@ -276,17 +277,29 @@ const STAGES: [(&str, &str); 7] = [
     ("cut line", "CutLine<T>::update"),
 ];
 
-/// The settings the split runs: each scene's own, and `Refactor` on the liver.
-const SPLITS: [(&str, &str); 4] = [
+/// The settings the split runs: each scene's own, and on the liver `Refactor` and the
+/// quasi-Newton strategy with two steps of one line-search trial (the liver's recommended
+/// setting in the report).
+const SPLITS: [(&str, &str); 5] = [
     ("band-side-cut", "own"),
     ("band-middle-cut", "own"),
     ("liver-lobe", "own"),
     ("liver-lobe", "refactor"),
+    ("liver-lobe", QUASI_NEWTON),
 ];
+
+/// The quasi-Newton setting of [`SPLITS`].
+const QUASI_NEWTON: &str = "quasi-newton, 2 steps, 1 trial";
 
 /// Runs one scene's frames (with `strategy` unless it is "own") for callgrind.
 fn stages_child(name: &str, strategy: &str) {
-    let s = scene(name);
+    let mut s = scene(name);
+    if strategy == QUASI_NEWTON {
+        let solver = &mut s.file.solver;
+        solver.strategy = "quasi-newton".to_string();
+        solver.newton_iterations = 2;
+        solver.line_search_steps = 1;
+    }
     with_model(&s, |model| {
         if strategy == "refactor" {
             model.set_strategy(Strategy::Refactor).expect("strategy");

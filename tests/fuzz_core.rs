@@ -185,8 +185,9 @@ fn law_from(rng: &mut Rng) -> Law {
 }
 
 fn strategy_from(rng: &mut Rng) -> Linear {
-    match rng.next_u64() % 4 {
+    match rng.next_u64() % 5 {
         0 => Linear::Refactor,
+        4 => Linear::QuasiNewton,
         1 => Linear::Frozen {
             pcg_iterations: 1 + (rng.next_u64() % 12) as u32,
         },

@@ -749,9 +749,12 @@ fn registration_seen_by(strategy: Strategy, projection: Projection) {
         exact("factor flops", w.factor_flops, bound.factor_flops);
         assert!(w.solves <= bound.solves && w.matvecs <= bound.matvecs);
         assert!(w.solve_flops <= bound.solve_flops && w.matvec_flops <= bound.matvec_flops);
+        // A secant pair is stored after each step the line search takes (every one, here).
+        exact("secant flops", w.secant_flops, bound.secant_flops);
+        exact("state copies", w.state_copies, bound.state_copies);
         let factorizations = match strategy {
             Strategy::Refactor => 4,
-            Strategy::Frozen { .. } => 0,
+            Strategy::Frozen { .. } | Strategy::QuasiNewton => 0,
             Strategy::FactorOnce { .. } => 1,
         };
         exact(
@@ -800,6 +803,11 @@ fn registration_follows_a_deformation_with_refactor() {
 #[test]
 fn registration_follows_a_deformation_with_frozen() {
     registration(Strategy::Frozen { pcg_iterations: 20 });
+}
+
+#[test]
+fn registration_follows_a_deformation_with_quasi_newton_steps() {
+    registration(Strategy::QuasiNewton);
 }
 
 #[test]

@@ -60,10 +60,15 @@
 // `!(x > 0)` is deliberate: it is true for NaN, which is exactly when we want to stop.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
-#[cfg(not(any(feature = "refactor", feature = "frozen", feature = "factor-once")))]
+#[cfg(not(any(
+    feature = "refactor",
+    feature = "frozen",
+    feature = "factor-once",
+    feature = "quasi-newton"
+)))]
 compile_error!(
     "incise-core needs at least one linear strategy: enable `refactor`, `frozen`, \
-     `factor-once` or all of them (`strategies`, a default feature)"
+     `factor-once`, `quasi-newton` or all of them (`strategies`, a default feature)"
 );
 
 #[cfg(not(any(feature = "f32", feature = "f64")))]

@@ -62,10 +62,13 @@
 
 mod assembly;
 mod newton;
+mod secant;
 
 pub(crate) use assembly::{Problem, build_scatter};
 #[cfg(feature = "cut")]
 pub(crate) use newton::{assemble_on, factorize_on};
+pub use secant::SECANT_PAIRS;
+pub(crate) use secant::SecantMemory;
 
 use crate::error::{Error, Parameter};
 use crate::real::Real;
@@ -218,23 +221,56 @@ pub enum Strategy {
         /// PCG iterations per Newton step after the first.
         pcg_iterations: u32,
     },
+    /// Factor one positive definite matrix per topology, as [`Strategy::Frozen`] does, and take
+    /// limited-memory BFGS steps whose initial inverse Hessian is that factor: the step is
+    /// `−H ∇E`, `H` the frozen matrix's inverse corrected by the last [`SECANT_PAIRS`] steps
+    /// and the gradient changes they made (the two-loop recursion around one solve with the
+    /// factor; Liu, Bouaziz and Kavan 2017 do the same with a rest-shape matrix), its length
+    /// set by the line search. No tangent is assembled after the frozen one, so a step costs a
+    /// gradient assembly, a solve pair and `4 ·` [`SECANT_PAIRS`] vector operations. The
+    /// pairs are kept across frames (a frame's energy differs from the last one's by its
+    /// observations, its curvature hardly), so one step per frame still uses five; they are
+    /// forgotten with the frozen factor (a cut, a new embedding, a change of strategy). The step
+    /// is a descent direction whatever the state (only pairs with `sᵀy > 0` are kept, so `H`
+    /// stays positive definite), so the line search never lets the energy rise. Where the
+    /// object turns far from the frozen state (the bands, pulled and twisted), the frozen
+    /// matrix is a poor guess and `Frozen` with PCG, which applies the current Hessian,
+    /// converges much faster; on the liver it is the cheapest accurate setting.
+    QuasiNewton,
 }
 
 impl Strategy {
     /// Whether this core was built with the strategy (features `refactor`, `frozen`,
-    /// `factor-once`).
+    /// `factor-once`, `quasi-newton`).
     pub const fn is_built(&self) -> bool {
         match self {
             Strategy::Refactor => cfg!(feature = "refactor"),
             Strategy::Frozen { .. } => cfg!(feature = "frozen"),
             Strategy::FactorOnce { .. } => cfg!(feature = "factor-once"),
+            Strategy::QuasiNewton => cfg!(feature = "quasi-newton"),
         }
+    }
+
+    /// Whether the strategy keeps one factor per topology (the frozen matrix), factored when
+    /// the features are embedded and after each cut: `Frozen` and `QuasiNewton`, where built.
+    pub const fn freezes(&self) -> bool {
+        match self {
+            Strategy::Frozen { .. } => cfg!(feature = "frozen"),
+            Strategy::QuasiNewton => cfg!(feature = "quasi-newton"),
+            Strategy::Refactor | Strategy::FactorOnce { .. } => false,
+        }
+    }
+
+    /// Whether a Newton step assembles the Hessian: every strategy's but `QuasiNewton`'s,
+    /// which only solves with the frozen factor.
+    pub const fn assembles_hessian(&self) -> bool {
+        !matches!(self, Strategy::QuasiNewton)
     }
 
     /// PCG iterations per Newton step, if the strategy runs any.
     pub const fn pcg_iterations(&self) -> Option<u32> {
         match *self {
-            Strategy::Refactor => None,
+            Strategy::Refactor | Strategy::QuasiNewton => None,
             Strategy::Frozen { pcg_iterations } | Strategy::FactorOnce { pcg_iterations } => {
                 Some(pcg_iterations)
             }
@@ -397,6 +433,9 @@ pub struct WorkCount {
     /// Entries copied aside so that a failing frame can give the model back as it was (the
     /// features' observations and the damping reference, see [`crate::Model::step`]).
     pub state_copies: u64,
+    /// Multiply-adds of the quasi-Newton strategy's secant pairs: the two-loop recursion of
+    /// each step and the storing of each pair ([`Strategy::QuasiNewton`]).
+    pub secant_flops: u64,
 }
 
 /// Dot product.
@@ -436,6 +475,7 @@ mod tests {
                 Strategy::FactorOnce { pcg_iterations: 4 },
                 cfg!(feature = "factor-once"),
             ),
+            (Strategy::QuasiNewton, cfg!(feature = "quasi-newton")),
         ] {
             assert_eq!(strategy.is_built(), built);
             let result = config(strategy).validate();

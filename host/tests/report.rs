@@ -181,7 +181,7 @@ fn quick_report_on_every_committed_scene_is_written_and_well_formed() {
             gradient("f64")
         );
         let memory = scene["memory"].as_array().unwrap();
-        assert_eq!(memory.len(), 9, "{name}");
+        assert_eq!(memory.len(), 10, "{name}");
         if counting {
             let frames = scene["instructions_per_frame"].as_array().unwrap();
             assert_eq!(frames.len(), 5, "{name}");
@@ -204,7 +204,7 @@ fn quick_report_on_every_committed_scene_is_written_and_well_formed() {
     assert!(csv_rows(&out.path().join("worst_case.csv")).len() >= 13 * scenes.len());
     assert_eq!(
         csv_rows(&out.path().join("memory.csv")).len(),
-        9 * scenes.len()
+        10 * scenes.len()
     );
     let instructions = csv_rows(&out.path().join("instructions.csv"));
     assert_eq!(

@@ -184,9 +184,12 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
         )?;
         // Everything succeeded: the new topology goes into service with its factor.
         core::mem::swap(&mut self.live, &mut self.spare);
-        self.factored = match self.config.solver.strategy {
-            Strategy::Frozen { .. } => FactoredMatrix::Frozen,
-            Strategy::Refactor | Strategy::FactorOnce { .. } => FactoredMatrix::Step,
+        self.factored = if self.config.solver.strategy.freezes() {
+            // The quasi-Newton strategy's secant pairs belong to the old topology's unknowns.
+            self.secant.clear();
+            FactoredMatrix::Frozen
+        } else {
+            FactoredMatrix::Step
         };
         report.applied = true;
         report.work = work;

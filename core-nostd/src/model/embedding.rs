@@ -134,9 +134,7 @@ impl<T: Real, F: Real> Model<'_, T, F> {
         // The frozen factor is part of setting up, not of the first frame, so that every frame
         // costs the same.
         self.factored = FactoredMatrix::Nothing;
-        if cfg!(feature = "frozen")
-            && let Strategy::Frozen { .. } = self.config.solver.strategy
-        {
+        if self.config.solver.strategy.freezes() {
             self.prepare_frozen(&mut WorkCount::default())?;
         }
         #[cfg(feature = "detect")]

@@ -120,9 +120,11 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
             Strategy::Refactor => [0, 0],
             Strategy::Frozen { pcg_iterations } => [1, pcg_iterations],
             Strategy::FactorOnce { pcg_iterations } => [2, pcg_iterations],
+            Strategy::QuasiNewton => [3, 0],
         };
         h.words(strategy.iter());
         h.words(core::iter::once(&(self.factored as u32)));
+        self.secant.fingerprint_into(self.n_unknowns(), &mut h);
         #[cfg(feature = "detect")]
         {
             self.cut.detector.fingerprint_into(&mut h);

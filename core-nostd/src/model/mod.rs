@@ -42,7 +42,9 @@ use crate::features::{EmbedReport, Features, Observation, image_bounds, spacing_
 use crate::material::{InversionBarrier, Lame, Law};
 use crate::mesh::{Mesh, MeshInput};
 use crate::real::Real;
-use crate::solve::{Coupling, Energies, MIXED_REFINEMENT_STEPS, SolverConfig, Strategy, WorkCount};
+use crate::solve::{
+    Coupling, Energies, MIXED_REFINEMENT_STEPS, SecantMemory, SolverConfig, Strategy, WorkCount,
+};
 #[cfg(feature = "cut")]
 use crate::solve::{assemble_on, factorize_on};
 use crate::sparse::{LdlFactor, NONE, PrecomputedAnalysis, Symbolic, UpperCsc};
@@ -106,7 +108,7 @@ impl<T: Real> ModelConfig<T> {
 pub(crate) enum FactoredMatrix {
     /// None yet (before the features are embedded, or after they were embedded again).
     Nothing,
-    /// The frozen matrix of [`Strategy::Frozen`].
+    /// The frozen matrix of [`Strategy::Frozen`] and [`Strategy::QuasiNewton`].
     Frozen,
     /// The Hessian of the last Newton step.
     Step,
@@ -221,6 +223,9 @@ pub struct Model<'a, T: Real, F: Real = T> {
     #[cfg(feature = "detect")]
     cut: CutState<'a, T>,
     pub(crate) frame: u32,
+    /// The secant pairs of [`Strategy::QuasiNewton`] (no storage without the `quasi-newton`
+    /// feature).
+    pub(crate) secant: SecantMemory<'a, T>,
 }
 
 /// Copies of the state that [`Model::step`] and [`Model::embed_features`] overwrite before they
@@ -350,6 +355,7 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
             factor_work: factor_slab.take(LdlFactor::<F>::SUPERNODAL_WORK_LEN)?,
             factor_indices: index_slab.take(LdlFactor::<F>::supernodal_index_work_len(dofs))?,
         };
+        let secant = SecantMemory::new(size.secant_unknowns(), &mut scalar_slab)?;
         let features = Features::new(caps.features, &mut scalar_slab, &mut index_slab)?;
         let saved = Saved {
             features: Features::new(caps.features, &mut scalar_slab, &mut index_slab)?,
@@ -401,6 +407,7 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
             #[cfg(feature = "detect")]
             cut,
             frame: 0,
+            secant,
         })
     }
 
@@ -517,6 +524,10 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
             ..self.config.solver
         };
         solver.validate()?;
+        if solver.strategy != self.config.solver.strategy {
+            // Secant pairs belong to the factor they corrected, which a new strategy replaces.
+            self.secant.clear();
+        }
         self.config.solver = solver;
         Ok(())
     }
@@ -531,14 +542,16 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
     ///    ([`Model::apply_cut`]).
     ///
     /// The steady work (stages 1–4) is fixed by the configuration and the scene's sizes:
-    /// `newton_iterations + 1` assemblies, one factorization per Newton step (`Refactor`) or
-    /// `pcg_iterations` matrix–vector products and solves (`Frozen`), and
+    /// `newton_iterations + 1` assemblies, one factorization per Newton step (`Refactor`),
+    /// `pcg_iterations` matrix–vector products and solves (`Frozen`), or one solve and no
+    /// tangents (`QuasiNewton`), and
     /// `line_search_steps` energy evaluations per Newton step. A cut event is reported apart
     /// ([`StepReport::cut`]); a cut that cannot be made (a capacity, a factorization) is
     /// reported there and leaves the mesh as it was, without failing the frame.
     ///
     /// All or nothing: before the frame is taken, the features' observations (`5 ·` features
-    /// entries) and the damping reference (`3 ·` nodes) are copied aside, and the factor keeps
+    /// entries), the damping reference (`3 ·` nodes) and, for `QuasiNewton`, its secant pairs
+    /// are copied aside, and the factor keeps
     /// its previous values ([`LdlFactor::checkpoint`], no copy); a frame that fails puts them
     /// back. These copies are counted in [`WorkCount::state_copies`].
     ///
@@ -561,6 +574,10 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
         copy_front(live.previous, live.x, n_nodes);
         let factored = self.factored;
         self.factor.checkpoint();
+        // Only the quasi-Newton strategy writes its secant pairs.
+        let secant = self.config.solver.strategy == Strategy::QuasiNewton;
+        let n = self.n_unknowns();
+        let secant_copies = if secant { self.secant.checkpoint(n) } else { 0 };
         let mut report = match self.solve_frame() {
             Ok(report) => {
                 self.factor.commit();
@@ -573,10 +590,13 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
                 self.features.copy_from(&self.saved.features);
                 self.factored = factored;
                 self.factor.rollback();
+                if secant {
+                    self.secant.rollback(n);
+                }
                 return Err(e);
             }
         };
-        report.work.state_copies += (5 * self.features.len() + 3 * n_nodes) as u64;
+        report.work.state_copies += (5 * self.features.len() + 3 * n_nodes) as u64 + secant_copies;
         report.frame = self.frame;
         report.observed = observed;
         #[cfg(feature = "detect")]
@@ -627,10 +647,17 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
         // The assembly that closes a frame, but where the last Newton step's single line-search
         // trial is evaluated by an assembly and gives the closing gradient with it.
         let closing = u64::from(!(s.line_search_steps == 1 && newton > 0));
+        // The Newton steps' assemblies: with tangents, or, for `QuasiNewton`, without.
+        let (with_tangents, without) = if s.strategy.assembles_hessian() {
+            (u64::from(newton), 0)
+        } else {
+            (0, u64::from(newton))
+        };
         let mut w = WorkCount {
             assemblies: newton + 1,
-            element_tangents: u64::from(newton) * tets,
-            element_evaluations: tets * (closing + u64::from(newton * s.line_search_steps)),
+            element_tangents: with_tangents * tets,
+            element_evaluations: tets
+                * (closing + without + u64::from(newton * s.line_search_steps)),
             feature_evaluations: feats
                 * (closing + u64::from(newton) * (1 + u64::from(s.line_search_steps))),
             energy_evaluations: newton * s.line_search_steps,
@@ -657,6 +684,16 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
                 w.solve_flops = u64::from(w.solves) * sym.solve_flops();
                 w.matvecs = newton * pcg_iterations;
                 w.matvec_flops = u64::from(w.matvecs) * 2 * nnz;
+            }
+            Strategy::QuasiNewton => {
+                let unknowns = self.n_unknowns();
+                w.solves = newton;
+                w.solve_flops = u64::from(w.solves) * sym.solve_flops();
+                // Each step's recursion, and a pair stored after each step.
+                w.secant_flops = u64::from(newton)
+                    * (SecantMemory::<T>::step_flops(unknowns)
+                        + SecantMemory::<T>::pair_flops(unknowns));
+                w.state_copies += SecantMemory::<T>::copies(unknowns);
             }
             Strategy::FactorOnce { pcg_iterations } => {
                 let later = newton.saturating_sub(1);

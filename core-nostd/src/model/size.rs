@@ -10,6 +10,7 @@ use crate::error::{Error, Resource};
 use crate::features::Features;
 use crate::mesh::{MeshCapacity, MeshInput};
 use crate::real::Real;
+use crate::solve::SecantMemory;
 use crate::sparse::pattern::MAX_INDEX;
 use crate::sparse::{
     Graph, LdlFactor, NONE, Symbolic, SymbolicSize, UpperCsc, analyse_work_len, block_upper_len,
@@ -251,10 +252,20 @@ impl ModelSize {
         0
     }
 
+    /// The unknowns the secant memory of [`crate::Strategy::QuasiNewton`] is sized for: all of
+    /// them in a build with the `quasi-newton` feature, none without.
+    pub(crate) const fn secant_unknowns(&self) -> usize {
+        if cfg!(feature = "quasi-newton") {
+            self.unknowns
+        } else {
+            0
+        }
+    }
+
     /// The model's storage part by part: what a firmware budget is spent on. Each part names
     /// the capacities it grows with; [`ModelSize::real_len`] and [`ModelSize::index_len`] are
     /// the sums of the parts.
-    pub const fn parts(&self) -> [StoragePart; 9] {
+    pub const fn parts(&self) -> [StoragePart; 10] {
         let c = &self.capacities;
         let (detection_reals, detection_indices) = Self::detection_lens(c);
         [
@@ -297,6 +308,13 @@ impl ModelSize {
                 ]),
                 indices: LdlFactor::<AnyReal>::supernodal_index_work_len(self.unknowns),
                 feature: None,
+            },
+            StoragePart {
+                name: "secant pairs of the quasi-Newton strategy and their copy (quasi-newton feature)",
+                grows_with: "the nodes",
+                reals: SecantMemory::<AnyReal>::real_len(self.secant_unknowns()),
+                indices: 0,
+                feature: Some("quasi-newton"),
             },
             StoragePart {
                 name: "features' observations and the copies a failed call restores",

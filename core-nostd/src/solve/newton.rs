@@ -1,6 +1,7 @@
 //! The per-frame minimisation of [`Model::step`]: Newton steps on the total energy, each with
-//! its linear solve (by the strategy: a factorization per step, a frozen factor and PCG, or one
-//! factorization per frame and PCG after it) and a line search over fixed trial lengths; and
+//! its linear solve (by the strategy: a factorization per step, a frozen factor and PCG, one
+//! factorization per frame and PCG after it, or the frozen factor's own step) and a line search
+//! over fixed trial lengths; and
 //! the assembly and factorization that a cut's rebuild shares with it.
 
 // The vectors are cut to the model's unknowns and nodes with checked prefixes (`prefix`), once
@@ -20,7 +21,9 @@ use crate::material::{InversionBarrier, Lame};
 use crate::model::discretization::Discretization;
 use crate::model::{FactoredMatrix, Model, ModelConfig, SolveVectors, StepReport};
 use crate::real::Real;
-use crate::solve::{Energies, MIXED_REFINEMENT_STEPS, Problem, Strategy, WorkCount, dot};
+use crate::solve::{
+    Energies, MIXED_REFINEMENT_STEPS, Problem, SecantMemory, Strategy, WorkCount, dot,
+};
 use crate::sparse::{LdlFactor, NONE, sym_matvec, ux};
 use crate::storage::{ensure_exact_len, prefix, prefix_mut, times};
 
@@ -31,10 +34,8 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
         let newton = self.config.solver.newton_iterations;
         let trials = self.config.solver.line_search_steps;
 
-        if cfg!(feature = "frozen")
-            && let Strategy::Frozen { .. } = self.config.solver.strategy
-            && self.factored != FactoredMatrix::Frozen
-        {
+        let strategy = self.config.solver.strategy;
+        if strategy.freezes() && self.factored != FactoredMatrix::Frozen {
             // Only after a switch of strategy: a one-off cost, counted in this frame's work.
             self.prepare_frozen(&mut work)?;
         }
@@ -45,8 +46,16 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
         // The energies at the frame's end, when the last line search already gave them (and
         // the gradient there), so that the closing assembly is not needed.
         let mut closing = None;
+        // The quasi-Newton strategy keeps, from each step taken, the step in `product` and the
+        // gradient before it in `direction` (PCG vectors it does not use), until the next
+        // assembly gives the gradient after it: a secant pair.
+        let quasi = cfg!(feature = "quasi-newton") && strategy == Strategy::QuasiNewton;
+        let mut pending = false;
         for it in 0..newton {
-            let e = self.assemble(true, &mut work)?;
+            let e = self.assemble(strategy.assembles_hessian(), &mut work)?;
+            if pending {
+                self.push_secant_pair(&mut work)?;
+            }
             let v = &mut self.vectors;
             if it == 0 {
                 energy_before = e;
@@ -54,12 +63,13 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
                 gradient_norm_before = dot(gradient, gradient).sqrt();
             }
             // The guards are constants: a strategy left out of the build leaves its code out.
-            let (refactor, frozen, once) = (
+            let (refactor, frozen, once, quasi_newton) = (
                 cfg!(feature = "refactor"),
                 cfg!(feature = "frozen"),
                 cfg!(feature = "factor-once"),
+                cfg!(feature = "quasi-newton"),
             );
-            match self.config.solver.strategy {
+            match strategy {
                 Strategy::Refactor if refactor => self.refactor_and_solve(&mut work)?,
                 Strategy::FactorOnce { .. } if once && it == 0 => {
                     self.refactor_and_solve(&mut work)?;
@@ -70,6 +80,7 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
                 Strategy::FactorOnce { pcg_iterations } if once => {
                     self.pcg(pcg_iterations, &mut work)?;
                 }
+                Strategy::QuasiNewton if quasi_newton => self.quasi_newton_step(&mut work)?,
                 // Not built: `SolverConfig::validate`, which every way of setting a strategy
                 // runs, refuses it before a frame can reach here.
                 _ => {
@@ -83,10 +94,27 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
                 prefix(v.gradient, n, Resource::Unknowns)?,
                 prefix(v.step, n, Resource::Unknowns)?,
             );
+            if quasi {
+                // Before the line search, which may leave the trial's gradient in `gradient`.
+                let v = &mut self.vectors;
+                prefix_mut(v.direction, n, Resource::Unknowns)?.copy_from_slice(prefix(
+                    v.gradient,
+                    n,
+                    Resource::Unknowns,
+                )?);
+            }
             let (alpha, at_end) =
                 self.line_search(&e, slope, trials, it + 1 == newton, &mut work)?;
             closing = at_end;
             min_step = min_step.min(alpha);
+            pending = quasi && alpha > T::zero();
+            if pending {
+                let v = &mut self.vectors;
+                let taken = prefix_mut(v.product, n, Resource::Unknowns)?;
+                for (p, &s) in taken.iter_mut().zip(prefix(v.step, n, Resource::Unknowns)?) {
+                    *p = alpha * s;
+                }
+            }
             if alpha > T::zero() {
                 self.move_along(alpha)?;
             }
@@ -95,6 +123,9 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
             Some(e) => e,
             None => self.assemble(false, &mut work)?,
         };
+        if pending {
+            self.push_secant_pair(&mut work)?;
+        }
         let gradient = prefix(self.vectors.gradient, n, Resource::Unknowns)?;
         let gradient_norm_after = dot(gradient, gradient).sqrt();
         if !(gradient_norm_after.finite() && energy_after.total().finite()) {
@@ -148,12 +179,18 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
     /// factor of lower precision than the model's, by [`MIXED_REFINEMENT_STEPS`] PCG
     /// iterations on the residual in the model's precision after the first solve.
     fn refactor_and_solve(&mut self, work: &mut WorkCount) -> Result<(), Error> {
-        let n = self.n_unknowns();
         self.factorize(work)?;
         self.factored = FactoredMatrix::Step;
         if Self::mixed() {
             return self.pcg(MIXED_REFINEMENT_STEPS, work);
         }
+        self.factor_step(work)
+    }
+
+    /// The step of the factor in service, `step = −F⁻¹ ∇E`, by one solve in the factor's
+    /// precision (the Newton step after a refactorization).
+    fn factor_step(&mut self, work: &mut WorkCount) -> Result<(), Error> {
+        let n = self.n_unknowns();
         let v = &mut self.vectors;
         let step = prefix_mut(v.step, n, Resource::Unknowns)?;
         let gradient = prefix(v.gradient, n, Resource::Unknowns)?;
@@ -168,6 +205,44 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
         Ok(())
     }
 
+    /// The quasi-Newton step ([`Strategy::QuasiNewton`]): `step = −H ∇E`, `H` the frozen
+    /// factor's inverse corrected by the secant pairs, with one solve in the factor's precision
+    /// (in mixed precision too: refining it would need the Hessian the strategy does not
+    /// assemble, and `H` is an approximation anyway).
+    fn quasi_newton_step(&mut self, work: &mut WorkCount) -> Result<(), Error> {
+        let n = self.n_unknowns();
+        let Model {
+            vectors: v,
+            factor,
+            live,
+            secant,
+            ..
+        } = self;
+        let step = prefix_mut(v.step, n, Resource::Unknowns)?;
+        step.copy_from_slice(prefix(v.gradient, n, Resource::Unknowns)?);
+        let solve_work = prefix_mut(v.solve_work, times(2, n), Resource::Workspace)?;
+        secant.apply(n, step, |q| {
+            factor.solve_converting(&live.symbolic, q, solve_work)
+        })?;
+        for s in step.iter_mut() {
+            *s = -*s;
+        }
+        work.solves += 1;
+        work.solve_flops += live.symbolic.solve_flops();
+        work.secant_flops += SecantMemory::<T>::step_flops(n);
+        Ok(())
+    }
+
+    /// Stores the secant pair of the step just taken: the step in `product`, the gradients
+    /// before (`direction`) and after it (`gradient`, just assembled).
+    fn push_secant_pair(&mut self, work: &mut WorkCount) -> Result<(), Error> {
+        let n = self.n_unknowns();
+        let v = &self.vectors;
+        self.secant.push(n, v.product, v.direction, v.gradient)?;
+        work.secant_flops += SecantMemory::<T>::pair_flops(n);
+        Ok(())
+    }
+
     /// Whether the factor computes in a lower precision than the model (mixed precision).
     pub(crate) fn mixed() -> bool {
         F::EPS.to_f64() > T::EPS.to_f64()
@@ -178,6 +253,8 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
         self.assemble(true, work)?;
         self.factorize(work)?;
         self.factored = FactoredMatrix::Frozen;
+        // The quasi-Newton strategy's pairs corrected the factor before this one.
+        self.secant.clear();
         Ok(())
     }
 

@@ -315,7 +315,7 @@ use commands::*;
 pub struct CountFramesArgs {
     /// The scene directory.
     pub scene: PathBuf,
-    /// `refactor`, `frozen` or `factor-once`.
+    /// `refactor`, `frozen`, `factor-once` or `quasi-newton`.
     #[arg(long)]
     pub strategy: String,
     /// Newton steps per frame.

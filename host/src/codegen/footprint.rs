@@ -113,6 +113,14 @@ pub fn feature_sets(strategy: Strategy, projection: Projection) -> [FeatureSet; 
             "register, factor-once, orthographic",
             &["factor-once", "orthographic", "f64"],
         ),
+        (Strategy::QuasiNewton, P) => one(
+            "register, quasi-newton, perspective",
+            &["quasi-newton", "perspective", "f64"],
+        ),
+        (Strategy::QuasiNewton, O) => one(
+            "register, quasi-newton, orthographic",
+            &["quasi-newton", "orthographic", "f64"],
+        ),
     };
     [
         cut,

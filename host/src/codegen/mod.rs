@@ -371,6 +371,7 @@ fn emit(s: &mut String, e: &Emit<'_>) {
         Strategy::FactorOnce { pcg_iterations } => {
             format!("Strategy::FactorOnce {{ pcg_iterations: {pcg_iterations} }}")
         }
+        Strategy::QuasiNewton => "Strategy::QuasiNewton".to_string(),
     };
     let _ = writeln!(
         s,

@@ -324,7 +324,7 @@ pub fn plot_dice(trace: &Trace, summary: &Summary, out: &Path) -> Result<(), Str
 /// One solver setting of an error-against-run-time sweep.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SweepSetting {
-    /// `"refactor"`, `"frozen"` or `"factor-once"`.
+    /// `"refactor"`, `"frozen"`, `"factor-once"` or `"quasi-newton"`.
     pub strategy: &'static str,
     /// Newton steps per frame.
     pub newton: u32,
@@ -341,9 +341,9 @@ pub struct SweepSetting {
 pub const SWEEP_LINE_SEARCH: u32 = 4;
 
 impl SweepSetting {
-    /// The strategy name as a setting holds it, or `None` for a name that is none of the three.
+    /// The strategy name as a setting holds it, or `None` for a name that is none of the four.
     pub fn strategy_name(name: &str) -> Option<&'static str> {
-        ["refactor", "frozen", "factor-once"]
+        ["refactor", "frozen", "factor-once", "quasi-newton"]
             .into_iter()
             .find(|&s| s == name)
     }
@@ -375,6 +375,7 @@ impl SweepSetting {
         let label = match self.strategy {
             "frozen" => format!("frozen, {} Newton × {} PCG", self.newton, self.pcg),
             "factor-once" => format!("factor once, {} Newton, {} PCG", self.newton, self.pcg),
+            "quasi-newton" => format!("quasi-Newton, {} steps", self.newton),
             _ => format!("refactor, {} Newton", self.newton),
         };
         let label = match self.line_search {
@@ -392,9 +393,10 @@ impl SweepSetting {
 
 /// The settings a sweep tries, with [`SWEEP_LINE_SEARCH`] line-search trials: `Refactor` with
 /// 1 to 4 Newton steps, `Frozen` with 1 to 3 Newton steps of 3, 10 or 30 PCG steps,
-/// `FactorOnce` with 2 or 3 Newton steps of 3 or 10 PCG steps after the first; and the
-/// line-search axis: `Refactor` with 1 Newton step (the setting most scenes' reports
-/// recommend) of 1 or 2 trials.
+/// `FactorOnce` with 2 or 3 Newton steps of 3 or 10 PCG steps after the first, `QuasiNewton`
+/// with 1 to 3 steps; and the line-search axis: `Refactor` with 1 Newton step (the setting
+/// most scenes' reports recommended before `QuasiNewton`) of 1 or 2 trials, and `QuasiNewton`
+/// with 1 or 2 steps of 1 trial.
 pub fn sweep_settings() -> Vec<SweepSetting> {
     let setting = |strategy, newton, pcg| SweepSetting {
         strategy,
@@ -416,10 +418,19 @@ pub fn sweep_settings() -> Vec<SweepSetting> {
             v.push(setting("factor-once", newton, pcg));
         }
     }
+    for newton in 1..=3 {
+        v.push(setting("quasi-newton", newton, 0));
+    }
     for trials in [1, 2] {
         v.push(SweepSetting {
             line_search: trials,
             ..setting("refactor", 1, 10)
+        });
+    }
+    for newton in [1, 2] {
+        v.push(SweepSetting {
+            line_search: 1,
+            ..setting("quasi-newton", newton, 0)
         });
     }
     v
@@ -498,6 +509,7 @@ pub fn plot_sweep(scene: &str, rows: &[(SweepSetting, Summary)], out: &Path) -> 
             let colour = match setting.strategy {
                 "frozen" => RED,
                 "factor-once" => GREEN,
+                "quasi-newton" => MAGENTA,
                 _ => BLUE,
             };
             let v = metric(s);

@@ -148,10 +148,10 @@ fn is_perspective(p: &String) -> bool {
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct SolverSection {
-    /// `"refactor"`, `"frozen"` or `"factor-once"`.
+    /// `"refactor"`, `"frozen"`, `"factor-once"` or `"quasi-newton"`.
     pub strategy: String,
     /// PCG iterations per Newton step for `"frozen"` (and per later Newton step for
-    /// `"factor-once"`).
+    /// `"factor-once"`; `"refactor"` and `"quasi-newton"` run none).
     #[serde(default = "default_pcg")]
     pub pcg_iterations: u32,
     /// Newton steps per frame.
@@ -431,11 +431,14 @@ impl SolverSection {
             "factor-once" => Strategy::FactorOnce {
                 pcg_iterations: s.pcg_iterations,
             },
+            "quasi-newton" => Strategy::QuasiNewton,
             other => {
                 return Err(Refusal::new(
                     "solver",
                     "strategy",
-                    format!("must be \"refactor\", \"frozen\" or \"factor-once\", not {other:?}"),
+                    format!(
+                        "must be \"refactor\", \"frozen\", \"factor-once\" or \"quasi-newton\", not {other:?}"
+                    ),
                 ));
             }
         };

@@ -11,6 +11,7 @@ fn colour(strategy: &str) -> RGBColor {
     match strategy {
         "frozen" => RGBColor(214, 39, 40),
         "factor-once" => RGBColor(44, 160, 44),
+        "quasi-newton" => RGBColor(148, 103, 189),
         _ => RGBColor(31, 119, 180),
     }
 }
@@ -98,7 +99,7 @@ pub(super) fn error_vs_cost(
             .map_err(|x| e(&x))?
             .label("Pareto front")
             .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], BLACK.mix(0.5)));
-        for strategy in ["refactor", "frozen", "factor-once"] {
+        for strategy in ["refactor", "frozen", "factor-once", "quasi-newton"] {
             let c = colour(strategy);
             let points: Vec<(f64, f64)> = scene
                 .settings

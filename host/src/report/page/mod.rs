@@ -198,7 +198,7 @@ fn settings_for(solver: &SolverSection, quick: bool) -> Vec<(SweepSetting, bool)
     let same = |s: &SweepSetting| {
         s.strategy == own.strategy
             && s.newton == own.newton
-            && (s.strategy == "refactor" || s.pcg == own.pcg)
+            && (matches!(s.strategy, "refactor" | "quasi-newton") || s.pcg == own.pcg)
             && s.line_search == own.line_search
     };
     // The scene's own setting in single and in mixed precision too: where each matches `f64`.
