@@ -1110,6 +1110,8 @@ fn a_single_line_search_trial_closes_the_frame() {
         (Strategy::Refactor, 2),
         (Strategy::FactorOnce { pcg_iterations: 3 }, 2),
         (Strategy::Frozen { pcg_iterations: 5 }, 1),
+        (Strategy::QuasiNewton, 1),
+        (Strategy::QuasiNewton, 3),
     ] {
         let mut cfg = config(cam, 2.0e-6, strategy, 1e-3);
         cfg.solver.newton_iterations = newton;
@@ -1121,9 +1123,17 @@ fn a_single_line_search_trial_closes_the_frame() {
         let tets = mesh.tets.len() as u64;
         let features = top.len() as u64;
         // No closing assembly: the elements are evaluated once per trial, the features once
-        // per assembly with tangents and once per trial.
-        assert_eq!(bound.element_evaluations, tets * u64::from(newton));
-        assert_eq!(bound.feature_evaluations, features * 2 * u64::from(newton));
+        // per assembly with tangents and once per trial; without tangents (`QuasiNewton`),
+        // every trial is assembled and the next step starts from it: one assembly more than
+        // the trials, elements and features alike.
+        let newton_u = u64::from(newton);
+        let (elements, feature_passes) = if strategy.assembles_hessian() {
+            (newton_u, 2 * newton_u)
+        } else {
+            (1 + newton_u, 1 + newton_u)
+        };
+        assert_eq!(bound.element_evaluations, tets * elements);
+        assert_eq!(bound.feature_evaluations, features * feature_passes);
         for frame in 1..=12 {
             let s = (frame as f64 / 8.0).min(1.0);
             let r = model.step(&observe(&cam, &at(s))).unwrap();
@@ -1148,7 +1158,14 @@ fn a_single_line_search_trial_closes_the_frame() {
                 "{case}: gradient {:e} reported, {norm:e} at the end positions",
                 r.gradient_norm_after
             );
-            assert!(r.gradient_norm_after < r.gradient_norm_before, "{case}");
+            if strategy.assembles_hessian() {
+                assert!(r.gradient_norm_after < r.gradient_norm_before, "{case}");
+            } else {
+                // A quasi-Newton step lowers the energy (its line search sees to that), but
+                // near the minimum not always the gradient's norm.
+                let (before, after) = (r.energy_before.total(), r.energy_after.total());
+                assert!(after <= before + 1e-12 * before.abs(), "{case}");
+            }
         }
     }
 }

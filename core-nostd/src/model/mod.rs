@@ -647,19 +647,22 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
         // The assembly that closes a frame, but where the last Newton step's single line-search
         // trial is evaluated by an assembly and gives the closing gradient with it.
         let closing = u64::from(!(s.line_search_steps == 1 && newton > 0));
-        // The Newton steps' assemblies: with tangents, or, for `QuasiNewton`, without.
+        // The Newton steps' assemblies: with tangents, or, for `QuasiNewton`, without, and
+        // then, with one trial, only the first step's (each later one starts from the
+        // assembled trial of the step before).
         let (with_tangents, without) = if s.strategy.assembles_hessian() {
             (u64::from(newton), 0)
+        } else if s.line_search_steps == 1 {
+            (0, u64::from(newton.min(1)))
         } else {
             (0, u64::from(newton))
         };
+        let trials = u64::from(newton * s.line_search_steps);
         let mut w = WorkCount {
             assemblies: newton + 1,
             element_tangents: with_tangents * tets,
-            element_evaluations: tets
-                * (closing + without + u64::from(newton * s.line_search_steps)),
-            feature_evaluations: feats
-                * (closing + u64::from(newton) * (1 + u64::from(s.line_search_steps))),
+            element_evaluations: tets * (closing + without + trials),
+            feature_evaluations: feats * (closing + with_tangents + without + trials),
             energy_evaluations: newton * s.line_search_steps,
             state_copies: 5 * feats + 3 * self.live.mesh.n_nodes() as u64,
             ..WorkCount::default()

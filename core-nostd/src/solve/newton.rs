@@ -51,8 +51,14 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
         // assembly gives the gradient after it: a secant pair.
         let quasi = cfg!(feature = "quasi-newton") && strategy == Strategy::QuasiNewton;
         let mut pending = false;
+        // The energies (and, in the model's gradient, the gradient) where the last step
+        // ended, when its line search assembled them: the next step starts from them.
+        let mut carried = None;
         for it in 0..newton {
-            let e = self.assemble(strategy.assembles_hessian(), &mut work)?;
+            let e = match carried.take() {
+                Some(e) => e,
+                None => self.assemble(strategy.assembles_hessian(), &mut work)?,
+            };
             if pending {
                 self.push_secant_pair(&mut work)?;
             }
@@ -103,9 +109,13 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
                     Resource::Unknowns,
                 )?);
             }
-            let (alpha, at_end) =
-                self.line_search(&e, slope, trials, it + 1 == newton, &mut work)?;
-            closing = at_end;
+            let last = it + 1 == newton;
+            let (alpha, at_end) = self.line_search(&e, slope, trials, last, &mut work)?;
+            if last {
+                closing = at_end;
+            } else {
+                carried = at_end;
+            }
             min_step = min_step.min(alpha);
             pending = quasi && alpha > T::zero();
             if pending {
@@ -339,6 +349,9 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
     /// stay). The frame then needs no closing assembly ([`Self::solve_frame`]): one assembly
     /// without tangents in place of an energy evaluation and an assembly, every frame alike.
     /// With more trials the step taken need not be the last one evaluated, so they do not.
+    /// A strategy whose Newton steps assemble no tangents ([`Strategy::QuasiNewton`]) has
+    /// every step's single trial assembled so: the next step starts from its energies and
+    /// gradient instead of assembling them again.
     fn line_search(
         &mut self,
         at: &Energies<T>,
@@ -349,7 +362,9 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
     ) -> Result<(T, Option<Energies<T>>), Error> {
         let n = self.n_unknowns();
         let n_nodes = self.live.mesh.n_nodes();
-        let closes = last && trials == 1;
+        // A Newton step that needs no tangents (`QuasiNewton`) needs no more than the
+        // trial's gradient either: every step's single trial is assembled.
+        let closes = trials == 1 && (last || !self.config.solver.strategy.assembles_hessian());
         let energy = at.total();
         let slack = T::of(2.0) * at.rounding;
         let mut alpha = T::one();

@@ -375,7 +375,7 @@ impl SweepSetting {
         let label = match self.strategy {
             "frozen" => format!("frozen, {} Newton × {} PCG", self.newton, self.pcg),
             "factor-once" => format!("factor once, {} Newton, {} PCG", self.newton, self.pcg),
-            "quasi-newton" => format!("quasi-Newton, {} steps", self.newton),
+            "quasi-newton" => format!("quasi-Newton, {} Newton", self.newton),
             _ => format!("refactor, {} Newton", self.newton),
         };
         let label = match self.line_search {
