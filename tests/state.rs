@@ -333,6 +333,58 @@ fn a_solve_that_fails_leaves_observations_damping_reference_and_factor_as_they_w
     }
 }
 
+/// The quasi-Newton strategy with one line-search trial keeps the elements' share of the
+/// gradient from frame to frame (the fingerprint covers it, and whether it is valid): frames
+/// that fail after the nodes were moved (which forgets the share; the failing frame's first
+/// assembly keeps one before it fails) leave the model as it was, and a twin stepped through
+/// the same good frames agrees with it bit for bit before.
+#[test]
+fn a_failed_quasi_newton_frame_puts_back_the_elements_share_it_started_from() {
+    let b = bench();
+    let mut cfg = b.config(Strategy::QuasiNewton);
+    cfg.solver.line_search_steps = 1;
+    let mut storage = OwnedStorage::<f64>::new(&default_caps(&b)).unwrap();
+    let mut model = storage.model(&b.input(), &cfg).unwrap();
+    let mut twin_storage = OwnedStorage::<f64>::new(&default_caps(&b)).unwrap();
+    let mut twin = twin_storage.model(&b.input(), &cfg).unwrap();
+    for m in [&mut model, &mut twin] {
+        m.embed_features(&b.frame0()).unwrap();
+        for t in 1..4 {
+            m.step(&b.frame(t, 3.0)).unwrap();
+        }
+    }
+    assert_eq!(model.fingerprint(), twin.fingerprint());
+    let good = b.frame(4, 3.0);
+    let shifted: Vec<[f64; 3]> = model
+        .positions()
+        .iter()
+        .map(|p| [p[0] + 1e-4, p[1], p[2]])
+        .collect();
+    model.set_positions(&shifted).unwrap();
+    let moved = model.fingerprint();
+    // Enormous but finite positions: the energy overflows.
+    blow_up(&mut model);
+    refused(
+        &mut model,
+        "huge positions",
+        |m| m.step(&good),
+        |e| {
+            matches!(
+                e,
+                Error::NotFinite { .. } | Error::Diverged | Error::FeatureBehindCamera { .. }
+            )
+        },
+    );
+    model.set_positions(&shifted).unwrap();
+    assert_eq!(model.fingerprint(), moved);
+    // Stepping on from the shifted nodes is stepping the twin from them.
+    twin.set_positions(&shifted).unwrap();
+    let r = model.step(&good).unwrap();
+    let t = twin.step(&good).unwrap();
+    assert_eq!(r.energy_after, t.energy_after);
+    assert_eq!(model.fingerprint(), twin.fingerprint());
+}
+
 #[test]
 fn a_strategy_switch_whose_first_frame_fails_keeps_the_old_strategy_state() {
     with_model(Strategy::Refactor, default_caps, |b, model| {

@@ -61,12 +61,14 @@
 //! frame's cost does not depend on the data.
 
 mod assembly;
+mod kept;
 mod newton;
 mod secant;
 
-pub(crate) use assembly::{Problem, build_scatter};
+pub(crate) use assembly::{ElementSums, Problem, build_scatter};
+pub(crate) use kept::KeptElements;
 #[cfg(feature = "cut")]
-pub(crate) use newton::{assemble_on, factorize_on};
+pub(crate) use newton::{AssemblyOutput, assemble_on, factorize_on};
 pub use secant::SECANT_PAIRS;
 pub(crate) use secant::SecantMemory;
 

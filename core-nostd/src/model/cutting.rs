@@ -125,6 +125,7 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
     ) -> Result<CutReport, Error> {
         self.spare.copy_state_from(&self.live);
         let coefficients = self.coefficients();
+        let keeps = self.keeps_elements();
         let spare = &mut self.spare;
         let mut event = CutEvent::default();
         for part in parts.into_iter().flatten() {
@@ -166,13 +167,24 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
         spare.compute_node_weights(&self.lame, &self.config.solver);
         spare.rebuild_system(self.work)?;
         let mut work = WorkCount::default();
+        // The quasi-Newton strategy starts the next frame from the elements' share of this
+        // assembly (taken only if the cut goes into service).
+        let n_new = spare.n_unknowns();
+        let keep = if keeps {
+            Some(self.kept.trial_mut(n_new)?)
+        } else {
+            None
+        };
         assemble_on(
             spare,
             &self.features,
             coefficients,
             &self.config,
-            &mut self.vectors.gradient[..],
-            Some(&mut self.hessian[..]),
+            AssemblyOutput {
+                gradient: &mut self.vectors.gradient[..],
+                hessian: Some(&mut self.hessian[..]),
+                keep,
+            },
             &mut work,
         )?;
         factorize_on(
@@ -191,6 +203,11 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
         } else {
             FactoredMatrix::Step
         };
+        if keeps {
+            work.state_copies += self.kept.accept(n_new);
+        } else {
+            self.kept.forget();
+        }
         report.applied = true;
         report.work = work;
         Ok(report)

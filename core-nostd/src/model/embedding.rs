@@ -66,6 +66,9 @@ impl<T: Real, F: Real> Model<'_, T, F> {
         self.saved.features.copy_from(&self.features);
         self.saved.embedding.copy_from(&self.live.features);
         let factored = self.factored;
+        // The frozen factor's assembly keeps the elements' share for the quasi-Newton strategy.
+        let n = self.n_unknowns();
+        self.kept.checkpoint(n);
         let springs = (
             self.spring_stiffness,
             self.spring_threshold_px,
@@ -81,6 +84,7 @@ impl<T: Real, F: Real> Model<'_, T, F> {
                 self.features.copy_from(&self.saved.features);
                 self.live.features.copy_from(&self.saved.embedding);
                 self.factored = factored;
+                self.kept.rollback(n);
                 (
                     self.spring_stiffness,
                     self.spring_threshold_px,

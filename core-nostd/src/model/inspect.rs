@@ -46,6 +46,8 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
             }
         }
         copy_front(live.previous, live.x, n);
+        // The nodes moved: the elements' share kept for the old positions no longer holds.
+        self.kept.forget();
         Ok(())
     }
 
@@ -125,6 +127,7 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
         h.words(strategy.iter());
         h.words(core::iter::once(&(self.factored as u32)));
         self.secant.fingerprint_into(self.n_unknowns(), &mut h);
+        self.kept.fingerprint_into(self.n_unknowns(), &mut h);
         #[cfg(feature = "detect")]
         {
             self.cut.detector.fingerprint_into(&mut h);

@@ -42,11 +42,12 @@ use crate::features::{EmbedReport, Features, Observation, image_bounds, spacing_
 use crate::material::{InversionBarrier, Lame, Law};
 use crate::mesh::{Mesh, MeshInput};
 use crate::real::Real;
-use crate::solve::{
-    Coupling, Energies, MIXED_REFINEMENT_STEPS, SecantMemory, SolverConfig, Strategy, WorkCount,
-};
 #[cfg(feature = "cut")]
-use crate::solve::{assemble_on, factorize_on};
+use crate::solve::{AssemblyOutput, assemble_on, factorize_on};
+use crate::solve::{
+    Coupling, Energies, KeptElements, MIXED_REFINEMENT_STEPS, SecantMemory, SolverConfig, Strategy,
+    WorkCount,
+};
 use crate::sparse::{LdlFactor, NONE, PrecomputedAnalysis, Symbolic, UpperCsc};
 use crate::storage::{Fingerprint, Slab, copy_front, ensure_exact_len, ensure_len};
 
@@ -226,6 +227,9 @@ pub struct Model<'a, T: Real, F: Real = T> {
     /// The secant pairs of [`Strategy::QuasiNewton`] (no storage without the `quasi-newton`
     /// feature).
     pub(crate) secant: SecantMemory<'a, T>,
+    /// The elements' gradient share that [`Strategy::QuasiNewton`] with one line-search trial
+    /// starts a frame from (no storage without the `quasi-newton` feature).
+    pub(crate) kept: KeptElements<'a, T>,
 }
 
 /// Copies of the state that [`Model::step`] and [`Model::embed_features`] overwrite before they
@@ -356,6 +360,7 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
             factor_indices: index_slab.take(LdlFactor::<F>::supernodal_index_work_len(dofs))?,
         };
         let secant = SecantMemory::new(size.secant_unknowns(), &mut scalar_slab)?;
+        let kept = KeptElements::new(size.secant_unknowns(), &mut scalar_slab)?;
         let features = Features::new(caps.features, &mut scalar_slab, &mut index_slab)?;
         let saved = Saved {
             features: Features::new(caps.features, &mut scalar_slab, &mut index_slab)?,
@@ -408,6 +413,7 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
             cut,
             frame: 0,
             secant,
+            kept,
         })
     }
 
@@ -525,8 +531,10 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
         };
         solver.validate()?;
         if solver.strategy != self.config.solver.strategy {
-            // Secant pairs belong to the factor they corrected, which a new strategy replaces.
+            // Secant pairs belong to the factor they corrected, which a new strategy replaces;
+            // the elements' share was kept for the strategy that keeps it.
             self.secant.clear();
+            self.kept.forget();
         }
         self.config.solver = solver;
         Ok(())
@@ -577,7 +585,11 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
         // Only the quasi-Newton strategy writes its secant pairs.
         let secant = self.config.solver.strategy == Strategy::QuasiNewton;
         let n = self.n_unknowns();
-        let secant_copies = if secant { self.secant.checkpoint(n) } else { 0 };
+        let mut secant_copies = if secant { self.secant.checkpoint(n) } else { 0 };
+        let keeps = self.keeps_elements();
+        if keeps {
+            secant_copies += self.kept.checkpoint(n);
+        }
         let mut report = match self.solve_frame() {
             Ok(report) => {
                 self.factor.commit();
@@ -592,6 +604,9 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
                 self.factor.rollback();
                 if secant {
                     self.secant.rollback(n);
+                }
+                if keeps {
+                    self.kept.rollback(n);
                 }
                 return Err(e);
             }
@@ -637,6 +652,12 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
     /// tangents per Newton step, every line-search trial, and an assembly without tangents
     /// that closes the frame, but with one trial per Newton step, whose last trial is that
     /// assembly ([`SolverConfig::line_search_steps`](crate::SolverConfig::line_search_steps)).
+    /// `QuasiNewton` with one trial assembles every trial and starts each step from the last
+    /// one's, the frame's first from the elements' share the last frame ended with: its
+    /// elements are evaluated once per trial, no more. (Once after a switch to it from
+    /// `Frozen` and after [`Model::set_positions`], no share is kept and the frame's first
+    /// assembly evaluates the elements too, as a switch's first frame factors the frozen
+    /// matrix: one-off costs beyond this formula.)
     pub fn worst_case_work(&self) -> WorkCount {
         let s = &self.config.solver;
         let newton = s.newton_iterations;
@@ -647,9 +668,10 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
         // The assembly that closes a frame, but where the last Newton step's single line-search
         // trial is evaluated by an assembly and gives the closing gradient with it.
         let closing = u64::from(!(s.line_search_steps == 1 && newton > 0));
-        // The Newton steps' assemblies: with tangents, or, for `QuasiNewton`, without, and
-        // then, with one trial, only the first step's (each later one starts from the
-        // assembled trial of the step before).
+        // The Newton steps' assemblies: with tangents, or, for `QuasiNewton`, without; with
+        // one trial, only the first step's (each later one starts from the assembled trial of
+        // the step before), and that one reuses the elements' share the last frame ended with
+        // ([`KeptElements`]): its springs and priors alone.
         let (with_tangents, without) = if s.strategy.assembles_hessian() {
             (u64::from(newton), 0)
         } else if s.line_search_steps == 1 {
@@ -657,11 +679,12 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
         } else {
             (0, u64::from(newton))
         };
+        let element_passes = if self.keeps_elements() { 0 } else { without };
         let trials = u64::from(newton * s.line_search_steps);
         let mut w = WorkCount {
             assemblies: newton + 1,
             element_tangents: with_tangents * tets,
-            element_evaluations: tets * (closing + without + trials),
+            element_evaluations: tets * (closing + element_passes + trials),
             feature_evaluations: feats * (closing + with_tangents + without + trials),
             energy_evaluations: newton * s.line_search_steps,
             state_copies: 5 * feats + 3 * self.live.mesh.n_nodes() as u64,
@@ -697,6 +720,11 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
                     * (SecantMemory::<T>::step_flops(unknowns)
                         + SecantMemory::<T>::pair_flops(unknowns));
                 w.state_copies += SecantMemory::<T>::copies(unknowns);
+                if self.keeps_elements() {
+                    // The kept share's checkpoint, and each step's trial share taken.
+                    w.state_copies +=
+                        KeptElements::<T>::copies(unknowns) + u64::from(newton) * unknowns as u64;
+                }
             }
             Strategy::FactorOnce { pcg_iterations } => {
                 let later = newton.saturating_sub(1);

@@ -10,7 +10,7 @@ use crate::error::{Error, Resource};
 use crate::features::Features;
 use crate::mesh::{MeshCapacity, MeshInput};
 use crate::real::Real;
-use crate::solve::SecantMemory;
+use crate::solve::{KeptElements, SecantMemory};
 use crate::sparse::pattern::MAX_INDEX;
 use crate::sparse::{
     Graph, LdlFactor, NONE, Symbolic, SymbolicSize, UpperCsc, analyse_work_len, block_upper_len,
@@ -310,9 +310,12 @@ impl ModelSize {
                 feature: None,
             },
             StoragePart {
-                name: "secant pairs of the quasi-Newton strategy and their copy (quasi-newton feature)",
+                name: "secant pairs of the quasi-Newton strategy, the elements' gradient it keeps between frames, and their copies (quasi-newton feature)",
                 grows_with: "the nodes",
-                reals: SecantMemory::<AnyReal>::real_len(self.secant_unknowns()),
+                reals: sum(&[
+                    SecantMemory::<AnyReal>::real_len(self.secant_unknowns()),
+                    KeptElements::<AnyReal>::real_len(self.secant_unknowns()),
+                ]),
                 indices: 0,
                 feature: Some("quasi-newton"),
             },

@@ -15,7 +15,17 @@ use crate::material::{
 use crate::mesh::Mesh;
 use crate::real::Real;
 use crate::sparse::{NONE, UpperCsc, ux};
-use crate::storage::ensure_len;
+use crate::storage::{ensure_exact_len, ensure_len};
+
+/// The elements' share of an assembly besides their gradient: what
+/// [`Problem::assemble_keeping`] keeps for [`Problem::assemble_reusing`].
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(crate) struct ElementSums<T> {
+    /// The elastic energy (the inversion barrier's included).
+    pub energy: T,
+    /// The sum of the elements' force magnitudes, for the rounding estimate.
+    pub force_sum: T,
+}
 
 /// Everything the assembly reads, borrowed from the model.
 pub(crate) struct Problem<'p, 'a, T: Real> {
@@ -227,6 +237,66 @@ impl<T: Real> Problem<'_, '_, T> {
         mut hessian: Option<&mut [T]>,
         work: &mut WorkCount,
     ) -> Result<Energies<T>, Error> {
+        let elements = self.assemble_elements(x, grad, hessian.as_deref_mut(), work)?;
+        self.assemble_springs_and_priors(x, grad, hessian, elements, work)
+    }
+
+    /// As [`Problem::assemble`], and the elements' share of it kept: their gradient in `kept`
+    /// (as long as `grad`) and their sums in `kept_sums`, for [`Problem::assemble_reusing`] at
+    /// the same positions.
+    ///
+    /// # Errors
+    /// As [`Problem::assemble`]; [`Error::Length`] if `kept` is not as long as `grad`.
+    #[inline(never)]
+    pub fn assemble_keeping(
+        &self,
+        x: &[[T; 3]],
+        grad: &mut [T],
+        mut hessian: Option<&mut [T]>,
+        kept: &mut [T],
+        kept_sums: &mut ElementSums<T>,
+        work: &mut WorkCount,
+    ) -> Result<Energies<T>, Error> {
+        ensure_exact_len(kept, grad.len(), Resource::Unknowns)?;
+        let elements = self.assemble_elements(x, grad, hessian.as_deref_mut(), work)?;
+        kept.copy_from_slice(grad);
+        *kept_sums = elements;
+        self.assemble_springs_and_priors(x, grad, hessian, elements, work)
+    }
+
+    /// The gradient and energies of [`Problem::assemble`] without the Hessian where the
+    /// elements' share at these positions is known already (`kept` and `sums`, from
+    /// [`Problem::assemble_keeping`] at the same positions of the same mesh): only the springs,
+    /// the damping and the depth prior are evaluated. The elements' share depends on the
+    /// positions alone and comes first in the sums, so the result is the assembly's, bit for
+    /// bit (when it was kept from an assembly without the Hessian; with it, its element
+    /// kernel rounds otherwise).
+    ///
+    /// # Errors
+    /// As [`Problem::assemble`]; [`Error::Length`] if `kept` is not as long as `grad`.
+    #[inline(never)]
+    pub fn assemble_reusing(
+        &self,
+        x: &[[T; 3]],
+        grad: &mut [T],
+        kept: &[T],
+        sums: ElementSums<T>,
+        work: &mut WorkCount,
+    ) -> Result<Energies<T>, Error> {
+        ensure_exact_len(kept, grad.len(), Resource::Unknowns)?;
+        grad.copy_from_slice(kept);
+        self.assemble_springs_and_priors(x, grad, None, sums, work)
+    }
+
+    /// The elements' share of an assembly: `grad` (and the Hessian's values, when given) set
+    /// to it.
+    fn assemble_elements(
+        &self,
+        x: &[[T; 3]],
+        grad: &mut [T],
+        mut hessian: Option<&mut [T]>,
+        work: &mut WorkCount,
+    ) -> Result<ElementSums<T>, Error> {
         let free = self.mesh.free_index();
         grad.fill(T::zero());
         if let Some(h) = hessian.as_deref_mut() {
@@ -295,6 +365,28 @@ impl<T: Real> Problem<'_, '_, T> {
         } else {
             work.element_evaluations += self.mesh.n_tets() as u64;
         }
+        Ok(ElementSums {
+            energy: e.elastic,
+            force_sum,
+        })
+    }
+
+    /// The rest of an assembly, added to the elements' share in `grad` (and the Hessian):
+    /// the springs, the damping and the depth prior.
+    fn assemble_springs_and_priors(
+        &self,
+        x: &[[T; 3]],
+        grad: &mut [T],
+        mut hessian: Option<&mut [T]>,
+        elements: ElementSums<T>,
+        work: &mut WorkCount,
+    ) -> Result<Energies<T>, Error> {
+        let free = self.mesh.free_index();
+        let mut e = Energies {
+            elastic: elements.energy,
+            ..Energies::default()
+        };
+        let mut force_sum = elements.force_sum;
 
         // Springs, Gauss–Newton through the projection, reweighted by Huber's loss.
         let observations = self.features.active().iter().zip(self.features.targets());

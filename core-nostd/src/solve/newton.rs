@@ -22,7 +22,7 @@ use crate::model::discretization::Discretization;
 use crate::model::{FactoredMatrix, Model, ModelConfig, SolveVectors, StepReport};
 use crate::real::Real;
 use crate::solve::{
-    Energies, MIXED_REFINEMENT_STEPS, Problem, SecantMemory, Strategy, WorkCount, dot,
+    ElementSums, Energies, MIXED_REFINEMENT_STEPS, Problem, SecantMemory, Strategy, WorkCount, dot,
 };
 use crate::sparse::{LdlFactor, NONE, sym_matvec, ux};
 use crate::storage::{ensure_exact_len, prefix, prefix_mut, times};
@@ -54,9 +54,13 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
         // The energies (and, in the model's gradient, the gradient) where the last step
         // ended, when its line search assembled them: the next step starts from them.
         let mut carried = None;
+        // With one trial, the quasi-Newton strategy also starts the frame from the elements'
+        // share of the assembly that ended the last one ([`KeptElements`](crate::solve::KeptElements)).
+        let keeps = self.keeps_elements();
         for it in 0..newton {
             let e = match carried.take() {
                 Some(e) => e,
+                None if keeps => self.assemble_frame_start(&mut work)?,
                 None => self.assemble(strategy.assembles_hessian(), &mut work)?,
             };
             if pending {
@@ -179,10 +183,48 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
             features,
             coefficients,
             config,
-            &mut vectors.gradient[..],
-            with_hessian.then_some(&mut hessian[..]),
+            AssemblyOutput {
+                gradient: &mut vectors.gradient[..],
+                hessian: with_hessian.then_some(&mut hessian[..]),
+                keep: None,
+            },
             work,
         )
+    }
+
+    /// Whether frames start from the elements' share kept from the last assembly
+    /// ([`KeptElements`](crate::solve::KeptElements)): the quasi-Newton strategy (no tangents) with one line-search trial
+    /// (every step's trial assembled), in a build with it.
+    pub(crate) fn keeps_elements(&self) -> bool {
+        cfg!(feature = "quasi-newton")
+            && self.config.solver.strategy == Strategy::QuasiNewton
+            && self.config.solver.line_search_steps == 1
+    }
+
+    /// The gradient and energies where the frame starts, without tangents, from the elements'
+    /// share kept at these positions; when none is kept (after a switch of strategy or
+    /// [`Model::set_positions`]), by a whole assembly that keeps its share.
+    fn assemble_frame_start(&mut self, work: &mut WorkCount) -> Result<Energies<T>, Error> {
+        let n = self.n_unknowns();
+        let coefficients = self.coefficients();
+        let Model {
+            live,
+            config,
+            features,
+            vectors,
+            kept,
+            ..
+        } = self;
+        let problem = problem_of(live, features, coefficients, config)?;
+        let x = prefix(live.x, live.mesh.n_nodes(), Resource::Nodes)?;
+        let gradient = prefix_mut(vectors.gradient, n, Resource::Unknowns)?;
+        if let Some((share, sums)) = kept.current(n) {
+            return problem.assemble_reusing(x, gradient, share, sums, work);
+        }
+        let (share, sums) = kept.trial_mut(n)?;
+        let e = problem.assemble_keeping(x, gradient, None, share, sums, work)?;
+        work.state_copies += kept.accept(n);
+        Ok(e)
     }
 
     /// Factors the Hessian just assembled and solves the Newton system: exactly, or, with a
@@ -260,11 +302,35 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
 
     /// Factors the frozen matrix: the positive definite Hessian at the current state.
     pub(crate) fn prepare_frozen(&mut self, work: &mut WorkCount) -> Result<(), Error> {
-        self.assemble(true, work)?;
+        let keeps = self.keeps_elements();
+        if keeps {
+            // The elements' share at these positions, for the first frame to start from
+            // (taken once the factorization succeeds).
+            let n = self.n_unknowns();
+            let coefficients = self.coefficients();
+            let (share, sums) = self.kept.trial_mut(n)?;
+            assemble_on(
+                &self.live,
+                &self.features,
+                coefficients,
+                &self.config,
+                AssemblyOutput {
+                    gradient: &mut self.vectors.gradient[..],
+                    hessian: Some(&mut self.hessian[..]),
+                    keep: Some((share, sums)),
+                },
+                work,
+            )?;
+        } else {
+            self.assemble(true, work)?;
+        }
         self.factorize(work)?;
         self.factored = FactoredMatrix::Frozen;
         // The quasi-Newton strategy's pairs corrected the factor before this one.
         self.secant.clear();
+        if keeps {
+            work.state_copies += self.kept.accept(self.n_unknowns());
+        }
         Ok(())
     }
 
@@ -365,6 +431,8 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
         // A Newton step that needs no tangents (`QuasiNewton`) needs no more than the
         // trial's gradient either: every step's single trial is assembled.
         let closes = trials == 1 && (last || !self.config.solver.strategy.assembles_hessian());
+        // The trial's elements' share, kept for the next frame or step to start from.
+        let keeps = closes && self.keeps_elements();
         let energy = at.total();
         let slack = T::of(2.0) * at.rounding;
         let mut alpha = T::one();
@@ -384,7 +452,13 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
             let evaluated = if closes {
                 work.energy_evaluations += 1;
                 let gradient = prefix_mut(v.residual, n, Resource::Unknowns)?;
-                problem.assemble(trial, gradient, None, work).map(|e| {
+                let assembly = if keeps {
+                    let (share, sums) = self.kept.trial_mut(n)?;
+                    problem.assemble_keeping(trial, gradient, None, share, sums, work)
+                } else {
+                    problem.assemble(trial, gradient, None, work)
+                };
+                assembly.map(|e| {
                     assembled = Some(e);
                     e
                 })
@@ -418,6 +492,9 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
                     n,
                     Resource::Unknowns,
                 )?);
+                if keeps {
+                    work.state_copies += self.kept.accept(n);
+                }
                 Ok((alpha, Some(e)))
             }
             _ => Ok((alpha, Some(*at))),
@@ -539,31 +616,43 @@ fn problem_of<'p, 'a, T: Real>(
     })
 }
 
-/// Gradient (and, if given, the Hessian values) of a discretization at its positions.
+/// Where [`assemble_on`] writes.
+pub(crate) struct AssemblyOutput<'o, T> {
+    /// The gradient (at least the discretization's unknowns).
+    pub gradient: &'o mut [T],
+    /// The Hessian's values (at least the pattern's entries), when tangents are assembled.
+    pub hessian: Option<&'o mut [T]>,
+    /// Where the elements' share is kept ([`Problem::assemble_keeping`]), if it is.
+    pub keep: Option<(&'o mut [T], &'o mut ElementSums<T>)>,
+}
+
+/// Gradient (and, if asked for, the Hessian values) of a discretization at its positions.
 ///
 /// # Errors
-/// As [`Problem::assemble`], and [`Error::Capacity`] if `gradient`, `hessian` or an array of
-/// `d` is shorter than the unknowns, entries or mesh it holds (not for a model built by its
+/// As [`Problem::assemble`], and [`Error::Capacity`] if an output or an array of `d` is
+/// shorter than the unknowns, entries or mesh it holds (not for a model built by its
 /// constructors).
 pub(crate) fn assemble_on<T: Real>(
     d: &Discretization<'_, T>,
     features: &Features<'_, T>,
     coefficients: Coefficients<T>,
     config: &ModelConfig<T>,
-    gradient: &mut [T],
-    hessian: Option<&mut [T]>,
+    out: AssemblyOutput<'_, T>,
     work: &mut WorkCount,
 ) -> Result<Energies<T>, Error> {
     let n = d.n_unknowns();
     let nnz = d.nnz_a;
-    problem_of(d, features, coefficients, config)?.assemble(
-        prefix(d.x, d.mesh.n_nodes(), Resource::Nodes)?,
-        prefix_mut(gradient, n, Resource::Unknowns)?,
-        hessian
-            .map(|h| prefix_mut(h, nnz, Resource::MatrixEntries))
-            .transpose()?,
-        work,
-    )
+    let problem = problem_of(d, features, coefficients, config)?;
+    let x = prefix(d.x, d.mesh.n_nodes(), Resource::Nodes)?;
+    let gradient = prefix_mut(out.gradient, n, Resource::Unknowns)?;
+    let hessian = out
+        .hessian
+        .map(|h| prefix_mut(h, nnz, Resource::MatrixEntries))
+        .transpose()?;
+    match out.keep {
+        Some((share, sums)) => problem.assemble_keeping(x, gradient, hessian, share, sums, work),
+        None => problem.assemble(x, gradient, hessian, work),
+    }
 }
 
 /// Factors the Hessian values of a discretization with its symbolic analysis.
