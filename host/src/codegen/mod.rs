@@ -507,8 +507,13 @@ fn storage_parts(
     generated: &Generated,
     set: &FeatureSet,
 ) -> Result<(Vec<StoragePart>, u64), CodegenError> {
-    let has =
-        |f: &str| set.features.contains(&f) || (f == "detect" && set.features.contains(&"cut"));
+    // A feature the set names, or one it brings: `cut` brings `detect`, `strategies` every
+    // strategy (`quasi-newton` the storage of its secant pairs and kept gradient share).
+    let has = |f: &str| {
+        set.features.contains(&f)
+            || (f == "detect" && set.features.contains(&"cut"))
+            || (f == "quasi-newton" && set.features.contains(&"strategies"))
+    };
     let capacities = if has("cut") {
         &generated.capacities
     } else if has("detect") {
