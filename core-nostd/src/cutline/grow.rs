@@ -359,12 +359,24 @@ fn anchor_halves<T: Real>(
             None => !lips_only && lips.side_of(*f, tracked.residuals.get(i), across) == positive,
         }
     };
-    let ((a, wa), (b, wb)) = anchor_where(p, features, usable, side(true)).zip(anchor_where(
-        p,
-        features,
-        usable,
-        side(false),
-    ))?;
+    // With `lips_only`, the candidates of a side are the lips' features on it: scanned
+    // alone (in slot order, as the whole scan meets them) instead of every feature.
+    let half = |positive: bool| {
+        if lips_only {
+            let (on, m) = lips.slots_on(positive);
+            let on = on.get(..m).unwrap_or_default();
+            anchor_among(
+                p,
+                features,
+                usable,
+                on.iter().map(|&s| s as usize),
+                side(positive),
+            )
+        } else {
+            anchor_among(p, features, usable, 0..features.len(), side(positive))
+        }
+    };
+    let ((a, wa), (b, wb)) = half(true).zip(half(false))?;
     let half = T::of(0.5);
     Some((
         [a[0], a[1], a[2], b[0], b[1], b[2]],
@@ -535,6 +547,28 @@ impl<T: Real> Lips<T> {
             .find(|(s, _)| *s as usize == slot)
             .map(|(_, positive)| *positive)
     }
+
+    /// The features whose [`Lips::side`] is `positive`, ascending, each once, and how many.
+    fn slots_on(&self, positive: bool) -> ([u32; 2 * LIP_PAIRS], usize) {
+        let mut on = [0u32; 2 * LIP_PAIRS];
+        let mut m = 0;
+        let slots = self.slots.get(..self.n).unwrap_or_default();
+        for (k, &(slot, side)) in slots.iter().enumerate() {
+            // A feature's side is its first entry's, as `side` finds it.
+            let first = slots.iter().take(k).all(|&(s, _)| s != slot);
+            if first
+                && side == positive
+                && let Some(o) = on.get_mut(m)
+            {
+                *o = slot;
+                m += 1;
+            }
+        }
+        if let Some(on) = on.get_mut(..m) {
+            on.sort_unstable();
+        }
+        (on, m)
+    }
 }
 
 /// Anchors image point `p` to three usable features around it, as their affine combination
@@ -558,11 +592,26 @@ pub(super) fn anchor_where<T: Real>(
     usable: &[u32],
     keep: impl Fn(usize, &[T; 2]) -> bool,
 ) -> Option<([u32; 3], [T; 3])> {
+    anchor_among(p, features, usable, 0..features.len(), keep)
+}
+
+/// [`anchor_where`] among the feature slots `slots` (ascending, each once): with every slot
+/// that `keep` accepts among them, the same result as the scan of all.
+fn anchor_among<T: Real>(
+    p: [T; 2],
+    features: &[[T; 2]],
+    usable: &[u32],
+    slots: impl Iterator<Item = usize>,
+    keep: impl Fn(usize, &[T; 2]) -> bool,
+) -> Option<([u32; 3], [T; 3])> {
     // The six nearest usable features, by insertion into a small sorted list.
     const K: usize = 6;
     let mut near: [(T, u32); K] = [(T::max_value().unwrap_or(T::one()), u32::MAX); K];
     let mut found = 0;
-    for (i, f) in features.iter().enumerate() {
+    for i in slots {
+        let Some(f) = features.get(i) else {
+            continue;
+        };
         if usable.get(i).is_none_or(|&u| u == 0) {
             continue;
         }

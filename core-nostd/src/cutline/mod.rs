@@ -508,9 +508,10 @@ const REACH_STEPS: f64 = 5.0;
 const ANCHOR_COST: u64 = 5;
 
 /// The visits of one anchoring with `features` slots and `pairs` neighbour pairs: a scan of
-/// the pairs for the split ones near the point, then [`ANCHOR_COST`] scans of the slots, each
-/// with the 20 triangles of the six nearest (a slot's lip is looked up among at most
-/// `2 LIP_PAIRS` features, part of its visit).
+/// the pairs for the split ones near the point, then at most [`ANCHOR_COST`] scans of the
+/// slots, each with the 20 triangles of the six nearest (a slot's lip is looked up among at
+/// most `2 LIP_PAIRS` features, part of its visit). A bound: the two scans among the lips'
+/// features alone visit those features only (at most `2 LIP_PAIRS` each).
 const fn anchor_cost(features: usize, pairs: usize) -> u64 {
     ANCHOR_COST * (features as u64 + 20) + pairs as u64
 }
