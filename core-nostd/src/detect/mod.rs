@@ -250,8 +250,8 @@ impl DetectionWork {
     /// The most work of one frame with `features` feature slots, `pairs` pairs and `degree`
     /// pairs at most per feature (at most `pairs`):
     /// - feature visits `4 n`: the temporal filter's three passes and the per-feature levels;
-    /// - pair visits `7 P`: the temporal filter's neighbour lists (`2 P`), differences,
-    ///   per-feature lists, levels, outliers, persistence;
+    /// - pair visits `6 P`: the temporal filter's pairs, the differences, the per-feature
+    ///   lists (`2 P`), outliers, persistence;
     /// - selection steps: the median and MAD of the changes (`2 S(n)`) and of the differences
     ///   (`2 S(P)`), with `S(m)` the bound of one selection ([`crate::robust::select_bound`]),
     ///   and each feature's lower tertile over its `dᵢ` pairs (`Σ S(dᵢ) ≤ r · 2P` as
@@ -261,7 +261,7 @@ impl DetectionWork {
         use crate::robust::{select_bound, select_rate_bound};
         DetectionWork {
             feature_visits: 4 * features,
-            pair_visits: 7 * pairs,
+            pair_visits: 6 * pairs,
             selection_steps: 2 * select_bound(features)
                 + 2 * select_bound(pairs)
                 + select_rate_bound(2 * pairs) * 2 * pairs,

@@ -55,52 +55,49 @@ impl<'a, T: Real> Detector<'a, T> {
             // with it. Where a cut opens under the camera (a scissor advancing), the features
             // of each lip jump together, each with neighbours on its own lip that moved alike:
             // they are the cut's evidence, and are kept. Decided for every feature from the
-            // states the frame starts with (`scratch`: 1 to take out), every pair list scanned
-            // whole, so that the work does not depend on the data.
-            let change = |f: usize| match (self.current.get(f), self.previous.get(f)) {
-                (Some(&c), Some(&p)) => Some([c[0] - p[0], c[1] - p[1]]),
-                _ => None,
-            };
-            let starts = self
-                .incident_start
+            // states the frame starts with, every pair visited once whatever the data, so that
+            // the work does not depend on it. `scratch` holds each feature's verdict: `0` did
+            // not jump (or is not eligible), `1` jumped alone so far, `-1` jumped with a
+            // neighbour that jumped alike (a jumper either way, for its other neighbours).
+            let slots = self
+                .feature_state
                 .iter()
-                .zip(self.incident_start.iter().skip(1));
-            let slots = self.feature_state.iter().zip(observed).zip(starts);
-            for (i, (((&s, &o), (&lo, &hi)), out)) in
-                slots.zip(self.scratch.iter_mut()).take(n).enumerate()
-            {
-                let mine = change(i);
-                let jumped = mine.is_some_and(|c| norm(c, [T::zero(); 2]) > limit);
-                let mine = mine.unwrap_or([T::zero(); 2]);
-                let incident = self
-                    .incident
-                    .get(lo as usize..hi as usize)
-                    .unwrap_or_default();
-                let mut followed = false;
-                for &k in incident {
-                    let Some(&[a, b]) = self.pairs.get(k as usize) else {
-                        continue;
-                    };
-                    let j = if a as usize == i { b } else { a } as usize;
-                    let (Some(&sj), Some(&oj), Some(theirs)) =
-                        (self.feature_state.get(j), observed.get(j), change(j))
-                    else {
-                        continue;
-                    };
-                    followed |= eligible(sj, oj)
-                        && norm(theirs, [T::zero(); 2]) > limit
-                        && norm(mine, theirs) <= limit;
-                }
-                work.pair_visits += incident.len() as u64;
-                *out = if eligible(s, o) && jumped && !followed {
+                .zip(observed)
+                .zip(self.current.iter().zip(self.previous.iter()));
+            for (((&s, &o), (&c, &p)), verdict) in slots.zip(self.scratch.iter_mut()).take(n) {
+                *verdict = if eligible(s, o) && norm(c, p) > limit {
                     T::one()
                 } else {
                     T::zero()
                 };
             }
+            let change = |f: usize| match (self.current.get(f), self.previous.get(f)) {
+                (Some(&c), Some(&p)) => [c[0] - p[0], c[1] - p[1]],
+                _ => [T::zero(); 2],
+            };
+            for &[a, b] in self.pairs.get(..self.n_pairs).unwrap_or_default() {
+                let (a, b) = (a as usize, b as usize);
+                if a >= n || b >= n {
+                    continue;
+                }
+                // `‖cₐ − c_b‖` is the same number from either end (the differences only
+                // change sign), as when each feature scanned its own pairs.
+                let alike = norm(change(a), change(b)) <= limit;
+                let (Some(&va), Some(&vb)) = (self.scratch.get(a), self.scratch.get(b)) else {
+                    continue;
+                };
+                if alike && va != T::zero() && vb != T::zero() {
+                    for f in [a, b] {
+                        if let Some(v) = self.scratch.get_mut(f) {
+                            *v = -T::one();
+                        }
+                    }
+                }
+            }
+            work.pair_visits += self.n_pairs as u64;
             let slots = self.feature_state.iter_mut().zip(self.scratch.iter());
-            for (s, &out) in slots.take(n) {
-                if out > T::zero() {
+            for (s, &verdict) in slots.take(n) {
+                if verdict > T::zero() {
                     *s |= FILTERED;
                     self.features_filtered += 1;
                     newly_filtered = true;
