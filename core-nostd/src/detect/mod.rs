@@ -254,17 +254,26 @@ impl DetectionWork {
     ///   lists (`2 P`), outliers, persistence;
     /// - selection steps: the median and MAD of the changes (`2 S(n)`) and of the differences
     ///   (`2 S(P)`), with `S(m)` the bound of one selection ([`crate::robust::select_bound`]),
-    ///   and each feature's lower tertile over its `dᵢ` pairs (`Σ S(dᵢ) ≤ r · 2P` as
-    ///   `Σ dᵢ = 2P`, with `r` the selections' most steps per value,
-    ///   [`crate::robust::select_rate_bound`]`(2P)`).
+    ///   and each feature's lower tertile over its `dᵢ` pairs (`≤ r · 2P` as `Σ dᵢ = 2P`,
+    ///   with `r` the most steps per value of the two ways it is found: four features at a
+    ///   time by a sorting network, one step per comparator for the four,
+    ///   [`crate::robust::network_rate_bound`]`(2P)` per value of the four's longest list
+    ///   (at most 10); or alone, past [`crate::robust::RANK_MAX`] pairs, by a selection,
+    ///   [`crate::robust::select_rate_bound`]`(2P)` per value).
     pub const fn bound(features: u64, pairs: u64) -> DetectionWork {
-        use crate::robust::{select_bound, select_rate_bound};
+        use crate::robust::{network_rate_bound, select_bound, select_rate_bound};
+        let (selected, networked) = (select_rate_bound(2 * pairs), network_rate_bound(2 * pairs));
+        let tertile_rate = if selected > networked {
+            selected
+        } else {
+            networked
+        };
         DetectionWork {
             feature_visits: 4 * features,
             pair_visits: 6 * pairs,
             selection_steps: 2 * select_bound(features)
                 + 2 * select_bound(pairs)
-                + select_rate_bound(2 * pairs) * 2 * pairs,
+                + tertile_rate * 2 * pairs,
         }
     }
 

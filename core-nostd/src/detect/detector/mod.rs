@@ -5,7 +5,10 @@ use super::{DetectionConfig, DetectionReport, DetectionWork};
 use crate::error::{Error, Resource};
 use crate::features::{image_bounds, spacing_px};
 use crate::real::Real;
-use crate::robust::{KEY_WORDS, MAD_TO_SIGMA, median_mad_of, quantile_of};
+use crate::robust::{
+    KEY_WORDS, MAD_TO_SIGMA, NETWORK_LANES, RANK_MAX, from_network_value, median_mad_of,
+    network_length, network_value, quantile_index, quantile_of, sort_lanes,
+};
 use crate::storage::{Slab, sum, times};
 
 const STREAK: u32 = 0xff;

@@ -195,41 +195,89 @@ impl<'a, T: Real> Detector<'a, T> {
             self.keys,
         );
         work.selection_steps += steps;
-        // `incident_start` holds `n + 1` ascending starts into `incident`, whose entries
-        // are pair indices below `n_pairs`.
-        let starts = self
-            .incident_start
-            .iter()
-            .zip(self.incident_start.iter().skip(1));
-        for (slope, (&lo, &hi)) in self.slope.iter_mut().zip(starts).take(n) {
-            let mut m = 0;
-            let incident = self
-                .incident
-                .get(lo as usize..hi as usize)
-                .unwrap_or_default();
-            for &k in incident {
-                let (Some(&mu), Some(&length)) =
-                    (self.difference.get(k as usize), self.length.get(k as usize))
-                else {
-                    continue;
+        // Each feature's lower tertile, [`NETWORK_LANES`] features at a time, one to a lane
+        // of a sorting network as long as the most pairs among them ([`sort_lanes`]); an
+        // unmeasured pair takes part as `+∞`, so the work is that of the topology, however
+        // many pairs are measured. A feature with more than [`RANK_MAX`] pairs is selected
+        // alone. `incident_start` holds `n + 1` ascending starts into `incident`, whose
+        // entries are pair indices below `n_pairs`.
+        let mut rows = [[f32::INFINITY; NETWORK_LANES]; RANK_MAX];
+        for first in (0..n).step_by(NETWORK_LANES) {
+            let group = first..(first + NETWORK_LANES).min(n);
+            let incident_of =
+                |f: usize| match (self.incident_start.get(f), self.incident_start.get(f + 1)) {
+                    (Some(&lo), Some(&hi)) => self
+                        .incident
+                        .get(lo as usize..hi as usize)
+                        .unwrap_or_default(),
+                    _ => &[],
                 };
-                if mu >= T::zero()
-                    && let Some(slot) = self.scratch.get_mut(m)
-                {
-                    *slot = mu / length.max(T::EPS);
-                    m += 1;
+            let networked = |f: usize| incident_of(f).len() <= RANK_MAX;
+            let used = group
+                .clone()
+                .filter(|&f| networked(f))
+                .map(|f| incident_of(f).len())
+                .max()
+                .unwrap_or(0);
+            for row in rows.iter_mut().take(network_length(used)) {
+                *row = [f32::INFINITY; NETWORK_LANES];
+            }
+            let mut measured = [0usize; NETWORK_LANES];
+            for (lane, f) in group.clone().enumerate() {
+                if !networked(f) {
+                    continue;
+                }
+                for (row, &k) in rows.iter_mut().zip(incident_of(f)) {
+                    if let (Some(&mu), Some(&length), Some(x), Some(m)) = (
+                        self.difference.get(k as usize),
+                        self.length.get(k as usize),
+                        row.get_mut(lane),
+                        measured.get_mut(lane),
+                    ) && mu >= T::zero()
+                    {
+                        *x = network_value(mu / length.max(T::EPS));
+                        *m += 1;
+                    }
                 }
             }
-            work.pair_visits += incident.len() as u64;
-            // As above: the feature's unmeasured pairs take part as `+∞`.
-            let (tertile, steps) = quantile_of(
-                self.scratch.get_mut(..incident.len()).unwrap_or_default(),
-                m,
-                T::of(1.0 / 3.0),
-                self.keys,
-            );
-            work.selection_steps += steps;
-            *slope = if m >= 3 { tertile } else { T::zero() };
+            // The group's comparators counted once: each is one vector step on every lane.
+            work.selection_steps += sort_lanes(&mut rows, used);
+            for (lane, f) in group.enumerate() {
+                let incident = incident_of(f);
+                let (m, tertile, steps) = if networked(f) {
+                    let m = measured.get(lane).copied().unwrap_or(0);
+                    let value = rows
+                        .get(quantile_index(m, T::of(1.0 / 3.0)))
+                        .and_then(|row| row.get(lane))
+                        .map_or(T::zero(), |&x| from_network_value(x));
+                    (m, value, 0)
+                } else {
+                    let mut m = 0;
+                    for &k in incident {
+                        if let (Some(&mu), Some(&length)) =
+                            (self.difference.get(k as usize), self.length.get(k as usize))
+                            && mu >= T::zero()
+                            && let Some(slot) = self.scratch.get_mut(m)
+                        {
+                            *slot = mu / length.max(T::EPS);
+                            m += 1;
+                        }
+                    }
+                    // As above: the feature's unmeasured pairs take part as `+∞`.
+                    let (tertile, steps) = quantile_of(
+                        self.scratch.get_mut(..incident.len()).unwrap_or_default(),
+                        m,
+                        T::of(1.0 / 3.0),
+                        self.keys,
+                    );
+                    (m, tertile, steps)
+                };
+                work.pair_visits += incident.len() as u64;
+                work.selection_steps += steps;
+                if let Some(slope) = self.slope.get_mut(f) {
+                    *slope = if m >= 3 { tertile } else { T::zero() };
+                }
+            }
         }
         work.pair_visits += self.n_pairs as u64;
         work.feature_visits += n as u64;
