@@ -212,6 +212,12 @@ impl<'a, T: Real> Detector<'a, T> {
                         .unwrap_or_default(),
                     _ => &[],
                 };
+            // A pair's slope `μ / length`, or none while it is unmeasured (`μ < 0`).
+            let slope_of =
+                |k: u32| match (self.difference.get(k as usize), self.length.get(k as usize)) {
+                    (Some(&mu), Some(&length)) if mu >= T::zero() => Some(mu / length.max(T::EPS)),
+                    _ => None,
+                };
             let networked = |f: usize| incident_of(f).len() <= RANK_MAX;
             let used = group
                 .clone()
@@ -228,14 +234,10 @@ impl<'a, T: Real> Detector<'a, T> {
                     continue;
                 }
                 for (row, &k) in rows.iter_mut().zip(incident_of(f)) {
-                    if let (Some(&mu), Some(&length), Some(x), Some(m)) = (
-                        self.difference.get(k as usize),
-                        self.length.get(k as usize),
-                        row.get_mut(lane),
-                        measured.get_mut(lane),
-                    ) && mu >= T::zero()
+                    if let (Some(slope), Some(x), Some(m)) =
+                        (slope_of(k), row.get_mut(lane), measured.get_mut(lane))
                     {
-                        *x = network_value(mu / length.max(T::EPS));
+                        *x = network_value(slope);
                         *m += 1;
                     }
                 }
@@ -254,12 +256,8 @@ impl<'a, T: Real> Detector<'a, T> {
                 } else {
                     let mut m = 0;
                     for &k in incident {
-                        if let (Some(&mu), Some(&length)) =
-                            (self.difference.get(k as usize), self.length.get(k as usize))
-                            && mu >= T::zero()
-                            && let Some(slot) = self.scratch.get_mut(m)
-                        {
-                            *slot = mu / length.max(T::EPS);
+                        if let (Some(slope), Some(slot)) = (slope_of(k), self.scratch.get_mut(m)) {
+                            *slot = slope;
                             m += 1;
                         }
                     }
