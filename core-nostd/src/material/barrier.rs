@@ -110,6 +110,21 @@ impl<T: Real> InversionBarrier<T> {
         }
     }
 
+    /// Adds the element's barrier energy to `energy` and its stress `ψ'(J) cof F` to `p` (zeros
+    /// at or above the floor), `h` as in [`InversionBarrier::element_energy`]: for a gradient
+    /// formed once from the element's whole stress.
+    pub(crate) fn add_element_stress(
+        &self,
+        volume: T,
+        h: &Matrix3<T>,
+        energy: &mut T,
+        p: &mut Matrix3<T>,
+    ) {
+        let Strained { psi, dpsi, c, .. } = self.strained(h);
+        *energy += volume * psi;
+        *p += c * dpsi;
+    }
+
     /// Adds the element's barrier energy, gradient and tangent (see the module documentation
     /// for what `projection` leaves out) to `eval` (zeros at or above the floor).
     pub fn add_element_tangent(

@@ -96,6 +96,8 @@ impl Law {
     }
 
     /// Element gradient `∂W/∂x_a` (N) from the displacement gradient `h`.
+    // The assembly forms the gradient from the summed stress; the tests check it against this.
+    #[cfg_attr(not(test), allow(dead_code))]
     pub(crate) fn element_gradient_of_h<T: Real>(
         self,
         lame: &Lame<T>,
@@ -109,6 +111,33 @@ impl Law {
                 gradient_from_stress(volume, &neohookean::first_piola_of_h(lame, h), g)
             }
             _ => element_gradient_of_h(lame, volume, g, h),
+        }
+    }
+
+    /// Element energy `W = V Ψ` (J) and first Piola–Kirchhoff stress `P` (Pa) from the
+    /// displacement gradient `h`: what a gradient without tangent needs, the energy bit for bit
+    /// [`Law::element_energy_of_h`]'s. SVK forms the strain once for both; a caller adds what
+    /// else stresses the element (the [`InversionBarrier`]) to `P` and forms the nodes'
+    /// gradient once from the sum ([`element_gradient_of_stress`]).
+    pub(crate) fn element_energy_stress_of_h<T: Real>(
+        self,
+        lame: &Lame<T>,
+        volume: T,
+        h: &Matrix3<T>,
+    ) -> (T, Matrix3<T>) {
+        match self {
+            #[cfg(feature = "neo-hookean")]
+            Law::StableNeoHookean => (
+                self.element_energy_of_h(lame, volume, h),
+                neohookean::first_piola_of_h(lame, h),
+            ),
+            _ => {
+                let e = green_strain_of_displacement(h);
+                (
+                    volume * energy_density_of_strain(lame, &e),
+                    (Matrix3::identity() + h) * stress_from_strain(lame, &e),
+                )
+            }
         }
     }
 
@@ -233,6 +262,16 @@ pub(crate) fn element_gradient_of_h<T: Real>(
 ) -> [Vector3<T>; 4] {
     let s = stress_from_strain(lame, &green_strain_of_displacement(h));
     gradient_from_stress(volume, &((Matrix3::identity() + h) * s), g)
+}
+
+/// Element gradient `∂W/∂x_a = V P g_a` (N) of the stress `p`, the node-0 entry
+/// `−(f_1 + f_2 + f_3)` as in [`element_gradient`].
+pub(crate) fn element_gradient_of_stress<T: Real>(
+    volume: T,
+    p: &Matrix3<T>,
+    g: &[Vector3<T>; 4],
+) -> [Vector3<T>; 4] {
+    gradient_from_stress(volume, p, g)
 }
 
 fn gradient_from_stress<T: Real>(

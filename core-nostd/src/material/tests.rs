@@ -290,6 +290,42 @@ fn barrier_density_is_c2_at_the_floor_and_zero_above() {
     }
 }
 
+/// The assembly's gradient without tangent sums the law's and the barrier's stresses and forms
+/// the nodes' gradient once ([`Law::element_energy_stress_of_h`],
+/// [`InversionBarrier::add_element_stress`], [`element_gradient_of_stress`]): the same energy,
+/// bit for bit, and the same gradient to rounding as the law's gradient plus the barrier's,
+/// under both laws, through inversion.
+#[test]
+fn the_summed_stress_gives_the_law_and_barrier_gradients() {
+    let mut laws = [Law::SaintVenantKirchhoff; 2];
+    if Law::StableNeoHookean.is_built() {
+        laws[1] = Law::StableNeoHookean;
+    }
+    let mut active = 0;
+    for law in laws {
+        for_cases(|kind, nu, l, rest, g, x, _| {
+            let b = InversionBarrier {
+                floor: 0.9,
+                stiffness: 10.0 * (l.lambda + 2.0 * l.mu),
+            };
+            let h = displacement_gradient(x, g);
+            if (Matrix3::identity() + h).determinant() < b.floor {
+                active += 1;
+            }
+            let mut e_two = law.element_energy_of_h(l, rest.volume, &h);
+            let mut two = law.element_gradient_of_h(l, rest.volume, g, &h);
+            b.add_element_gradient(rest.volume, g, &h, &mut e_two, &mut two);
+            let (mut e_one, mut p) = law.element_energy_stress_of_h(l, rest.volume, &h);
+            b.add_element_stress(rest.volume, &h, &mut e_one, &mut p);
+            let one = element_gradient_of_stress(rest.volume, &p, g);
+            assert_eq!(e_one, e_two, "{law:?} {kind:?} nu={nu}");
+            let err = max_abs((0..12).map(|i| flat(&one)[i] - flat(&two)[i])) / max_abs(flat(&two));
+            assert!(err <= 1e-13, "{law:?} {kind:?} nu={nu}: {err:e}");
+        });
+    }
+    assert!(active > 0, "no case reached the barrier");
+}
+
 #[test]
 fn barrier_gradient_and_exact_tangent_match_finite_differences() {
     let mut active = 0;

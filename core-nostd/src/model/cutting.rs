@@ -187,6 +187,7 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
                 gradient: &mut self.vectors.gradient[..],
                 hessian: Some(&mut self.hessian[..]),
                 keep,
+                rays: &mut self.vectors.rays[..],
             },
             &mut work,
         )?;

@@ -175,6 +175,9 @@ pub(crate) struct SolveVectors<'a, T, F = T> {
     pub(crate) solve_work: &'a mut [F],
     /// Positions tried by the line search.
     pub(crate) trial: &'a mut [[T; 3]],
+    /// The camera rays through the nodes' previous positions, which every spring of an
+    /// assembly reads (rebuilt by each assembly from the positions it starts from).
+    pub(crate) rays: &'a mut [[T; 3]],
     /// Packed blocks of the supernodal factorization ([`LdlFactor::SUPERNODAL_WORK_LEN`]).
     pub(crate) factor_work: &'a mut [F],
     /// Index workspace of the supernodal factorization
@@ -353,6 +356,10 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
             product: scalar_slab.take(dofs)?,
             solve_work: factor_slab.take(2 * dofs)?,
             trial: scalar_slab
+                .take(3 * caps.mesh.nodes)?
+                .as_chunks_mut::<3>()
+                .0,
+            rays: scalar_slab
                 .take(3 * caps.mesh.nodes)?
                 .as_chunks_mut::<3>()
                 .0,

@@ -11,6 +11,7 @@ use crate::error::{Error, Resource};
 use crate::features::Features;
 use crate::material::{
     ElementRest, InversionBarrier, Lame, Law, PAIRS, TangentProjection, displacement_gradient,
+    element_gradient_of_stress,
 };
 use crate::mesh::Mesh;
 use crate::real::Real;
@@ -52,6 +53,9 @@ pub(crate) struct Problem<'p, 'a, T: Real> {
     pub depth_scale: T,
     /// Positions of the previous frame, which the damping pulls toward.
     pub previous: &'p [[T; 3]],
+    /// The unit camera ray through each node's previous position ([`camera_rays`]): what a
+    /// spring sees of a node's motion is its motion across that ray.
+    pub rays: &'p [[T; 3]],
     /// Per tetrahedron, per node pair ([`PAIRS`]) and column, the position in the pattern's
     /// value array of the block's first row; [`NONE`] when a node of the pair is fixed.
     pub scatter: &'p [[u32; 30]],
@@ -166,7 +170,7 @@ impl<T: Real> Problem<'_, '_, T> {
         for (slot, (&active, target)) in observations.enumerate() {
             let (_, tet, w) = self.feature_element(slot)?;
             let (p, _) =
-                seen_point(self.camera, self.previous, tet, w, x).ok_or(Error::NoFeatures)?;
+                seen_point(self.rays, self.previous, tet, w, x).ok_or(Error::NoFeatures)?;
             let uv = match self.camera.project(&p, slot) {
                 Ok(uv) => uv,
                 // Not observed: nothing pulls it, wherever it is.
@@ -339,20 +343,17 @@ impl<T: Real> Problem<'_, '_, T> {
                     eval.gradient
                 }
                 None => {
-                    e.elastic += self.law.element_energy_of_h(&self.lame, rest.volume, &du);
-                    let mut gradient =
+                    // The barrier's stress joins the law's before the nodes' gradient is
+                    // formed: one product with the shape gradients, where adding the two
+                    // gradients took two.
+                    let (energy, mut stress) =
                         self.law
-                            .element_gradient_of_h(&self.lame, rest.volume, &g, &du);
+                            .element_energy_stress_of_h(&self.lame, rest.volume, &du);
+                    e.elastic += energy;
                     if let Some(barrier) = &self.barrier {
-                        barrier.add_element_gradient(
-                            rest.volume,
-                            &g,
-                            &du,
-                            &mut e.elastic,
-                            &mut gradient,
-                        );
+                        barrier.add_element_stress(rest.volume, &du, &mut e.elastic, &mut stress);
                     }
-                    gradient
+                    element_gradient_of_stress(rest.volume, &stress, &g)
                 }
             };
             for (ga, &f) in gradient.iter().zip(&ft) {
@@ -395,7 +396,7 @@ impl<T: Real> Problem<'_, '_, T> {
             let (t, tet, w) = self.feature_element(slot)?;
             let ft = free_of(free, tet);
             let (p, rays) =
-                seen_point(self.camera, self.previous, tet, w, x).ok_or(Error::NoFeatures)?;
+                seen_point(self.rays, self.previous, tet, w, x).ok_or(Error::NoFeatures)?;
             let (uv, j) = match self.camera.project_with_jacobian(&p, slot) {
                 Ok(projected) => projected,
                 // Not observed: nothing pulls it, wherever it is.
@@ -492,26 +493,37 @@ impl<T: Real> Problem<'_, '_, T> {
     }
 }
 
+/// The unit camera ray through each of the first `n` nodes' positions `previous`, into `rays`
+/// (as many as both hold): computed once per assembly for every node rather than four times
+/// per feature in every spring evaluation, as a frame's rays depend only on where it started.
+pub(crate) fn camera_rays<T: Real>(camera: &Camera<T>, previous: &[[T; 3]], rays: &mut [[T; 3]]) {
+    for (ray, before) in rays.iter_mut().zip(previous) {
+        let e = camera.ray_direction_through(&vec3(before));
+        *ray = [e.x, e.y, e.z];
+    }
+}
+
 /// The point of a virtual feature that its spring sees, `Σ_a w_a y_a`, and the unit rays
-/// `e_a` through the element's nodes at the previous frame: each node as it is, less its
-/// motion along its own ray since the previous frame, `y_a = x_a − e_a (e_a · (x_a − x_a⁻))`.
+/// `e_a` through the element's nodes at the previous frame ([`camera_rays`]): each node as it
+/// is, less its motion along its own ray since the previous frame,
+/// `y_a = x_a − e_a (e_a · (x_a − x_a⁻))`.
 fn seen_point<T: Real>(
-    camera: &Camera<T>,
+    rays: &[[T; 3]],
     previous: &[[T; 3]],
     tet: &[u32; 4],
     w: &[T; 4],
     x: &[[T; 3]],
 ) -> Option<(Vector3<T>, [Vector3<T>; 4])> {
     let mut p = Vector3::zeros();
-    let mut rays = [Vector3::zeros(); 4];
-    for ((&v, &wa), ray) in tet.iter().zip(w).zip(rays.iter_mut()) {
+    let mut element_rays = [Vector3::zeros(); 4];
+    for ((&v, &wa), ray) in tet.iter().zip(w).zip(element_rays.iter_mut()) {
         let now = vec3(x.get(ux(v))?);
         let before = vec3(previous.get(ux(v))?);
-        *ray = camera.ray_direction_through(&before);
+        *ray = vec3(rays.get(ux(v))?);
         let d = now - before;
         p += (now - *ray * ray.dot(&d)) * wa;
     }
-    Some((p, rays))
+    Some((p, element_rays))
 }
 
 /// `J (I − e eᵀ)`: the projection's Jacobian `J` (2 × 3) for motion across the unit ray `e`.

@@ -21,6 +21,7 @@ use crate::material::{InversionBarrier, Lame};
 use crate::model::discretization::Discretization;
 use crate::model::{FactoredMatrix, Model, ModelConfig, SolveVectors, StepReport};
 use crate::real::Real;
+use crate::solve::assembly::camera_rays;
 use crate::solve::{
     ElementSums, Energies, MIXED_REFINEMENT_STEPS, Problem, SecantMemory, Strategy, WorkCount, dot,
 };
@@ -187,6 +188,7 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
                 gradient: &mut vectors.gradient[..],
                 hessian: with_hessian.then_some(&mut hessian[..]),
                 keep: None,
+                rays: &mut vectors.rays[..],
             },
             work,
         )
@@ -215,9 +217,10 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
             kept,
             ..
         } = self;
-        let problem = problem_of(live, features, coefficients, config)?;
+        let SolveVectors { gradient, rays, .. } = vectors;
+        let problem = problem_of(live, features, coefficients, config, rays)?;
         let x = prefix(live.x, live.mesh.n_nodes(), Resource::Nodes)?;
-        let gradient = prefix_mut(vectors.gradient, n, Resource::Unknowns)?;
+        let gradient = prefix_mut(gradient, n, Resource::Unknowns)?;
         if let Some((share, sums)) = kept.current(n) {
             return problem.assemble_reusing(x, gradient, share, sums, work);
         }
@@ -318,6 +321,7 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
                     gradient: &mut self.vectors.gradient[..],
                     hessian: Some(&mut self.hessian[..]),
                     keep: Some((share, sums)),
+                    rays: &mut self.vectors.rays[..],
                 },
                 work,
             )?;
@@ -441,17 +445,18 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
         let mut assembled = None;
         for _ in 0..trials {
             self.fill_trial(alpha)?;
-            let problem = problem_of(
-                &self.live,
-                &self.features,
-                self.coefficients(),
-                &self.config,
-            )?;
-            let v = &mut self.vectors;
-            let trial = prefix(v.trial, n_nodes, Resource::Nodes)?;
+            let coefficients = self.coefficients();
+            let SolveVectors {
+                trial,
+                residual,
+                rays,
+                ..
+            } = &mut self.vectors;
+            let problem = problem_of(&self.live, &self.features, coefficients, &self.config, rays)?;
+            let trial = prefix(trial, n_nodes, Resource::Nodes)?;
             let evaluated = if closes {
                 work.energy_evaluations += 1;
-                let gradient = prefix_mut(v.residual, n, Resource::Unknowns)?;
+                let gradient = prefix_mut(residual, n, Resource::Unknowns)?;
                 let assembly = if keeps {
                     let (share, sums) = self.kept.trial_mut(n)?;
                     problem.assemble_keeping(trial, gradient, None, share, sums, work)
@@ -578,18 +583,24 @@ impl<T: Real, F: Real> Model<'_, T, F> {
     }
 }
 
-/// The energy of a discretization with the features' observations.
+/// The energy of a discretization with the features' observations; the camera rays through
+/// its nodes' previous positions are computed into `rays` (a node's worth of room each).
 ///
 /// # Errors
-/// [`Error::Capacity`] if a per-node, per-tetrahedron or column-pointer array of `d` is
-/// shorter than its mesh and unknowns: it cannot be for a model built by its constructors.
+/// [`Error::Capacity`] if a per-node, per-tetrahedron or column-pointer array of `d`, or
+/// `rays`, is shorter than its mesh and unknowns: it cannot be for a model built by its
+/// constructors.
 fn problem_of<'p, 'a, T: Real>(
     d: &'p Discretization<'a, T>,
     features: &'p Features<'a, T>,
     coefficients: Coefficients<T>,
     config: &'p ModelConfig<T>,
+    rays: &'p mut [[T; 3]],
 ) -> Result<Problem<'p, 'a, T>, Error> {
     let n = d.mesh.n_nodes();
+    let previous = prefix(d.previous, n, Resource::Nodes)?;
+    let rays = prefix_mut(rays, n, Resource::Nodes)?;
+    camera_rays(&config.camera, previous, rays);
     let Coefficients {
         lame,
         barrier,
@@ -610,7 +621,8 @@ fn problem_of<'p, 'a, T: Real>(
         depth_scale,
         damping: prefix(d.damping, n, Resource::Nodes)?,
         depth_weight: prefix(d.depth_weight, n, Resource::Nodes)?,
-        previous: prefix(d.previous, n, Resource::Nodes)?,
+        previous,
+        rays,
         scatter: prefix(d.scatter, d.mesh.n_tets(), Resource::Tetrahedra)?,
         col_ptr: prefix(d.col_ptr, d.n_unknowns() + 1, Resource::ColumnPointers)?,
     })
@@ -624,6 +636,8 @@ pub(crate) struct AssemblyOutput<'o, T> {
     pub hessian: Option<&'o mut [T]>,
     /// Where the elements' share is kept ([`Problem::assemble_keeping`]), if it is.
     pub keep: Option<(&'o mut [T], &'o mut ElementSums<T>)>,
+    /// Room for the camera rays through the nodes (at least the discretization's nodes).
+    pub rays: &'o mut [[T; 3]],
 }
 
 /// Gradient (and, if asked for, the Hessian values) of a discretization at its positions.
@@ -642,7 +656,7 @@ pub(crate) fn assemble_on<T: Real>(
 ) -> Result<Energies<T>, Error> {
     let n = d.n_unknowns();
     let nnz = d.nnz_a;
-    let problem = problem_of(d, features, coefficients, config)?;
+    let problem = problem_of(d, features, coefficients, config, out.rays)?;
     let x = prefix(d.x, d.mesh.n_nodes(), Resource::Nodes)?;
     let gradient = prefix_mut(out.gradient, n, Resource::Unknowns)?;
     let hessian = out
