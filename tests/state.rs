@@ -282,6 +282,68 @@ fn a_bad_frame_leaves_the_model_as_it_was() {
     }
 }
 
+/// After `model.observe(frame)`: exactly the slots whose ids the frame holds are observed,
+/// each with its target from the frame.
+#[track_caller]
+fn observed_as(model: &Model<'_, f64>, frame: &[Observation<f64>]) {
+    let features = model.features();
+    for &[id, slot] in features.ids() {
+        let seen = frame.iter().find(|o| o.id == id);
+        let slot = slot as usize;
+        assert_eq!(
+            features.active()[slot],
+            u32::from(seen.is_some()),
+            "id {id}"
+        );
+        if let Some(o) = seen {
+            assert_eq!(features.targets()[slot], o.uv, "id {id}");
+        }
+    }
+}
+
+#[test]
+fn a_frame_observes_exactly_its_ids_in_any_order_and_after_any_refused_frame() {
+    with_model(Strategy::Refactor, default_caps, |b, model| {
+        let good = b.frame(5, 3.0);
+        let n = good.len();
+        assert!(n >= 6, "{n}");
+        model.observe(&good).unwrap();
+        observed_as(model, &good);
+        // Reversed: every id where another stood in the frame before.
+        let reversed: Vec<_> = good.iter().rev().copied().collect();
+        model.observe(&reversed).unwrap();
+        observed_as(model, &reversed);
+        // Every other id, shifted: the ids left out must not count as seen, though where
+        // they stood before now holds another observation.
+        let some: Vec<_> = good.iter().skip(1).step_by(2).copied().collect();
+        model.observe(&some).unwrap();
+        observed_as(model, &some);
+        // A repeated id, whichever of its two places the previous frame left it at.
+        for (first, second) in [(0, n - 1), (1, 2), (n - 2, n - 1)] {
+            let mut repeated = good.clone();
+            repeated[second] = repeated[first];
+            let id = repeated[first].id;
+            assert_eq!(
+                model.observe(&repeated),
+                Err(Error::DuplicateFeature { id })
+            );
+            observed_as(model, &some);
+        }
+        // An unknown id after half the frame: nothing taken, and the next frame as it is.
+        let mut unknown = reversed.clone();
+        unknown[n / 2] = obs(99_999, good[0].uv[0], good[0].uv[1]);
+        assert_eq!(
+            model.observe(&unknown),
+            Err(Error::UnknownFeature { id: 99_999 })
+        );
+        observed_as(model, &some);
+        model.observe(&good[..1]).unwrap();
+        observed_as(model, &good[..1]);
+        model.observe(&good).unwrap();
+        observed_as(model, &good);
+    });
+}
+
 #[test]
 fn a_solve_that_fails_leaves_observations_damping_reference_and_factor_as_they_were() {
     for strategy in [

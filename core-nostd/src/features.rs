@@ -42,8 +42,9 @@ pub struct Features<'a, T> {
     lookup: &'a mut [[u32; 2]],
     target: &'a mut [[T; 2]],
     active: &'a mut [u32],
-    stamp: &'a mut [u32],
-    stamp_value: u32,
+    /// Per slot, the index in the latest frame's observations where its id stood (scratch:
+    /// any value is safe, see [`Features::set_frame`]).
+    seen_at: &'a mut [u32],
 }
 
 impl<'a, T: Real> Features<'a, T> {
@@ -70,9 +71,8 @@ impl<'a, T: Real> Features<'a, T> {
             len: 0,
             lookup: indices.take(times(2, capacity))?.as_chunks_mut::<2>().0,
             active: indices.take(capacity)?,
-            stamp: indices.take(capacity)?,
+            seen_at: indices.take(capacity)?,
             target: reals.take(times(2, capacity))?.as_chunks_mut::<2>().0,
-            stamp_value: 0,
         })
     }
 
@@ -87,8 +87,8 @@ impl<'a, T: Real> Features<'a, T> {
     }
 
     /// Makes this a copy of `other`'s features (ids, targets, observed flags), for a caller
-    /// that must give them back when a call fails. The duplicate stamps are scratch and stay
-    /// as they are (a stamp handed back would mark slots as seen in the next frame). Copies
+    /// that must give them back when a call fails. Where each slot was last seen is scratch
+    /// and stays as it is (no value of it marks a slot as seen, see [`Features::set_frame`]). Copies
     /// `5 · len` entries. Both must have the same capacity (the model's copy does).
     pub(crate) fn copy_from(&mut self, other: &Features<'_, T>) {
         let n = other.len.min(self.active.len());
@@ -150,10 +150,9 @@ impl<'a, T: Real> Features<'a, T> {
             });
         }
         check_observations(camera, obs, margin)?;
-        // The duplicate check sorts the ids in the stamp array, scratch between frames.
-        self.stamp_value = 0;
+        // The duplicate check sorts the ids in the `seen_at` array, scratch between frames.
         // `obs.len()` fits the capacity, checked above.
-        let ids = self.stamp.get_mut(..obs.len()).unwrap_or_default();
+        let ids = self.seen_at.get_mut(..obs.len()).unwrap_or_default();
         for (slot, o) in ids.iter_mut().zip(obs) {
             *slot = o.id;
         }
@@ -162,7 +161,6 @@ impl<'a, T: Real> Features<'a, T> {
             .windows(2)
             .find(|w| w.first() == w.get(1))
             .and_then(|w| w.first().copied());
-        self.stamp.fill(0);
         if let Some(id) = duplicate {
             return Err(Error::DuplicateFeature { id });
         }
@@ -218,30 +216,37 @@ impl<'a, T: Real> Features<'a, T> {
             return Err(Error::EmptyFrame);
         }
         check_observations(camera, obs, margin)?;
-        // A fresh stamp marks the slots seen in this frame, to catch repeated ids.
-        if self.stamp_value == u32::MAX {
-            self.stamp.fill(0);
-            self.stamp_value = 0;
-        }
-        self.stamp_value += 1;
-        for o in obs {
+        // Each slot's `seen_at` is set to where its id stands in `obs`. A slot whose
+        // `seen_at` already names another observation of its own id (from this pass, or left
+        // from an earlier frame: either way the id stands there in this frame too) is a
+        // repeated id. Whatever a slot's `seen_at` held before, its id is observed in this
+        // frame exactly when `obs[seen_at]` carries it, which the second pass reads, so no
+        // stale value can mark a slot seen, and no slot is looked up twice.
+        for (i, o) in obs.iter().enumerate() {
             let unknown = Error::UnknownFeature { id: o.id };
             let slot = self.slot_of(o.id).ok_or(unknown)?;
-            let stamp = self.stamp.get_mut(slot).ok_or(unknown)?;
-            if *stamp == self.stamp_value {
+            let seen_at = self.seen_at.get_mut(slot).ok_or(unknown)?;
+            if *seen_at as usize != i && obs.get(*seen_at as usize).is_some_and(|p| p.id == o.id) {
                 return Err(Error::DuplicateFeature { id: o.id });
             }
-            *stamp = self.stamp_value;
+            // Below the embedded features' count (known and distinct ids so far), so it fits.
+            *seen_at = i as u32;
         }
-        // Every id is known: from here nothing fails.
-        self.active.get_mut(..self.len).unwrap_or_default().fill(0);
-        for o in obs {
-            if let Some(slot) = self.slot_of(o.id)
-                && let (Some(target), Some(active)) =
-                    (self.target.get_mut(slot), self.active.get_mut(slot))
+        // Every id is known and appears once: from here nothing fails.
+        let slots = self.lookup.get(..self.len).unwrap_or_default();
+        for &[id, slot] in slots {
+            let slot = slot as usize;
+            let seen = self.seen_at.get(slot).and_then(|&i| obs.get(i as usize));
+            if let (Some(target), Some(active)) =
+                (self.target.get_mut(slot), self.active.get_mut(slot))
             {
-                *target = o.uv;
-                *active = 1;
+                match seen {
+                    Some(o) if o.id == id => {
+                        *target = o.uv;
+                        *active = 1;
+                    }
+                    _ => *active = 0,
+                }
             }
         }
         Ok(obs.len())

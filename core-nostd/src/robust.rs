@@ -20,10 +20,11 @@
 //!   digit, four passes; the rank's key is the value.
 //!
 //! Where many short lists each need a rank (every feature's lower tertile over its pairs), the
-//! detector sorts four of them at once instead, one to a lane of a sorting network
-//! ([`sort_lanes`]): its comparators are fixed for a length, taken from a table built at
-//! compile time, and each is a vector minimum and maximum on the four lanes, so that four
-//! lists of 20 to 40 values cost about what one rank count did.
+//! detector orders four of them at once instead, one to a lane of a sorting network pruned to
+//! the lowest third of its ranks ([`lower_third_lanes`]): its comparators are fixed for a
+//! length, taken from a table built at compile time, and each is a vector minimum and maximum
+//! on the four lanes, so that four lists of 20 to 40 values cost about what one rank count
+//! did.
 //!
 //! Neither recursion nor storage beyond the caller's, one array of [`RADIX_BINS`] counts and
 //! one of [`RANK_MAX`] keys on the stack.
@@ -437,6 +438,72 @@ pub const fn network_comparators(n: usize) -> usize {
     c
 }
 
+/// The ranks a network of `length` values orders, `0 .. lower_third(length)`: every rank the
+/// detector's tertile can read in a lane of at most `length` values
+/// ([`quantile_index`]`(m, 1/3) ≤ ⌊(m − 1)/3⌋ ≤ ⌊(length − 1)/3⌋`).
+pub const fn lower_third(length: usize) -> usize {
+    if length == 0 { 0 } else { (length - 1) / 3 + 1 }
+}
+
+/// Comparators of the longest merge exchange, [`RANK_MAX`] values.
+const MERGE_EXCHANGE_MAX: usize = network_comparators(RANK_MAX);
+
+/// The merge exchange on `n ≤ RANK_MAX` values pruned to the comparators that the ranks
+/// `0 .. lower_third(n)` depend on, in order, and how many there are. Walking the network
+/// backwards, a comparator stays when it writes a wire that a rank kept so far reads, and then
+/// both its wires are read: a comparator left out writes only wires no kept rank reads after
+/// it, so the kept ranks hold what the whole network puts there (about 15 % fewer comparators
+/// on the lengths past 8). Only evaluated when the crate is compiled (an index out of range
+/// fails the build); the wires are bits of a `u64`, `RANK_MAX` being 64.
+#[allow(clippy::indexing_slicing)]
+const fn lower_third_network(n: usize) -> ([[u8; 2]; MERGE_EXCHANGE_MAX], usize) {
+    let mut full = [[0u8; 2]; MERGE_EXCHANGE_MAX];
+    let mut len = 0;
+    merge_exchange!(n, |i, j| {
+        full[len] = [i as u8, j as u8];
+        len += 1;
+    });
+    let kept = lower_third(n);
+    let mut read: u64 = if kept >= 64 {
+        u64::MAX
+    } else {
+        (1 << kept) - 1
+    };
+    let mut keep = [false; MERGE_EXCHANGE_MAX];
+    let mut k = len;
+    while k > 0 {
+        k -= 1;
+        let wires = (1u64 << full[k][0]) | (1u64 << full[k][1]);
+        if read & wires != 0 {
+            keep[k] = true;
+            read |= wires;
+        }
+    }
+    let mut network = [[0u8; 2]; MERGE_EXCHANGE_MAX];
+    let mut m = 0;
+    while k < len {
+        if keep[k] {
+            network[m] = full[k];
+            m += 1;
+        }
+        k += 1;
+    }
+    (network, m)
+}
+
+/// Comparators of each network of [`NETWORK_LENGTHS`].
+// Evaluated when the crate is compiled: an index out of range fails the build, never a call.
+#[allow(clippy::indexing_slicing)]
+const NETWORK_SIZES: [usize; NETWORK_LENGTHS.len()] = {
+    let mut sizes = [0; NETWORK_LENGTHS.len()];
+    let mut k = 0;
+    while k < NETWORK_LENGTHS.len() {
+        sizes[k] = lower_third_network(NETWORK_LENGTHS[k]).1;
+        k += 1;
+    }
+    sizes
+};
+
 /// Where each network of [`NETWORK_LENGTHS`] starts in [`NETWORK_TABLE`], and its end.
 // Evaluated when the crate is compiled: an index out of range fails the build, never a call.
 #[allow(clippy::indexing_slicing)]
@@ -444,7 +511,7 @@ const NETWORK_STARTS: [usize; NETWORK_LENGTHS.len() + 1] = {
     let mut starts = [0; NETWORK_LENGTHS.len() + 1];
     let mut k = 0;
     while k < NETWORK_LENGTHS.len() {
-        starts[k + 1] = starts[k] + network_comparators(NETWORK_LENGTHS[k]);
+        starts[k + 1] = starts[k] + NETWORK_SIZES[k];
         k += 1;
     }
     starts
@@ -455,9 +522,9 @@ const NETWORK_STARTS: [usize; NETWORK_LENGTHS.len() + 1] = {
 const NETWORK_TABLE_LENGTH: usize = NETWORK_STARTS[NETWORK_LENGTHS.len()];
 
 // What [`NETWORK_LENGTHS`] says of the tables, checked when the crate is compiled: every
-// table together about 4 KiB (2,058 comparators of two bytes), at most 10 comparators per
+// table together under 4 KiB (1,753 comparators of two bytes), at most 10 comparators per
 // value of the longest lane.
-const _: () = assert!(NETWORK_TABLE_LENGTH <= 2058 && network_rate_bound(RANK_MAX as u64) <= 10);
+const _: () = assert!(NETWORK_TABLE_LENGTH <= 1753 && network_rate_bound(RANK_MAX as u64) <= 10);
 
 /// Every network of [`NETWORK_LENGTHS`] one after another, as row pairs, built at compile
 /// time; [`network_of`] finds one.
@@ -468,17 +535,20 @@ static NETWORK_TABLE: [[u8; 2]; NETWORK_TABLE_LENGTH] = {
     let mut at = 0;
     let mut k = 0;
     while k < NETWORK_LENGTHS.len() {
-        merge_exchange!(NETWORK_LENGTHS[k], |i, j| {
-            table[at] = [i as u8, j as u8];
+        let (network, len) = lower_third_network(NETWORK_LENGTHS[k]);
+        let mut c = 0;
+        while c < len {
+            table[at] = network[c];
             at += 1;
-        });
+            c += 1;
+        }
         k += 1;
     }
     table
 };
 
-/// The comparators that sort `m` values: the network of [`network_length`]`(m)` (none below
-/// 2).
+/// The comparators that order the lowest third of `m` values: the network of
+/// [`network_length`]`(m)` (none below 2).
 fn network_of(m: usize) -> &'static [[u8; 2]] {
     let length = network_length(m);
     let k = NETWORK_LENGTHS.iter().position(|&l| l == length);
@@ -488,10 +558,24 @@ fn network_of(m: usize) -> &'static [[u8; 2]] {
     }
 }
 
-/// Most comparators of [`sort_lanes`] per value of the longest lane, over lanes of up to
-/// `m` values: `max C(network_length(k)) / k` over `2 ≤ k ≤ min(m, RANK_MAX)`, rounded up,
-/// with `C` [`network_comparators`]. A sort of lanes whose longest holds `k` values applies
-/// `C(network_length(k))` comparators, each on every lane at once.
+/// Comparators of [`lower_third_lanes`] for lanes of `m` values: those of the network of
+/// [`network_length`]`(m)`.
+pub const fn network_comparators_of(m: usize) -> usize {
+    let length = network_length(m);
+    let (mut lengths, mut sizes): (&[usize], &[usize]) = (&NETWORK_LENGTHS, &NETWORK_SIZES);
+    while let ([l, lengths_after @ ..], [c, sizes_after @ ..]) = (lengths, sizes) {
+        if *l == length {
+            return *c;
+        }
+        (lengths, sizes) = (lengths_after, sizes_after);
+    }
+    0
+}
+
+/// Most comparators of [`lower_third_lanes`] per value of the longest lane, over lanes of up
+/// to `m` values: `max C(k) / k` over `2 ≤ k ≤ min(m, RANK_MAX)`, rounded up, with `C`
+/// [`network_comparators_of`]. Lanes whose longest holds `k` values take `C(k)` comparators,
+/// each on every lane at once.
 pub const fn network_rate_bound(m: u64) -> u64 {
     let top = if m < RANK_MAX as u64 {
         m as usize
@@ -501,8 +585,7 @@ pub const fn network_rate_bound(m: u64) -> u64 {
     let mut rate = 0;
     let mut k = 2;
     while k <= top {
-        let c = network_comparators(network_length(k));
-        let per_value = c.div_ceil(k) as u64;
+        let per_value = network_comparators_of(k).div_ceil(k) as u64;
         if per_value > rate {
             rate = per_value;
         }
@@ -511,15 +594,17 @@ pub const fn network_rate_bound(m: u64) -> u64 {
     rate
 }
 
-/// Sorts each lane of the first `m` rows ascending (`v[i][lane]`: value `i` of the lane; no
-/// NaN, which [`network_value`] never makes; the rows from `m` to [`network_length`]`(m)`
-/// must hold `+∞`) by a merge-exchange network, whose comparators do not depend on the
-/// data; returns how many it applied (each on every lane). The comparators come from a table
-/// built at compile time, so the loop is one pair of row indices, two loads, a vector minimum
-/// and maximum and two stores per comparator: where a feature's 20 to 30 values took the
-/// rank count about 2,000 instructions each, the network sorts four of them in about 4,400
-/// (on the liver, whose groups of four mostly pad to 32 or 40 rows).
-pub fn sort_lanes(v: &mut [[f32; NETWORK_LANES]; RANK_MAX], m: usize) -> u64 {
+/// Orders the lowest third of each lane of the first `m` rows: afterwards rows
+/// `0 .. lower_third(network_length(m))` hold each lane's smallest values ascending, as a sort
+/// would (`v[i][lane]`: value `i` of the lane; no NaN, which [`network_value`] never makes; the
+/// rows from `m` to [`network_length`]`(m)` must hold `+∞`; the rows past the third are
+/// left in some order). A merge-exchange network pruned to those ranks, whose comparators do
+/// not depend on the data; returns how many it applied (each on every lane). The comparators
+/// come from a table built at compile time, so the loop is one pair of row indices, two
+/// loads, a vector minimum and maximum and two stores per comparator: where a feature's 20 to
+/// 30 values took the rank count about 2,000 instructions each, the network orders four of
+/// them in about 3,700 (on the liver, whose groups of four mostly pad to 32 or 40 rows).
+pub fn lower_third_lanes(v: &mut [[f32; NETWORK_LANES]; RANK_MAX], m: usize) -> u64 {
     let network = network_of(m);
     for &[i, j] in network {
         exchange(v, usize::from(i), usize::from(j));
@@ -880,7 +965,7 @@ mod tests {
     }
 
     #[test]
-    fn the_network_sorts_every_lane_and_finds_the_rank_counts_value() {
+    fn the_network_orders_every_lanes_lowest_third_as_the_rank_count() {
         for n in 0..=RANK_MAX {
             let mut lanes = [[f32::INFINITY; NETWORK_LANES]; RANK_MAX];
             let mut values = [[0.0f64; 64]; NETWORK_LANES];
@@ -890,9 +975,15 @@ mod tests {
                     row[lane] = network_value(x);
                 }
             }
-            let comparators = sort_lanes(&mut lanes, n);
-            // The padded network's comparators, within the bound per value of the lane.
-            assert_eq!(comparators, network_comparators(network_length(n)) as u64);
+            let comparators = lower_third_lanes(&mut lanes, n);
+            // The padded network's comparators, fewer than the whole merge exchange's from 8
+            // on, within the bound per value of the lane.
+            assert_eq!(comparators, network_comparators_of(n) as u64);
+            let whole = network_comparators(network_length(n)) as u64;
+            assert!(
+                comparators <= whole && (n <= 4 || comparators < whole),
+                "{n}"
+            );
             assert!(
                 comparators <= n as u64 * network_rate_bound(n as u64),
                 "{n}"
@@ -901,8 +992,14 @@ mod tests {
                 comparators <= n as u64 * network_rate_bound(RANK_MAX as u64),
                 "{n}"
             );
+            // Every rank of the lowest third, which holds every rank the tertile reads (one
+            // value is in place without a network).
+            let kept = lower_third(network_length(n).max(n));
+            for m in 1..=n {
+                assert!(quantile_index(m, 1.0 / 3.0) < kept, "{m} of {n}");
+            }
             for (lane, v) in values.iter().enumerate() {
-                for k in 0..n {
+                for k in 0..n.min(kept) {
                     let (expected, _) = select_rounded(&mut { *v }[..n], k, &mut []);
                     let got: f64 = from_network_value(lanes[k][lane]);
                     assert!(
@@ -918,10 +1015,11 @@ mod tests {
     }
 
     #[test]
-    fn the_short_networks_sort_every_sequence_of_zeros_and_ones() {
-        // The 0–1 principle (Knuth 5.3.4, exercise 11): a comparator network sorts every
-        // input if it sorts every one of zeros and ones; all 2¹⁶ inputs of the lengths up
-        // to 16, four to a row. The longer networks are checked on shuffles above.
+    fn the_short_networks_order_the_lowest_third_of_every_sequence_of_zeros_and_ones() {
+        // The 0–1 principle (Knuth 5.3.4, exercises 11 and 16, for selection networks too):
+        // a comparator network puts the lowest ranks of every input in place if it does so
+        // for every input of zeros and ones; all 2¹⁶ inputs of the lengths up to 16, four to
+        // a row. The longer networks are checked on shuffles above.
         for &length in NETWORK_LENGTHS.iter().filter(|&&l| l <= 16) {
             for first in (0u32..1 << length).step_by(NETWORK_LANES) {
                 let mut lanes = [[f32::INFINITY; NETWORK_LANES]; RANK_MAX];
@@ -931,10 +1029,10 @@ mod tests {
                         row[lane] = ((bits >> i) & 1) as f32;
                     }
                 }
-                sort_lanes(&mut lanes, length);
+                lower_third_lanes(&mut lanes, length);
                 for lane in 0..NETWORK_LANES {
                     let ones = (first + lane as u32).count_ones() as usize;
-                    for (i, row) in lanes.iter().take(length).enumerate() {
+                    for (i, row) in lanes.iter().take(lower_third(length)).enumerate() {
                         let expected = if i < length - ones { 0.0 } else { 1.0 };
                         assert_eq!(row[lane], expected, "length {length} input {first}+{lane}");
                     }

@@ -256,7 +256,7 @@ impl DetectionWork {
     ///   (`2 S(P)`), with `S(m)` the bound of one selection ([`crate::robust::select_bound`]),
     ///   and each feature's lower tertile over its `dᵢ` pairs (`≤ r · 2P` as `Σ dᵢ = 2P`,
     ///   with `r` the most steps per value of the two ways it is found: four features at a
-    ///   time by a sorting network, one step per comparator for the four,
+    ///   time by a sorting network pruned to the lowest third, one step per comparator for the four,
     ///   [`crate::robust::network_rate_bound`]`(2P)` per value of the four's longest list
     ///   (at most 10); or alone, past [`crate::robust::RANK_MAX`] pairs, by a selection,
     ///   [`crate::robust::select_rate_bound`]`(2P)` per value).

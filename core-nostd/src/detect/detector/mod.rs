@@ -6,8 +6,8 @@ use crate::error::{Error, Resource};
 use crate::features::{image_bounds, spacing_px};
 use crate::real::Real;
 use crate::robust::{
-    KEY_WORDS, MAD_TO_SIGMA, NETWORK_LANES, RANK_MAX, from_network_value, median_mad_of,
-    network_length, network_value, quantile_index, quantile_of, sort_lanes,
+    KEY_WORDS, MAD_TO_SIGMA, NETWORK_LANES, RANK_MAX, from_network_value, lower_third_lanes,
+    median_mad_of, network_length, network_value, quantile_index, quantile_of,
 };
 use crate::storage::{Slab, sum, times};
 
@@ -19,6 +19,9 @@ const OUTLIER: u32 = 1 << 10;
 
 const HAS_PREVIOUS: u32 = 1;
 const FILTERED: u32 = 2;
+/// Observed in the current frame: the features' own flag, copied by the temporal filter's
+/// step so that a pair's two ends are one lookup each.
+const OBSERVED: u32 = 4;
 
 /// Cells of the spatial grid that finds neighbours at frame 0.
 pub const GRID_CELLS: usize = 4096;
@@ -105,11 +108,12 @@ impl<'d> SplitPairs<'d> {
     }
 }
 
-/// Whether feature `f` is observed this frame (`observed`, the features' own flags: the
-/// detector keeps no copy of them) and not filtered out (`state`, one word per slot).
-fn usable(state: &[u32], observed: &[u32], f: u32) -> bool {
-    observed.get(f as usize).is_some_and(|&o| o != 0)
-        && state.get(f as usize).is_some_and(|&s| s & FILTERED == 0)
+/// Whether feature `f` is observed this frame and not filtered out (`state`, one word per
+/// slot, whose [`OBSERVED`] bit step 1 set from the features' flags).
+fn usable(state: &[u32], f: u32) -> bool {
+    state
+        .get(f as usize)
+        .is_some_and(|&s| s & (OBSERVED | FILTERED) == OBSERVED)
 }
 
 /// Turns the per-cell counts `start[0..=cells]` (with `start[0] == 0`) into the end of
@@ -508,8 +512,7 @@ impl<'a, T: Real> Detector<'a, T> {
             .min(self.incident_start.len().saturating_sub(1));
         let mut work = DetectionWork::default();
         let newly_filtered = self.temporal_filter(d, observed, n, config, &mut work);
-        let (active, median, deviation) =
-            self.measure_pairs(newly_filtered, observed, targets, n, &mut work);
+        let (active, median, deviation) = self.measure_pairs(newly_filtered, targets, n, &mut work);
         let outliers = self.classify_pairs(median, deviation, targets, n, config, &mut work);
         let split = self.separation_points(frame, targets, config, &mut work);
         DetectionReport {

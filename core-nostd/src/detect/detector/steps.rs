@@ -6,7 +6,8 @@ use super::*;
 impl<'a, T: Real> Detector<'a, T> {
     /// Step 1, the temporal filter: a feature whose residual changes from the last frame
     /// far more than the others' (beyond the median change plus `temporal_sigmas` robust
-    /// deviations) is a tracking failure and is taken out of detection for good. Returns
+    /// deviations) is a tracking failure and is taken out of detection for good. Keeps each
+    /// feature's `observed` flag in its state ([`OBSERVED`]) for the steps after it. Returns
     /// whether a feature was taken out this frame.
     pub(super) fn temporal_filter(
         &mut self,
@@ -112,7 +113,9 @@ impl<'a, T: Real> Detector<'a, T> {
         for ((s, &o), (&di, previous)) in slots.take(n) {
             if o != 0 {
                 *previous = di;
-                *s |= HAS_PREVIOUS;
+                *s |= HAS_PREVIOUS | OBSERVED;
+            } else {
+                *s &= !OBSERVED;
             }
         }
         work.feature_visits += 3 * n as u64;
@@ -127,7 +130,6 @@ impl<'a, T: Real> Detector<'a, T> {
     pub(super) fn measure_pairs(
         &mut self,
         newly_filtered: bool,
-        observed: &[u32],
         targets: &[[T; 2]],
         n: usize,
         work: &mut DetectionWork,
@@ -155,8 +157,8 @@ impl<'a, T: Real> Detector<'a, T> {
                 self.pairs_lost += 1;
             }
             let measured = if *state & DROPPED == 0
-                && usable(feature_state, observed, i)
-                && usable(feature_state, observed, j)
+                && usable(feature_state, i)
+                && usable(feature_state, j)
                 && (i as usize) < n
                 && (j as usize) < n
             {
@@ -196,7 +198,8 @@ impl<'a, T: Real> Detector<'a, T> {
         );
         work.selection_steps += steps;
         // Each feature's lower tertile, [`NETWORK_LANES`] features at a time, one to a lane
-        // of a sorting network as long as the most pairs among them ([`sort_lanes`]); an
+        // of a sorting network as long as the most pairs among them, pruned to the lowest third
+        // of its ranks ([`lower_third_lanes`]); an
         // unmeasured pair takes part as `+∞`, so the work is that of the topology, however
         // many pairs are measured. A feature with more than [`RANK_MAX`] pairs is selected
         // alone. `incident_start` holds `n + 1` ascending starts into `incident`, whose
@@ -243,7 +246,7 @@ impl<'a, T: Real> Detector<'a, T> {
                 }
             }
             // The group's comparators counted once: each is one vector step on every lane.
-            work.selection_steps += sort_lanes(&mut rows, used);
+            work.selection_steps += lower_third_lanes(&mut rows, used);
             for (lane, f) in group.enumerate() {
                 let incident = incident_of(f);
                 let (m, tertile, steps) = if networked(f) {
