@@ -308,18 +308,23 @@ fn rank_select<T: Real>(v: &[T], k: usize) -> (T, u64) {
 /// data; the value is the rank's key decoded, with no pass to fetch it.
 fn radix_select<T: Real>(v: &[T], k: usize, keys: &mut [u32]) -> (T, u64) {
     let n = v.len();
+    let mut counts = [0u32; RADIX_BINS];
+    // The keys written in a loop of their own (which vectorises), then the top digit
+    // counted with no test: every key shares the empty prefix.
     for (x, key) in v.iter().zip(keys.iter_mut()) {
         *key = single_key(*x);
     }
+    let mut shift = 32 - RADIX_BITS;
+    for &key in keys.iter() {
+        count(&mut counts, key >> shift);
+    }
     // The key's digits found so far, and the rank still to find among the keys that share
     // them.
-    let mut prefix = 0u32;
-    let mut rank = k;
-    let mut counts = [0u32; RADIX_BINS];
-    let mut shift = 32;
+    let (digit, mut rank) = digit_of_rank(&counts, k);
+    let mut prefix = digit << shift;
     while shift >= RADIX_BITS {
         // The bits above the digit this pass reads.
-        let known = if shift >= 32 { 0 } else { u32::MAX << shift };
+        let known = u32::MAX << shift;
         shift -= RADIX_BITS;
         counts.fill(0);
         for &key in keys.iter() {
@@ -327,30 +332,37 @@ fn radix_select<T: Real>(v: &[T], k: usize, keys: &mut [u32]) -> (T, u64) {
                 count(&mut counts, key >> shift);
             }
         }
-        // The digit whose keys hold the rank: the counts before it are ranks below.
-        // Every count is read, found or not: the instructions do not follow the data.
-        let mut found = false;
-        for (digit, &c) in counts.iter().enumerate() {
-            let c = c as usize;
-            if found {
-                continue;
-            }
-            if rank < c {
-                prefix |= (digit as u32) << shift;
-                found = true;
-            } else {
-                rank -= c;
-            }
-        }
+        let (digit, rest) = digit_of_rank(&counts, rank);
+        prefix |= digit << shift;
+        rank = rest;
     }
     (from_single_key(prefix), radix_steps(n as u64))
 }
 
-/// Lanes of [`sort_lanes`]: as many independent sorts side by side, one per lane, four
+/// The digit whose keys hold rank `rank` among the counted ones (the counts before it are
+/// ranks below), and the rank among that digit's keys. Every count is read, found or not:
+/// the instructions do not follow the data.
+fn digit_of_rank(counts: &[u32; RADIX_BINS], mut rank: usize) -> (u32, usize) {
+    let mut found = None;
+    for (digit, &c) in counts.iter().enumerate() {
+        let c = c as usize;
+        if found.is_some() {
+            continue;
+        }
+        if rank < c {
+            found = Some(digit as u32);
+        } else {
+            rank -= c;
+        }
+    }
+    (found.unwrap_or(0), rank)
+}
+
+/// Lanes of [`lower_third_lanes`]: as many independent orderings side by side, one per lane, four
 /// `f32` to a 128-bit vector.
 pub const NETWORK_LANES: usize = 4;
 
-/// `x` as [`sort_lanes`] orders it: rounded to single precision ([`round_single`], `-0.0` as
+/// `x` as [`lower_third_lanes`] orders it: rounded to single precision ([`round_single`], `-0.0` as
 /// `+0.0`), every non-finite value `+∞`. Two values order as their [`single_key`]s do and are
 /// equal exactly when the keys are, so the rank `k` of these is [`select_rounded`]'s of the
 /// same values ([`from_network_value`]); in `f32`, so that the network's minimum and maximum
