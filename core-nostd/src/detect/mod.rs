@@ -250,8 +250,8 @@ impl DetectionWork {
     /// The most work of one frame with `features` feature slots, `pairs` pairs and `degree`
     /// pairs at most per feature (at most `pairs`):
     /// - feature visits `4 n`: the temporal filter's three passes and the per-feature levels;
-    /// - pair visits `6 P`: the temporal filter's pairs, the differences, the per-feature
-    ///   lists (`2 P`), outliers, persistence;
+    /// - pair visits `7 P`: the temporal filter's pairs, the differences, the pairs' slopes,
+    ///   the per-feature lists (`2 P`), outliers, persistence;
     /// - selection steps: the median and MAD of the changes (`2 S(n)`) and of the differences
     ///   (`2 S(P)`), with `S(m)` the bound of one selection ([`crate::robust::select_bound`]),
     ///   and each feature's lower tertile over its `dᵢ` pairs (`≤ r · 2P` as `Σ dᵢ = 2P`,
@@ -270,7 +270,7 @@ impl DetectionWork {
         };
         DetectionWork {
             feature_visits: 4 * features,
-            pair_visits: 6 * pairs,
+            pair_visits: 7 * pairs,
             selection_steps: 2 * select_bound(features)
                 + 2 * select_bound(pairs)
                 + tertile_rate * 2 * pairs,

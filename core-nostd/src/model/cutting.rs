@@ -187,7 +187,7 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
                 gradient: &mut self.vectors.gradient[..],
                 hessian: Some(&mut self.hessian[..]),
                 keep,
-                rays: &mut self.vectors.rays[..],
+                spring_nodes: &mut self.vectors.spring_nodes[..],
             },
             &mut work,
         )?;

@@ -175,9 +175,11 @@ pub(crate) struct SolveVectors<'a, T, F = T> {
     pub(crate) solve_work: &'a mut [F],
     /// Positions tried by the line search.
     pub(crate) trial: &'a mut [[T; 3]],
-    /// The camera rays through the nodes' previous positions, which every spring of an
-    /// assembly reads (rebuilt by each assembly from the positions it starts from).
-    pub(crate) rays: &'a mut [[T; 3]],
+    /// The springs' room, two entries per node: the camera rays through the nodes' previous
+    /// positions, which every spring of an assembly reads (rebuilt by each assembly from the
+    /// positions it starts from), then what the springs see of each node in the pass under
+    /// way (filled once per pass instead of once per feature and element node).
+    pub(crate) spring_nodes: &'a mut [[T; 3]],
     /// Packed blocks of the supernodal factorization ([`LdlFactor::SUPERNODAL_WORK_LEN`]).
     pub(crate) factor_work: &'a mut [F],
     /// Index workspace of the supernodal factorization
@@ -359,8 +361,8 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
                 .take(3 * caps.mesh.nodes)?
                 .as_chunks_mut::<3>()
                 .0,
-            rays: scalar_slab
-                .take(3 * caps.mesh.nodes)?
+            spring_nodes: scalar_slab
+                .take(6 * caps.mesh.nodes)?
                 .as_chunks_mut::<3>()
                 .0,
             factor_work: factor_slab.take(LdlFactor::<F>::SUPERNODAL_WORK_LEN)?,

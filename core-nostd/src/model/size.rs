@@ -305,7 +305,7 @@ impl ModelSize {
                     times(2, self.unknowns), // the solves' right-hand side and scratch
                     LdlFactor::<AnyReal>::SUPERNODAL_WORK_LEN, // packed blocks of the factorization
                     times(3, c.mesh.nodes),  // trial positions of the line search
-                    times(3, c.mesh.nodes),  // camera rays through the nodes
+                    times(6, c.mesh.nodes),  // camera rays through the nodes, what springs see
                 ]),
                 indices: LdlFactor::<AnyReal>::supernodal_index_work_len(self.unknowns),
                 feature: None,

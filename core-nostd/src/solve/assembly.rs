@@ -2,6 +2,8 @@
 //! (elastic energy, feature springs through the camera, damping and depth prior), element by
 //! element into the stiffness pattern through the scatter map.
 
+use core::cell::Cell;
+
 use nalgebra::{Matrix2x3, Matrix3, Vector3};
 
 use super::{Energies, WorkCount};
@@ -56,6 +58,11 @@ pub(crate) struct Problem<'p, 'a, T: Real> {
     /// The unit camera ray through each node's previous position ([`camera_rays`]): what a
     /// spring sees of a node's motion is its motion across that ray.
     pub rays: &'p [[T; 3]],
+    /// What the springs see of each node at the positions of the pass under way
+    /// ([`Problem::see_nodes`]): the node less its motion along its ray since the previous
+    /// frame. Filled once per spring pass for every node rather than once per feature for each
+    /// of its element's four; cells, so that a pass through `&self` can fill them.
+    pub seen: &'p [Cell<[T; 3]>],
     /// Per tetrahedron, per node pair ([`PAIRS`]) and column, the position in the pattern's
     /// value array of the block's first row; [`NONE`] when a node of the pair is fixed.
     pub scatter: &'p [[u32; 30]],
@@ -82,6 +89,7 @@ fn vec3<T: Real>(p: &[T; 3]) -> Vector3<T> {
 /// The compact (free) index of each node of `tet`, [`NONE`] for a fixed node. The mesh checks
 /// its tetrahedra's nodes against `free` when it is loaded or edited; a node out of range
 /// would count as fixed.
+#[inline]
 fn free_of(free: &[u32], tet: &[u32; 4]) -> [u32; 4] {
     tet.map(|v| free.get(ux(v)).copied().unwrap_or(NONE))
 }
@@ -166,11 +174,11 @@ impl<T: Real> Problem<'_, '_, T> {
 
     fn spring_energy(&self, x: &[[T; 3]], work: &mut WorkCount) -> Result<T, Error> {
         let mut sum = T::zero();
+        self.see_nodes(x);
         let observations = self.features.active().iter().zip(self.features.targets());
         for (slot, (&active, target)) in observations.enumerate() {
             let (_, tet, w) = self.feature_element(slot)?;
-            let (p, _) =
-                seen_point(self.rays, self.previous, tet, w, x).ok_or(Error::NoFeatures)?;
+            let (p, _) = seen_point(self.rays, self.seen, tet, w).ok_or(Error::NoFeatures)?;
             let uv = match self.camera.project(&p, slot) {
                 Ok(uv) => uv,
                 // Not observed: nothing pulls it, wherever it is.
@@ -196,6 +204,22 @@ impl<T: Real> Problem<'_, '_, T> {
         };
         let tet = self.mesh.tets().get(ux(t)).ok_or(Error::NoFeatures)?;
         Ok((ux(t), tet, w))
+    }
+
+    /// Fills [`Problem::seen`] for positions `x`: each node `y_a = x_a − e_a (e_a · (x_a −
+    /// x_a⁻))`, as many as `seen`, the rays, `x` and the previous positions all hold (the
+    /// mesh's nodes).
+    fn see_nodes(&self, x: &[[T; 3]]) {
+        let nodes = self
+            .seen
+            .iter()
+            .zip(self.rays)
+            .zip(x.iter().zip(self.previous));
+        for ((cell, ray), (now, before)) in nodes {
+            let (now, ray) = (vec3(now), vec3(ray));
+            let y = now - ray * ray.dot(&(now - vec3(before)));
+            cell.set([y.x, y.y, y.z]);
+        }
     }
 
     fn depth_energy(&self, x: &[[T; 3]]) -> T {
@@ -388,6 +412,7 @@ impl<T: Real> Problem<'_, '_, T> {
             ..Energies::default()
         };
         let mut force_sum = elements.force_sum;
+        self.see_nodes(x);
 
         // Springs, Gauss–Newton through the projection, reweighted by Huber's loss.
         let observations = self.features.active().iter().zip(self.features.targets());
@@ -395,8 +420,7 @@ impl<T: Real> Problem<'_, '_, T> {
             let k_spring = self.spring_weight(active);
             let (t, tet, w) = self.feature_element(slot)?;
             let ft = free_of(free, tet);
-            let (p, rays) =
-                seen_point(self.rays, self.previous, tet, w, x).ok_or(Error::NoFeatures)?;
+            let (p, rays) = seen_point(self.rays, self.seen, tet, w).ok_or(Error::NoFeatures)?;
             let (uv, j) = match self.camera.project_with_jacobian(&p, slot) {
                 Ok(projected) => projected,
                 // Not observed: nothing pulls it, wherever it is.
@@ -503,25 +527,21 @@ pub(crate) fn camera_rays<T: Real>(camera: &Camera<T>, previous: &[[T; 3]], rays
     }
 }
 
-/// The point of a virtual feature that its spring sees, `Σ_a w_a y_a`, and the unit rays
-/// `e_a` through the element's nodes at the previous frame ([`camera_rays`]): each node as it
-/// is, less its motion along its own ray since the previous frame,
-/// `y_a = x_a − e_a (e_a · (x_a − x_a⁻))`.
+/// The point of a virtual feature that its spring sees, `Σ_a w_a y_a` over the nodes `y_a` as
+/// the springs see them ([`Problem::see_nodes`]), and the unit rays `e_a` through the
+/// element's nodes at the previous frame ([`camera_rays`]).
+#[inline]
 fn seen_point<T: Real>(
     rays: &[[T; 3]],
-    previous: &[[T; 3]],
+    seen: &[Cell<[T; 3]>],
     tet: &[u32; 4],
     w: &[T; 4],
-    x: &[[T; 3]],
 ) -> Option<(Vector3<T>, [Vector3<T>; 4])> {
     let mut p = Vector3::zeros();
     let mut element_rays = [Vector3::zeros(); 4];
     for ((&v, &wa), ray) in tet.iter().zip(w).zip(element_rays.iter_mut()) {
-        let now = vec3(x.get(ux(v))?);
-        let before = vec3(previous.get(ux(v))?);
         *ray = vec3(rays.get(ux(v))?);
-        let d = now - before;
-        p += (now - *ray * ray.dot(&d)) * wa;
+        p += vec3(&seen.get(ux(v))?.get()) * wa;
     }
     Some((p, element_rays))
 }

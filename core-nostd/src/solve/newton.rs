@@ -9,6 +9,8 @@
 // (`ModelSize`) and every cut re-checks them, so the `Error::Capacity` a short buffer would
 // give cannot occur for a model built by its constructors; it stands where a panic would.
 
+use core::cell::Cell;
+
 #[cfg(feature = "cut")]
 use crate::cut::CutReport;
 #[cfg(feature = "detect")]
@@ -188,7 +190,7 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
                 gradient: &mut vectors.gradient[..],
                 hessian: with_hessian.then_some(&mut hessian[..]),
                 keep: None,
-                rays: &mut vectors.rays[..],
+                spring_nodes: &mut vectors.spring_nodes[..],
             },
             work,
         )
@@ -217,8 +219,12 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
             kept,
             ..
         } = self;
-        let SolveVectors { gradient, rays, .. } = vectors;
-        let problem = problem_of(live, features, coefficients, config, rays)?;
+        let SolveVectors {
+            gradient,
+            spring_nodes,
+            ..
+        } = vectors;
+        let problem = problem_of(live, features, coefficients, config, spring_nodes)?;
         let x = prefix(live.x, live.mesh.n_nodes(), Resource::Nodes)?;
         let gradient = prefix_mut(gradient, n, Resource::Unknowns)?;
         if let Some((share, sums)) = kept.current(n) {
@@ -321,7 +327,7 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
                     gradient: &mut self.vectors.gradient[..],
                     hessian: Some(&mut self.hessian[..]),
                     keep: Some((share, sums)),
-                    rays: &mut self.vectors.rays[..],
+                    spring_nodes: &mut self.vectors.spring_nodes[..],
                 },
                 work,
             )?;
@@ -449,10 +455,16 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
             let SolveVectors {
                 trial,
                 residual,
-                rays,
+                spring_nodes,
                 ..
             } = &mut self.vectors;
-            let problem = problem_of(&self.live, &self.features, coefficients, &self.config, rays)?;
+            let problem = problem_of(
+                &self.live,
+                &self.features,
+                coefficients,
+                &self.config,
+                spring_nodes,
+            )?;
             let trial = prefix(trial, n_nodes, Resource::Nodes)?;
             let evaluated = if closes {
                 work.energy_evaluations += 1;
@@ -583,23 +595,26 @@ impl<T: Real, F: Real> Model<'_, T, F> {
     }
 }
 
-/// The energy of a discretization with the features' observations; the camera rays through
-/// its nodes' previous positions are computed into `rays` (a node's worth of room each).
+/// The energy of a discretization with the features' observations. `spring_nodes` is the
+/// springs' room, two entries per node: the camera rays through the nodes' previous positions,
+/// computed here, then what the springs see of the nodes, filled by each spring pass
+/// ([`Problem::seen`]).
 ///
 /// # Errors
 /// [`Error::Capacity`] if a per-node, per-tetrahedron or column-pointer array of `d`, or
-/// `rays`, is shorter than its mesh and unknowns: it cannot be for a model built by its
+/// `spring_nodes`, is shorter than its mesh and unknowns: it cannot be for a model built by its
 /// constructors.
 fn problem_of<'p, 'a, T: Real>(
     d: &'p Discretization<'a, T>,
     features: &'p Features<'a, T>,
     coefficients: Coefficients<T>,
     config: &'p ModelConfig<T>,
-    rays: &'p mut [[T; 3]],
+    spring_nodes: &'p mut [[T; 3]],
 ) -> Result<Problem<'p, 'a, T>, Error> {
     let n = d.mesh.n_nodes();
     let previous = prefix(d.previous, n, Resource::Nodes)?;
-    let rays = prefix_mut(rays, n, Resource::Nodes)?;
+    let spring_nodes = prefix_mut(spring_nodes, times(2, n), Resource::Nodes)?;
+    let (rays, seen) = spring_nodes.split_at_mut(n);
     camera_rays(&config.camera, previous, rays);
     let Coefficients {
         lame,
@@ -623,6 +638,7 @@ fn problem_of<'p, 'a, T: Real>(
         depth_weight: prefix(d.depth_weight, n, Resource::Nodes)?,
         previous,
         rays,
+        seen: Cell::from_mut(seen).as_slice_of_cells(),
         scatter: prefix(d.scatter, d.mesh.n_tets(), Resource::Tetrahedra)?,
         col_ptr: prefix(d.col_ptr, d.n_unknowns() + 1, Resource::ColumnPointers)?,
     })
@@ -636,8 +652,9 @@ pub(crate) struct AssemblyOutput<'o, T> {
     pub hessian: Option<&'o mut [T]>,
     /// Where the elements' share is kept ([`Problem::assemble_keeping`]), if it is.
     pub keep: Option<(&'o mut [T], &'o mut ElementSums<T>)>,
-    /// Room for the camera rays through the nodes (at least the discretization's nodes).
-    pub rays: &'o mut [[T; 3]],
+    /// The springs' room, two entries per node (at least twice the discretization's nodes:
+    /// [`problem_of`]).
+    pub spring_nodes: &'o mut [[T; 3]],
 }
 
 /// Gradient (and, if asked for, the Hessian values) of a discretization at its positions.
@@ -656,7 +673,7 @@ pub(crate) fn assemble_on<T: Real>(
 ) -> Result<Energies<T>, Error> {
     let n = d.n_unknowns();
     let nnz = d.nnz_a;
-    let problem = problem_of(d, features, coefficients, config, out.rays)?;
+    let problem = problem_of(d, features, coefficients, config, out.spring_nodes)?;
     let x = prefix(d.x, d.mesh.n_nodes(), Resource::Nodes)?;
     let gradient = prefix_mut(out.gradient, n, Resource::Unknowns)?;
     let hessian = out

@@ -60,22 +60,24 @@ impl<'a, T: Real> Detector<'a, T> {
             // the work does not depend on it. `scratch` holds each feature's verdict: `0` did
             // not jump (or is not eligible), `1` jumped alone so far, `-1` jumped with a
             // neighbour that jumped alike (a jumper either way, for its other neighbours).
+            // An eligible feature's slot of `previous` holds its change from here on (the last
+            // pass below sets it to this frame's residual, as every eligible feature is
+            // observed), so that each pair end reads it with one lookup.
             let slots = self
                 .feature_state
                 .iter()
                 .zip(observed)
-                .zip(self.current.iter().zip(self.previous.iter()));
-            for (((&s, &o), (&c, &p)), verdict) in slots.zip(self.scratch.iter_mut()).take(n) {
-                *verdict = if eligible(s, o) && norm(c, p) > limit {
-                    T::one()
-                } else {
-                    T::zero()
-                };
+                .zip(self.current.iter().zip(self.previous.iter_mut()));
+            for (((&s, &o), (&c, p)), verdict) in slots.zip(self.scratch.iter_mut()).take(n) {
+                *verdict = T::zero();
+                if eligible(s, o) {
+                    if norm(c, *p) > limit {
+                        *verdict = T::one();
+                    }
+                    *p = [c[0] - p[0], c[1] - p[1]];
+                }
             }
-            let change = |f: usize| match (self.current.get(f), self.previous.get(f)) {
-                (Some(&c), Some(&p)) => [c[0] - p[0], c[1] - p[1]],
-                _ => [T::zero(); 2],
-            };
+            let change = |f: usize| self.previous.get(f).copied().unwrap_or([T::zero(); 2]);
             for &[a, b] in self.pairs.get(..self.n_pairs).unwrap_or_default() {
                 let (a, b) = (a as usize, b as usize);
                 if a >= n || b >= n {
@@ -197,31 +199,63 @@ impl<'a, T: Real> Detector<'a, T> {
             self.keys,
         );
         work.selection_steps += steps;
-        // Each feature's lower tertile, [`NETWORK_LANES`] features at a time, one to a lane
-        // of a sorting network as long as the most pairs among them, pruned to the lowest third
-        // of its ranks ([`lower_third_lanes`]); an
-        // unmeasured pair takes part as `+∞`, so the work is that of the topology, however
-        // many pairs are measured. A feature with more than [`RANK_MAX`] pairs is selected
-        // alone. `incident_start` holds `n + 1` ascending starts into `incident`, whose
-        // entries are pair indices below `n_pairs`.
+        // Each feature's lower tertile of its pairs' slopes `μ / length` (an unmeasured pair
+        // taking part as `+∞`, so that the work is that of the topology, however many pairs
+        // are measured). `incident_start` holds `n + 1` ascending starts into `incident`,
+        // whose entries are pair indices below `n_pairs`.
+        let incident_start = &*self.incident_start;
+        let incident = &*self.incident;
+        let incident_of = |f: usize| match (incident_start.get(f), incident_start.get(f + 1)) {
+            (Some(&lo), Some(&hi)) => incident.get(lo as usize..hi as usize).unwrap_or_default(),
+            _ => &[],
+        };
+        let networked = |f: usize| incident_of(f).len() <= RANK_MAX;
+        // First the features with more than [`RANK_MAX`] pairs, each selected alone (with
+        // `scratch` and `keys` as its selection's room, before `keys` holds the slopes).
+        for f in (0..n).filter(|&f| !networked(f)) {
+            let incident = incident_of(f);
+            let mut m = 0;
+            for &k in incident {
+                if let (Some(slope), Some(slot)) = (
+                    slope_of(self.difference, self.length, k),
+                    self.scratch.get_mut(m),
+                ) {
+                    *slot = slope;
+                    m += 1;
+                }
+            }
+            let (tertile, steps) = quantile_of(
+                self.scratch.get_mut(..incident.len()).unwrap_or_default(),
+                m,
+                T::of(1.0 / 3.0),
+                self.keys,
+            );
+            work.pair_visits += incident.len() as u64;
+            work.selection_steps += steps;
+            if let Some(slope) = self.slope.get_mut(f) {
+                *slope = if m >= 3 { tertile } else { T::zero() };
+            }
+        }
+        // Then every pair's slope as the network orders it ([`network_value`], `+∞` while
+        // unmeasured), in `keys`, computed once per pair rather than once for each of its two
+        // features; `keys` holds a word for each of the `n_pairs` pairs.
+        let slopes = self.difference.iter().zip(self.length.iter());
+        for (key, (&mu, &length)) in self.keys.iter_mut().zip(slopes).take(self.n_pairs) {
+            *key = if mu >= T::zero() {
+                network_value(mu / length.max(T::EPS)).to_bits()
+            } else {
+                f32::INFINITY.to_bits()
+            };
+        }
+        work.pair_visits += self.n_pairs as u64;
+        // The other features [`NETWORK_LANES`] at a time, one to a lane of a sorting network
+        // as long as the most pairs among them, pruned to the lowest third of its ranks
+        // ([`lower_third_lanes`]). A measured slope is finite ([`network_value`] of a finite
+        // value), so a lane's measured pairs are its values below `+∞`.
+        let keys = &*self.keys;
         let mut rows = [[f32::INFINITY; NETWORK_LANES]; RANK_MAX];
         for first in (0..n).step_by(NETWORK_LANES) {
             let group = first..(first + NETWORK_LANES).min(n);
-            let incident_of =
-                |f: usize| match (self.incident_start.get(f), self.incident_start.get(f + 1)) {
-                    (Some(&lo), Some(&hi)) => self
-                        .incident
-                        .get(lo as usize..hi as usize)
-                        .unwrap_or_default(),
-                    _ => &[],
-                };
-            // A pair's slope `μ / length`, or none while it is unmeasured (`μ < 0`).
-            let slope_of =
-                |k: u32| match (self.difference.get(k as usize), self.length.get(k as usize)) {
-                    (Some(&mu), Some(&length)) if mu >= T::zero() => Some(mu / length.max(T::EPS)),
-                    _ => None,
-                };
-            let networked = |f: usize| incident_of(f).len() <= RANK_MAX;
             let used = group
                 .clone()
                 .filter(|&f| networked(f))
@@ -236,45 +270,32 @@ impl<'a, T: Real> Detector<'a, T> {
                 if !networked(f) {
                     continue;
                 }
+                let mut m = 0;
                 for (row, &k) in rows.iter_mut().zip(incident_of(f)) {
-                    if let (Some(slope), Some(x), Some(m)) =
-                        (slope_of(k), row.get_mut(lane), measured.get_mut(lane))
-                    {
-                        *x = network_value(slope);
-                        *m += 1;
+                    let value = keys
+                        .get(k as usize)
+                        .map_or(f32::INFINITY, |&key| f32::from_bits(key));
+                    if let Some(x) = row.get_mut(lane) {
+                        *x = value;
                     }
+                    m += usize::from(value < f32::INFINITY);
+                }
+                if let Some(slot) = measured.get_mut(lane) {
+                    *slot = m;
                 }
             }
             // The group's comparators counted once: each is one vector step on every lane.
             work.selection_steps += lower_third_lanes(&mut rows, used);
             for (lane, f) in group.enumerate() {
-                let incident = incident_of(f);
-                let (m, tertile, steps) = if networked(f) {
-                    let m = measured.get(lane).copied().unwrap_or(0);
-                    let value = rows
-                        .get(quantile_index(m, T::of(1.0 / 3.0)))
-                        .and_then(|row| row.get(lane))
-                        .map_or(T::zero(), |&x| from_network_value(x));
-                    (m, value, 0)
-                } else {
-                    let mut m = 0;
-                    for &k in incident {
-                        if let (Some(slope), Some(slot)) = (slope_of(k), self.scratch.get_mut(m)) {
-                            *slot = slope;
-                            m += 1;
-                        }
-                    }
-                    // As above: the feature's unmeasured pairs take part as `+∞`.
-                    let (tertile, steps) = quantile_of(
-                        self.scratch.get_mut(..incident.len()).unwrap_or_default(),
-                        m,
-                        T::of(1.0 / 3.0),
-                        self.keys,
-                    );
-                    (m, tertile, steps)
-                };
-                work.pair_visits += incident.len() as u64;
-                work.selection_steps += steps;
+                if !networked(f) {
+                    continue;
+                }
+                let m = measured.get(lane).copied().unwrap_or(0);
+                let tertile = rows
+                    .get(quantile_index(m, T::of(1.0 / 3.0)))
+                    .and_then(|row| row.get(lane))
+                    .map_or(T::zero(), |&x| from_network_value(x));
+                work.pair_visits += incident_of(f).len() as u64;
                 if let Some(slope) = self.slope.get_mut(f) {
                     *slope = if m >= 3 { tertile } else { T::zero() };
                 }
@@ -419,5 +440,13 @@ impl<'a, T: Real> Detector<'a, T> {
         }
         work.pair_visits += self.n_pairs as u64;
         split
+    }
+}
+
+/// Pair `k`'s slope `μ / length`, or none while it is unmeasured (`μ < 0`).
+fn slope_of<T: Real>(difference: &[T], length: &[T], k: u32) -> Option<T> {
+    match (difference.get(k as usize), length.get(k as usize)) {
+        (Some(&mu), Some(&length)) if mu >= T::zero() => Some(mu / length.max(T::EPS)),
+        _ => None,
     }
 }
