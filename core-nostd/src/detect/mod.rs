@@ -249,7 +249,9 @@ pub struct DetectionWork {
 impl DetectionWork {
     /// The most work of one frame with `features` feature slots, `pairs` pairs and `degree`
     /// pairs at most per feature (at most `pairs`):
-    /// - feature visits `4 n`: the temporal filter's three passes and the per-feature levels;
+    /// - feature visits `6 n`: the temporal filter's four passes (two without filtering), and
+    ///   the per-feature levels' two (the features past [`crate::robust::RANK_MAX`] pairs,
+    ///   then the groups of the network);
     /// - pair visits `7 P`: the temporal filter's pairs, the differences, the pairs' slopes,
     ///   the per-feature lists (`2 P`), outliers, persistence;
     /// - selection steps: the median and MAD of the changes (`2 S(n)`) and of the differences
@@ -269,7 +271,7 @@ impl DetectionWork {
             networked
         };
         DetectionWork {
-            feature_visits: 4 * features,
+            feature_visits: 6 * features,
             pair_visits: 7 * pairs,
             selection_steps: 2 * select_bound(features)
                 + 2 * select_bound(pairs)

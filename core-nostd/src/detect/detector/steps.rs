@@ -120,7 +120,9 @@ impl<'a, T: Real> Detector<'a, T> {
                 *s &= !OBSERVED;
             }
         }
-        work.feature_visits += 3 * n as u64;
+        // The first pass and the last, and the filter's two between them.
+        let passes: u64 = if filtering { 4 } else { 2 };
+        work.feature_visits += passes * n as u64;
         newly_filtered
     }
 
@@ -302,7 +304,8 @@ impl<'a, T: Real> Detector<'a, T> {
             }
         }
         work.pair_visits += self.n_pairs as u64;
-        work.feature_visits += n as u64;
+        // The features past `RANK_MAX` pairs looked for, then the groups.
+        work.feature_visits += 2 * n as u64;
         (active, median, T::of(MAD_TO_SIGMA) * mad)
     }
 
