@@ -386,6 +386,16 @@ fn codegen_refuses_a_scene_that_does_not_check_out_and_writes_nothing() {
         &["over the budget of 256.0 KiB", "largest", "grows with"],
     );
     assert!(e.contains("band-side-cut"), "{e}");
+    // Only the storage of the scene's own strategy counts: the quasi-Newton strategy's secant
+    // pairs are listed for a scene that uses it, not for this one (`factor-once`).
+    assert!(!e.contains("quasi-Newton"), "{e}");
+    let e = codegen_refuses(
+        "strategy = \"factor-once\"",
+        "strategy = \"quasi-newton\"",
+        &["--ram-budget-kib", "256"],
+        &["over the budget of 256.0 KiB", "quasi-Newton"],
+    );
+    assert!(e.contains("its own strategy"), "{e}");
 }
 
 #[test]

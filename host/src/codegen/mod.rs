@@ -26,7 +26,6 @@ use incise_core::{
 
 use crate::scene::Scene;
 use crate::storage::{ModelStorage, SceneCapacities};
-use footprint::FeatureSet;
 
 /// What `incise codegen` is asked for.
 #[derive(Clone, Debug)]
@@ -505,14 +504,14 @@ fn emit(s: &mut String, e: &Emit<'_>) {
 /// `--footprint` replaces with the measured figure.
 fn storage_parts(
     generated: &Generated,
-    set: &FeatureSet,
+    features: &[&str],
 ) -> Result<(Vec<StoragePart>, u64), CodegenError> {
     // A feature the set names, or one it brings: `cut` brings `detect`, `strategies` every
     // strategy (`quasi-newton` the storage of its secant pairs and kept gradient share).
     let has = |f: &str| {
-        set.features.contains(&f)
-            || (f == "detect" && set.features.contains(&"cut"))
-            || (f == "quasi-newton" && set.features.contains(&"strategies"))
+        features.contains(&f)
+            || (f == "detect" && features.contains(&"cut"))
+            || (f == "quasi-newton" && features.contains(&"strategies"))
     };
     let capacities = if has("cut") {
         &generated.capacities
@@ -540,7 +539,7 @@ pub fn storage_table(generated: &Generated) -> Result<String, CodegenError> {
     let sets = footprint::FEATURE_SETS;
     let mut columns = Vec::new();
     for set in &sets {
-        columns.push(storage_parts(generated, set)?);
+        columns.push(storage_parts(generated, set.features)?);
     }
     let mut s = format!(
         "Static storage of the model of {} (f64), KiB, by feature set (estimates; the \
@@ -578,19 +577,22 @@ pub fn storage_table(generated: &Generated) -> Result<String, CodegenError> {
 }
 
 /// Checks the model's static storage against a RAM budget of `budget` bytes, for the build the
-/// scene needs: with the `cut` feature when its detection is on, else without.
+/// scene needs: its own linear strategy and camera projection only (the last of
+/// [`footprint::feature_sets`]), with the `cut` feature and the temporal filter when its
+/// detection is on. Storage that only another strategy uses (the quasi-Newton strategy's) does
+/// not count against a scene that does not use it.
 ///
 /// # Errors
 /// When it does not fit: by how much, and which buffer is the largest and what it grows with,
 /// so the scene's `[capacities]` can be lowered where it matters.
 pub fn check_budget(generated: &Generated, budget: u64) -> Result<(), CodegenError> {
     let cut = generated.needs_cut;
-    let set = if cut {
-        &footprint::FEATURE_SETS[0]
-    } else {
-        &footprint::FEATURE_SETS[footprint::FEATURE_SETS.len() - 1]
-    };
-    let (mut parts, total) = storage_parts(generated, set)?;
+    let [.., own] = footprint::feature_sets(generated.strategy, generated.projection);
+    let mut features = own.features.to_vec();
+    if cut {
+        features.extend(["cut", "temporal-filter"]);
+    }
+    let (mut parts, total) = storage_parts(generated, &features)?;
     if total <= budget {
         return Ok(());
     }
@@ -601,9 +603,11 @@ pub fn check_budget(generated: &Generated, budget: u64) -> Result<(), CodegenErr
          {} KiB. By part, largest first:",
         generated.name,
         if cut {
-            "with the cut feature, as the scene's detection is on"
+            "with the cut feature, as the scene's detection is on, and its own strategy and \
+             projection only"
         } else {
-            "without the cut feature, as the scene's detection is off"
+            "without the cut feature, as the scene's detection is off, and its own strategy \
+             and projection only"
         },
         footprint::kib(total),
         footprint::kib(over),
