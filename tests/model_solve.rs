@@ -679,14 +679,54 @@ fn toward(
         .collect()
 }
 
+/// The registration tests' scene: a 6 cm box held at `x = 0`, seen by `cam`, whose top face
+/// (facing the camera, never occluded) is observed moving from rest toward
+/// [`target_deformation`].
+struct PulledBox {
+    mesh: incise_validation::testmesh::TetMesh,
+    fixed: Vec<u32>,
+    cam: incise_core::Camera<f64>,
+    target: Vec<[f64; 3]>,
+    top: Vec<u32>,
+}
+
+impl PulledBox {
+    const SIZE: [f64; 3] = [0.06, 0.02, 0.02];
+
+    fn seen_by(cam: incise_core::Camera<f64>) -> Self {
+        let mesh = box_mesh([12, 4, 4], Self::SIZE);
+        let fixed = nodes_where(&mesh, 0, 0.0);
+        let target = target_deformation(&mesh, &fixed, cam, Self::SIZE);
+        let top = nodes_where(&mesh, 2, Self::SIZE[2]);
+        PulledBox {
+            mesh,
+            fixed,
+            cam,
+            target,
+            top,
+        }
+    }
+
+    fn input(&self) -> MeshInput<'_, f64> {
+        MeshInput {
+            rest: &self.mesh.nodes,
+            tets: &self.mesh.tets,
+            fixed: &self.fixed,
+        }
+    }
+
+    /// The top face's observations the fraction `s` of the way from rest to the target.
+    fn observed_at(&self, s: f64) -> Vec<Observation<f64>> {
+        observe(&self.cam, &toward(&self.mesh, &self.target, &self.top, s))
+    }
+}
+
 fn registration(strategy: Strategy) {
     registration_seen_by(strategy, Projection::Perspective);
 }
 
 fn registration_seen_by(strategy: Strategy, projection: Projection) {
-    let size = [0.06, 0.02, 0.02];
-    let mesh = box_mesh([12, 4, 4], size);
-    let fixed = nodes_where(&mesh, 0, 0.0);
+    let size = PulledBox::SIZE;
     let cam = registration_camera();
     // The orthographic camera at the same pose, at the pinhole's scale on the top face.
     let cam = match projection {
@@ -703,26 +743,19 @@ fn registration_seen_by(strategy: Strategy, projection: Projection) {
                 .unwrap()
         }
     };
-    let target = target_deformation(&mesh, &fixed, cam, size);
-
-    // Observed: the nodes of the top face (facing the camera, never occluded), moving from
-    // rest to the target over ten frames, then held.
-    let top = nodes_where(&mesh, 2, size[2]);
-    let at = |s: f64| toward(&mesh, &target, &top, s);
-    let input = MeshInput {
-        rest: &mesh.nodes,
-        tets: &mesh.tets,
-        fixed: &fixed,
-    };
+    // Observed: the top face, moving from rest to the target over ten frames, then held.
+    let scene = PulledBox::seen_by(cam);
+    let (mesh, target) = (&scene.mesh, &scene.target);
+    let input = scene.input();
     let cfg = config(cam, 2.0e-6, strategy, 1e-3);
     let mut storage = ModelStorage::with_features(&input, 256).unwrap();
     let mut model = storage.model(&input, &cfg).unwrap();
-    let report = model.embed_features(&observe(&cam, &at(0.0))).unwrap();
+    let report = model.embed_features(&scene.observed_at(0.0)).unwrap();
     assert_eq!(report.missed, 0);
     let bound = model.worst_case_work();
     for frame in 1..=20 {
         let s = (frame as f64 / 10.0).min(1.0);
-        let r = model.step(&observe(&cam, &at(s))).unwrap();
+        let r = model.step(&scene.observed_at(s)).unwrap();
         assert!(
             r.gradient_norm_after < r.gradient_norm_before,
             "{strategy:?} frame {frame}: gradient {:e} -> {:e}",
@@ -1095,18 +1128,9 @@ fn mixed_precision_reaches_the_f64_residual_where_f32_does_not() {
 /// elastic energy at its start is the last frame's at its end.
 #[test]
 fn a_quasi_newton_frame_starts_from_the_elements_share_the_last_one_ended_with() {
-    let size = [0.06, 0.02, 0.02];
-    let mesh = box_mesh([12, 4, 4], size);
-    let fixed = nodes_where(&mesh, 0, 0.0);
     let cam = registration_camera();
-    let target = target_deformation(&mesh, &fixed, cam, size);
-    let top = nodes_where(&mesh, 2, size[2]);
-    let at = |s: f64| toward(&mesh, &target, &top, s);
-    let input = MeshInput {
-        rest: &mesh.nodes,
-        tets: &mesh.tets,
-        fixed: &fixed,
-    };
+    let scene = PulledBox::seen_by(cam);
+    let input = scene.input();
     let mut cfg = config(cam, 2.0e-6, Strategy::QuasiNewton, 1e-3);
     cfg.solver.newton_iterations = 2;
     cfg.solver.line_search_steps = 1;
@@ -1114,21 +1138,21 @@ fn a_quasi_newton_frame_starts_from_the_elements_share_the_last_one_ended_with()
     let mut model = storage.model(&input, &cfg).unwrap();
     let mut twin_storage = ModelStorage::with_features(&input, 256).unwrap();
     let mut twin = twin_storage.model(&input, &cfg).unwrap();
-    model.embed_features(&observe(&cam, &at(0.0))).unwrap();
-    twin.embed_features(&observe(&cam, &at(0.0))).unwrap();
+    model.embed_features(&scene.observed_at(0.0)).unwrap();
+    twin.embed_features(&scene.observed_at(0.0)).unwrap();
     // The frozen factor's assembly kept a share whose element kernel (with tangents) rounds
     // otherwise than the gradient's: both start the first frame afresh, so that the two
     // agree bit for bit from there.
     let here = model.positions().to_vec();
     model.set_positions(&here).unwrap();
-    let tets = mesh.tets.len() as u64;
+    let tets = scene.mesh.tets.len() as u64;
     let mut elastic_at_end = None;
     for frame in 1..=12 {
         let s = (frame as f64 / 8.0).min(1.0);
         let here = twin.positions().to_vec();
         twin.set_positions(&here).unwrap();
-        let r = model.step(&observe(&cam, &at(s))).unwrap();
-        let t = twin.step(&observe(&cam, &at(s))).unwrap();
+        let r = model.step(&scene.observed_at(s)).unwrap();
+        let t = twin.step(&scene.observed_at(s)).unwrap();
         let case = format!("frame {frame}");
         assert_eq!(r.energy_before, t.energy_before, "{case}");
         assert_eq!(r.energy_after, t.energy_after, "{case}");
@@ -1154,18 +1178,9 @@ fn a_quasi_newton_frame_starts_from_the_elements_share_the_last_one_ended_with()
 /// counted work is the formula's, exactly, in every frame.
 #[test]
 fn a_single_line_search_trial_closes_the_frame() {
-    let size = [0.06, 0.02, 0.02];
-    let mesh = box_mesh([12, 4, 4], size);
-    let fixed = nodes_where(&mesh, 0, 0.0);
     let cam = registration_camera();
-    let target = target_deformation(&mesh, &fixed, cam, size);
-    let top = nodes_where(&mesh, 2, size[2]);
-    let at = |s: f64| toward(&mesh, &target, &top, s);
-    let input = MeshInput {
-        rest: &mesh.nodes,
-        tets: &mesh.tets,
-        fixed: &fixed,
-    };
+    let scene = PulledBox::seen_by(cam);
+    let input = scene.input();
     for (strategy, newton) in [
         (Strategy::Refactor, 1),
         (Strategy::Refactor, 2),
@@ -1179,10 +1194,10 @@ fn a_single_line_search_trial_closes_the_frame() {
         cfg.solver.line_search_steps = 1;
         let mut storage = ModelStorage::with_features(&input, 256).unwrap();
         let mut model = storage.model(&input, &cfg).unwrap();
-        model.embed_features(&observe(&cam, &at(0.0))).unwrap();
+        model.embed_features(&scene.observed_at(0.0)).unwrap();
         let bound = model.worst_case_work();
-        let tets = mesh.tets.len() as u64;
-        let features = top.len() as u64;
+        let tets = scene.mesh.tets.len() as u64;
+        let features = scene.top.len() as u64;
         // No closing assembly: the elements are evaluated once per trial, the features once
         // per assembly with tangents and once per trial; without tangents (`QuasiNewton`),
         // every trial is assembled and the next step starts from it, the frame's first from
@@ -1198,7 +1213,7 @@ fn a_single_line_search_trial_closes_the_frame() {
         assert_eq!(bound.feature_evaluations, features * feature_passes);
         for frame in 1..=12 {
             let s = (frame as f64 / 8.0).min(1.0);
-            let r = model.step(&observe(&cam, &at(s))).unwrap();
+            let r = model.step(&scene.observed_at(s)).unwrap();
             let w = r.work;
             let case = format!("{strategy:?}, {newton} Newton, frame {frame}");
             assert_eq!(w.assemblies, bound.assemblies, "{case}");

@@ -12,7 +12,7 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
     /// # Errors
     /// [`Error::FeatureBehindCamera`] if a virtual feature cannot be projected.
     pub fn linearize(&mut self) -> Result<Linearization<'_, T>, Error> {
-        let energies = self.assemble(true, &mut WorkCount::default())?;
+        let energies = self.assemble(true, false, &mut WorkCount::default())?;
         let n = self.n_unknowns();
         let nnz = self.live.nnz_a;
         Ok(Linearization {

@@ -64,7 +64,7 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
             let e = match carried.take() {
                 Some(e) => e,
                 None if keeps => self.assemble_frame_start(&mut work)?,
-                None => self.assemble(strategy.assembles_hessian(), &mut work)?,
+                None => self.assemble(strategy.assembles_hessian(), false, &mut work)?,
             };
             if pending {
                 self.push_secant_pair(&mut work)?;
@@ -138,7 +138,7 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
         }
         let energy_after = match closing {
             Some(e) => e,
-            None => self.assemble(false, &mut work)?,
+            None => self.assemble(false, false, &mut work)?,
         };
         if pending {
             self.push_secant_pair(&mut work)?;
@@ -166,12 +166,17 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
         })
     }
 
-    /// Assembles the gradient (and, if asked, the Hessian) at the current positions.
+    /// Assembles the gradient (and, if asked, the Hessian) at the current positions; with
+    /// `keep_share`, the elements' share of it is kept aside as a trial of
+    /// [`KeptElements`](crate::solve::KeptElements), for the caller to accept once what it
+    /// assembled for has succeeded.
     pub(crate) fn assemble(
         &mut self,
         with_hessian: bool,
+        keep_share: bool,
         work: &mut WorkCount,
     ) -> Result<Energies<T>, Error> {
+        let n = self.n_unknowns();
         let coefficients = self.coefficients();
         let Model {
             live,
@@ -179,8 +184,14 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
             features,
             vectors,
             hessian,
+            kept,
             ..
         } = self;
+        let keep = if keep_share {
+            Some(kept.trial_mut(n)?)
+        } else {
+            None
+        };
         assemble_on(
             live,
             features,
@@ -189,7 +200,7 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
             AssemblyOutput {
                 gradient: &mut vectors.gradient[..],
                 hessian: with_hessian.then_some(&mut hessian[..]),
-                keep: None,
+                keep,
                 spring_nodes: &mut vectors.spring_nodes[..],
             },
             work,
@@ -311,29 +322,10 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
 
     /// Factors the frozen matrix: the positive definite Hessian at the current state.
     pub(crate) fn prepare_frozen(&mut self, work: &mut WorkCount) -> Result<(), Error> {
+        // With the elements' share kept, the first frame starts from it (taken once the
+        // factorization succeeds).
         let keeps = self.keeps_elements();
-        if keeps {
-            // The elements' share at these positions, for the first frame to start from
-            // (taken once the factorization succeeds).
-            let n = self.n_unknowns();
-            let coefficients = self.coefficients();
-            let (share, sums) = self.kept.trial_mut(n)?;
-            assemble_on(
-                &self.live,
-                &self.features,
-                coefficients,
-                &self.config,
-                AssemblyOutput {
-                    gradient: &mut self.vectors.gradient[..],
-                    hessian: Some(&mut self.hessian[..]),
-                    keep: Some((share, sums)),
-                    spring_nodes: &mut self.vectors.spring_nodes[..],
-                },
-                work,
-            )?;
-        } else {
-            self.assemble(true, work)?;
-        }
+        self.assemble(true, keeps, work)?;
         self.factorize(work)?;
         self.factored = FactoredMatrix::Frozen;
         // The quasi-Newton strategy's pairs corrected the factor before this one.
