@@ -360,9 +360,10 @@ fn anchor_halves<T: Real>(
         }
     };
     // With `lips_only`, the candidates of a side are the lips' features on it: scanned
-    // alone (in slot order, as the whole scan meets them) instead of every feature.
-    let half = |positive: bool| {
-        if lips_only {
+    // alone (in slot order, as the whole scan meets them) instead of every feature. Without,
+    // every feature is on one side or the other: one scan fills both sides' nearest.
+    let ((a, wa), (b, wb)) = if lips_only {
+        let half = |positive: bool| {
             let (on, m) = lips.slots_on(positive);
             let on = on.get(..m).unwrap_or_default();
             anchor_among(
@@ -372,11 +373,12 @@ fn anchor_halves<T: Real>(
                 on.iter().map(|&s| s as usize),
                 side(positive),
             )
-        } else {
-            anchor_among(p, features, usable, 0..features.len(), side(positive))
-        }
+        };
+        half(true).zip(half(false))?
+    } else {
+        let [positive, negative] = nearest_on_sides(p, features, usable, side(true));
+        best_triangle(p, features, &positive).zip(best_triangle(p, features, &negative))?
     };
-    let ((a, wa), (b, wb)) = half(true).zip(half(false))?;
     let half = T::of(0.5);
     Some((
         [a[0], a[1], a[2], b[0], b[1], b[2]],
@@ -605,9 +607,7 @@ fn anchor_among<T: Real>(
     keep: impl Fn(usize, &[T; 2]) -> bool,
 ) -> Option<([u32; 3], [T; 3])> {
     // The six nearest usable features, by insertion into a small sorted list.
-    const K: usize = 6;
-    let mut near: [(T, u32); K] = [(T::max_value().unwrap_or(T::one()), u32::MAX); K];
-    let mut found = 0;
+    let mut near = Nearest::new();
     for i in slots {
         let Some(f) = features.get(i) else {
             continue;
@@ -617,11 +617,84 @@ fn anchor_among<T: Real>(
         }
         let d = length(sub(*f, p));
         // `keep` (a lookup among the lips) only for a feature that would enter the list.
-        if (found < K || d < near[K - 1].0) && keep(i, f) {
-            found = keep_nearest(&mut near, found, d, i as u32);
+        if near.would_keep(d) && keep(i, f) {
+            near.keep(d, i as u32);
         }
     }
-    let near = near.get(..found).unwrap_or_default();
+    best_triangle(p, features, &near)
+}
+
+/// The [`Nearest`] usable features to `p` on each side, `[positive, negative]`, as
+/// [`anchor_among`] finds each over every slot with `keep` and its negation, in one scan:
+/// `positive(i, f)` is asked once of a feature that would enter either list.
+fn nearest_on_sides<T: Real>(
+    p: [T; 2],
+    features: &[[T; 2]],
+    usable: &[u32],
+    positive: impl Fn(usize, &[T; 2]) -> bool,
+) -> [Nearest<T>; 2] {
+    let (mut plus, mut minus) = (Nearest::new(), Nearest::new());
+    for (i, f) in features.iter().enumerate() {
+        if usable.get(i).is_none_or(|&u| u == 0) {
+            continue;
+        }
+        let d = length(sub(*f, p));
+        let (to_plus, to_minus) = (plus.would_keep(d), minus.would_keep(d));
+        if to_plus || to_minus {
+            let on_plus = positive(i, f);
+            if on_plus && to_plus {
+                plus.keep(d, i as u32);
+            } else if !on_plus && to_minus {
+                minus.keep(d, i as u32);
+            }
+        }
+    }
+    [plus, minus]
+}
+
+/// Features a point is anchored among: its six nearest (of which 20 triangles).
+const NEAREST: usize = 6;
+
+/// Features nearest a point: the [`NEAREST`] nearest so far, by insertion into a small sorted
+/// list.
+struct Nearest<T> {
+    near: [(T, u32); NEAREST],
+    found: usize,
+}
+
+impl<T: Real> Nearest<T> {
+    fn new() -> Self {
+        Nearest {
+            near: [(T::max_value().unwrap_or(T::one()), u32::MAX); NEAREST],
+            found: 0,
+        }
+    }
+
+    /// Whether a feature at distance `d` would enter the list.
+    fn would_keep(&self, d: T) -> bool {
+        self.found < NEAREST || d < self.near[NEAREST - 1].0
+    }
+
+    /// Enters a feature at distance `d` (the caller checked [`Nearest::would_keep`]).
+    fn keep(&mut self, d: T, slot: u32) {
+        self.found = keep_nearest(&mut self.near, self.found, d, slot);
+    }
+
+    /// The features kept, nearest first.
+    fn kept(&self) -> &[(T, u32)] {
+        self.near.get(..self.found).unwrap_or_default()
+    }
+}
+
+/// Of the triangles of the features `near` (at most [`NEAREST`]), the one that contains `p`
+/// most centrally (largest smallest weight), as [`anchor_at`] describes; `None` when all are
+/// slivers or fewer than three.
+fn best_triangle<T: Real>(
+    p: [T; 2],
+    features: &[[T; 2]],
+    near: &Nearest<T>,
+) -> Option<([u32; 3], [T; 3])> {
+    let near = near.kept();
     let mut best: Option<(T, [u32; 3], [T; 3])> = None;
     for (i, &(_, si)) in near.iter().enumerate() {
         for (j, &(_, sj)) in near.iter().enumerate().skip(i + 1) {

@@ -46,7 +46,6 @@ const ACROSS: [[u32; 2]; 13] = {
     p[12] = [11, 12];
     p
 };
-const ALL_SPLIT: [u32; 13] = [u32::MAX; 13];
 
 /// Point `k`'s pair is pair `k`.
 const OWN_PAIR: [u32; 13] = {
@@ -90,7 +89,7 @@ fn the_line_starts_on_collinear_points_and_grows_toward_new_ones() {
         &points[..11],
         &[4; 11],
         &OWN_PAIR[..11],
-        SplitPairs::for_test(&ACROSS, &ALL_SPLIT),
+        SplitPairs::for_test(&ACROSS),
         &features,
         &parting([3.0, 0.0]),
         &usable,
@@ -115,7 +114,7 @@ fn the_line_starts_on_collinear_points_and_grows_toward_new_ones() {
         &points[..8],
         &[4; 8],
         &OWN_PAIR[..8],
-        SplitPairs::for_test(&ACROSS, &ALL_SPLIT),
+        SplitPairs::for_test(&ACROSS),
         &features,
         &parting([3.0, 0.0]),
         &usable,
@@ -149,7 +148,7 @@ fn a_full_line_reports_its_cap_instead_of_growing() {
         &points,
         &[1; 8],
         &OWN_PAIR[..8],
-        SplitPairs::for_test(&ACROSS, &ALL_SPLIT),
+        SplitPairs::for_test(&ACROSS),
         &features,
         &parting([3.0, 0.0]),
         &usable,
@@ -166,7 +165,7 @@ fn a_full_line_reports_its_cap_instead_of_growing() {
         &points,
         &[2; 8],
         &OWN_PAIR[..8],
-        SplitPairs::for_test(&ACROSS, &ALL_SPLIT),
+        SplitPairs::for_test(&ACROSS),
         &features,
         &parting([3.0, 0.0]),
         &usable,
@@ -212,8 +211,7 @@ fn a_vertex_off_the_cut_is_held_by_both_lips_the_split_pairs_name() {
     let up = [0.0, 1.0];
     // The pairs across the cut, (5, y) to (6, y) in grid steps, all split.
     let pairs: [[u32; 2]; 11] = core::array::from_fn(|r| [11 * r as u32 + 5, 11 * r as u32 + 6]);
-    let state = [u32::MAX; 11];
-    let split = SplitPairs::for_test(&pairs, &state);
+    let split = SplitPairs::for_test(&pairs);
     let opened = opened_grid();
     let tracked = Tracked {
         features: &features,
@@ -250,14 +248,13 @@ fn features_outside_the_pairs_take_the_lip_they_move_with_or_the_pairs_place_the
     let (s, c) = (40f64.to_radians().sin(), 40f64.to_radians().cos());
     let tangent = [s, c];
     let fan: [[u32; 2]; 3] = [[60, 50], [60, 61], [60, 72]];
-    let state = [u32::MAX; 3];
     let opened = opened_grid();
     let held = |residuals: &[[f64; 2]; 121]| {
         let tracked = Tracked {
             features: &features,
             residuals,
             usable: &usable,
-            split: SplitPairs::for_test(&fan, &state),
+            split: SplitPairs::for_test(&fan),
         };
         let anchor = anchor_across(p, tangent, &tracked, 25.0).unwrap();
         assert!((placed(&anchor, &features)[0] - p[0]).abs() < 1e-9);
@@ -314,13 +311,13 @@ fn start_on(table: &[[u32; 2]], pairs: &[u32], residuals: &[[f64; 2]; 121]) -> u
     let mut line = CutLine::new(16, &mut rs, &mut is).unwrap();
     let mut scratch = [[0.0; 2]; 16];
     let points: [[f64; 2]; 13] = core::array::from_fn(|k| [50.0, 20.0 + 5.0 * k as f64]);
-    let state = [u32::MAX; 13];
+
     line.update(
         1,
         &points[..pairs.len()],
         &[1; 13][..pairs.len()],
         pairs,
-        SplitPairs::for_test(table, &state[..table.len()]),
+        SplitPairs::for_test(table),
         &features,
         residuals,
         &usable,

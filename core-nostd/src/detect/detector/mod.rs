@@ -53,8 +53,13 @@ pub struct Detector<'a, T> {
     /// Sort space for the robust statistics.
     scratch: &'a mut [T],
     /// Key space of their radix selections ([`crate::robust::select_rounded`]): as many
-    /// values as `scratch`, [`KEY_WORDS`] words each.
+    /// values as `scratch`, [`KEY_WORDS`] words each. Free once the selections of a frame are
+    /// done, it then holds the split pairs' indices, ascending (`keys[..n_split]`, written by
+    /// the last step): the cut line looks for the split pairs near a vertex several times a
+    /// frame, and scans those alone instead of every pair ([`SplitPairs`]).
     keys: &'a mut [u32],
+    /// How many split pairs `keys` lists.
+    n_split: usize,
     points: &'a mut [[T; 2]],
     /// Per point: the frame its pair (last) became split.
     point_since: &'a mut [u32],
@@ -76,25 +81,36 @@ pub struct Detector<'a, T> {
 #[derive(Clone, Copy, Debug, Default)]
 pub struct SplitPairs<'d> {
     pairs: &'d [[u32; 2]],
-    state: &'d [u32],
+    /// The split pairs' indices into `pairs`, ascending.
+    split: &'d [u32],
 }
 
 impl<'d> SplitPairs<'d> {
-    /// The split pairs (feature slots).
+    /// The split pairs (feature slots), in the order of the detector's pairs.
     pub fn iter(&self) -> impl Iterator<Item = [u32; 2]> + 'd {
-        self.pairs
+        let pairs = self.pairs;
+        self.split
             .iter()
-            .zip(self.state)
-            .filter(|(_, s)| **s & SPLIT != 0)
-            .map(|(p, _)| *p)
+            .filter_map(move |&k| pairs.get(k as usize).copied())
     }
 
-    /// `pairs` with their states as the detector keeps them (a state with the split bit set,
-    /// such as `u32::MAX`, marks a split pair), for the cut line's unit tests (which need
-    /// `f64`).
+    /// `pairs`, every one split, for the cut line's unit tests (which need `f64`; at most 64
+    /// pairs).
     #[cfg(all(test, feature = "f64"))]
-    pub(crate) fn for_test(pairs: &'d [[u32; 2]], state: &'d [u32]) -> Self {
-        SplitPairs { pairs, state }
+    pub(crate) fn for_test(pairs: &'d [[u32; 2]]) -> Self {
+        const ALL: [u32; 64] = {
+            let mut all = [0; 64];
+            let mut k = 0;
+            while k < 64 {
+                all[k] = k as u32;
+                k += 1;
+            }
+            all
+        };
+        SplitPairs {
+            pairs,
+            split: ALL.get(..pairs.len()).unwrap_or(&ALL),
+        }
     }
 
     /// The two feature slots of pair `k` (an index from [`Detector::point_pair`]).
@@ -102,9 +118,10 @@ impl<'d> SplitPairs<'d> {
         self.pairs.get(k as usize).copied()
     }
 
-    /// The pairs a pass over [`SplitPairs::iter`] visits, split or not.
+    /// The pairs a pass over [`SplitPairs::iter`] visits: the split ones (at most the
+    /// detector's pair capacity, which the work bounds count).
     pub fn scanned(&self) -> usize {
-        self.pairs.len()
+        self.split.len()
     }
 }
 
@@ -190,6 +207,7 @@ impl<'a, T: Real> Detector<'a, T> {
             length: reals.take(pairs)?,
             scratch: reals.take(pairs.max(features))?,
             keys: indices.take(times(KEY_WORDS, pairs.max(features)))?,
+            n_split: 0,
             points: reals.take(times(2, pairs))?.as_chunks_mut::<2>().0,
             point_since: indices.take(pairs)?,
             point_pair: indices.take(pairs)?,
@@ -219,11 +237,13 @@ impl<'a, T: Real> Detector<'a, T> {
         h.reals(self.points.iter().take(self.n_points).flatten());
         h.words(self.point_since.iter().take(self.n_points));
         h.words(self.point_pair.iter().take(self.n_points));
+        h.words(self.keys.iter().take(self.n_split));
         h.reals([self.radius, self.spacing].iter());
         h.words(
             [
                 self.n_pairs as u32,
                 self.n_points as u32,
+                self.n_split as u32,
                 self.pairs_lost as u32,
                 self.features_filtered as u32,
             ]
@@ -258,7 +278,7 @@ impl<'a, T: Real> Detector<'a, T> {
     pub fn split_pairs(&self) -> SplitPairs<'_> {
         SplitPairs {
             pairs: self.pairs(),
-            state: self.pair_state.get(..self.n_pairs).unwrap_or_default(),
+            split: self.keys.get(..self.n_split).unwrap_or_default(),
         }
     }
 
@@ -345,6 +365,7 @@ impl<'a, T: Real> Detector<'a, T> {
         let Some((lo, hi)) = image_bounds(uv) else {
             self.n_pairs = 0;
             self.n_points = 0;
+            self.n_split = 0;
             self.pairs_lost = 0;
             self.features_filtered = 0;
             return Ok(());
@@ -443,6 +464,7 @@ impl<'a, T: Real> Detector<'a, T> {
         }
         self.n_pairs = 0;
         self.n_points = 0;
+        self.n_split = 0;
         self.pairs_lost = 0;
         self.features_filtered = 0;
         self.spacing = spacing;

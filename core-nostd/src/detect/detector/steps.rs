@@ -83,13 +83,13 @@ impl<'a, T: Real> Detector<'a, T> {
                 if a >= n || b >= n {
                     continue;
                 }
-                // `‖cₐ − c_b‖` is the same number from either end (the differences only
-                // change sign), as when each feature scanned its own pairs.
-                let alike = norm(change(a), change(b)) <= limit;
                 let (Some(&va), Some(&vb)) = (self.scratch.get(a), self.scratch.get(b)) else {
                     continue;
                 };
-                if alike && va != T::zero() && vb != T::zero() {
+                // Two jumpers (rare) that jumped alike. `‖cₐ − c_b‖` is the same number from
+                // either end (the differences only change sign), as when each feature scanned
+                // its own pairs.
+                if va != T::zero() && vb != T::zero() && norm(change(a), change(b)) <= limit {
                     for f in [a, b] {
                         if let Some(v) = self.scratch.get_mut(f) {
                             *v = -T::one();
@@ -393,6 +393,8 @@ impl<'a, T: Real> Detector<'a, T> {
         };
         let mut split = 0;
         self.n_points = 0;
+        // The selections are done with `keys`: it lists the split pairs from here on.
+        self.n_split = 0;
         let pair_counts = &*self.pair_counts;
         let pairs = self
             .pairs
@@ -403,43 +405,49 @@ impl<'a, T: Real> Detector<'a, T> {
             pairs.take(self.n_pairs).enumerate()
         {
             // Unmeasured pairs keep their streak (a dropped frame does not reset it).
-            if !(difference >= T::zero()) {
-                continue;
-            }
-            let out = *pair_state & OUTLIER != 0;
-            let state = *pair_state;
-            // An outlier pair only counts between two features that agree with most of
-            // their other neighbours.
-            let counts = out && trusted(pair_counts, i) && trusted(pair_counts, j);
-            let streak = if counts {
-                ((state & STREAK) + 1).min(STREAK)
-            } else {
-                0
-            };
-            let mut next = (state & !STREAK) | streak;
-            if streak >= config.persistence {
-                next |= SPLIT;
-                split += 1;
-                if streak == config.persistence {
-                    *split_since = frame;
+            if difference >= T::zero() {
+                let out = *pair_state & OUTLIER != 0;
+                let state = *pair_state;
+                // An outlier pair only counts between two features that agree with most of
+                // their other neighbours.
+                let counts = out && trusted(pair_counts, i) && trusted(pair_counts, j);
+                let streak = if counts {
+                    ((state & STREAK) + 1).min(STREAK)
+                } else {
+                    0
+                };
+                let mut next = (state & !STREAK) | streak;
+                if streak >= config.persistence {
+                    next |= SPLIT;
+                    split += 1;
+                    if streak == config.persistence {
+                        *split_since = frame;
+                    }
+                    // The separation point: between the two tracked features, where the cut
+                    // runs (a measured pair's slots are within `targets`), while there is room.
+                    if let (Some(point), Some(since), Some(pair), Some(&a), Some(&b)) = (
+                        self.points.get_mut(self.n_points),
+                        self.point_since.get_mut(self.n_points),
+                        self.point_pair.get_mut(self.n_points),
+                        targets.get(i as usize),
+                        targets.get(j as usize),
+                    ) {
+                        *point = [(a[0] + b[0]) * T::of(0.5), (a[1] + b[1]) * T::of(0.5)];
+                        *since = *split_since;
+                        // `k < n_pairs`, which fits the `u32` slots.
+                        *pair = k as u32;
+                        self.n_points += 1;
+                    }
                 }
-                // The separation point: between the two tracked features, where the cut
-                // runs (a measured pair's slots are within `targets`), while there is room.
-                if let (Some(point), Some(since), Some(pair), Some(&a), Some(&b)) = (
-                    self.points.get_mut(self.n_points),
-                    self.point_since.get_mut(self.n_points),
-                    self.point_pair.get_mut(self.n_points),
-                    targets.get(i as usize),
-                    targets.get(j as usize),
-                ) {
-                    *point = [(a[0] + b[0]) * T::of(0.5), (a[1] + b[1]) * T::of(0.5)];
-                    *since = *split_since;
-                    // `k < n_pairs`, which fits the `u32` slots.
-                    *pair = k as u32;
-                    self.n_points += 1;
-                }
+                *pair_state = next;
             }
-            *pair_state = next;
+            // Split now or before: listed for the cut line (`keys` holds a word per pair).
+            if *pair_state & SPLIT != 0
+                && let Some(slot) = self.keys.get_mut(self.n_split)
+            {
+                *slot = k as u32;
+                self.n_split += 1;
+            }
         }
         work.pair_visits += self.n_pairs as u64;
         split
