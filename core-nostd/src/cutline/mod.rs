@@ -107,7 +107,7 @@ struct Tracked<'s, T> {
 }
 
 impl<T> Tracked<'_, T> {
-    /// The visits of one anchoring ([`anchor_cost`]) on these features and pairs.
+    /// The visits of one anchoring ([`anchor_cost`]) on these features and split pairs.
     fn anchor_cost(&self) -> u64 {
         anchor_cost(self.features.len(), self.split.scanned())
     }
@@ -504,12 +504,13 @@ impl<'a, T: Real> CutLine<'a, T> {
 const REACH_STEPS: f64 = 5.0;
 
 /// Scans of the feature slots per anchoring ([`anchor_across`]: each lip on the split pairs'
-/// features alone, each side again with the others split by the line, then all around).
-const ANCHOR_COST: u64 = 5;
+/// features alone, both sides again in one scan with the others split by the line, then all
+/// around).
+const ANCHOR_COST: u64 = 4;
 
-/// The visits of one anchoring with `features` slots and `pairs` neighbour pairs: a scan of
-/// the pairs for the split ones near the point, then at most [`ANCHOR_COST`] scans of the
-/// slots, each with the 20 triangles of the six nearest (a slot's lip is looked up among at
+/// The visits of one anchoring with `features` slots and `pairs` split pairs (at most the
+/// neighbour pairs, which the bound counts): a scan of the split pairs for those near the
+/// point, then at most [`ANCHOR_COST`] scans of the slots, each with the 20 triangles of the six nearest (a slot's lip is looked up among at
 /// most `2 LIP_PAIRS` features, part of its visit). A bound: the two scans among the lips'
 /// features alone visit those features only (at most `2 LIP_PAIRS` each).
 const fn anchor_cost(features: usize, pairs: usize) -> u64 {
