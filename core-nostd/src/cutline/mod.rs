@@ -46,8 +46,8 @@ pub struct LineWork {
     /// Separation points and lip midpoints visited by the fronts and by the vertices following
     /// their evidence.
     pub point_visits: u64,
-    /// Features visited to anchor a vertex (each anchoring scans every slot once and tries
-    /// the 20 triangles of the six nearest).
+    /// Split pairs, feature slots and triangles visited to anchor a vertex (see
+    /// [`LineWork::bound`]).
     pub anchor_visits: u64,
 }
 
@@ -63,9 +63,9 @@ impl LineWork {
     /// - growing: each vertex follows its evidence (`points` visits) and each front
     ///   looks ahead (`points`), with one anchoring per vertex and per front.
     ///
-    /// An anchoring scans the pairs once (for the split ones near the point; `points` is the
-    /// pair capacity) and the slots at most five times (each lip, each side, then all), each scan
-    /// `features + 20` visits.
+    /// An anchoring scans the split pairs once (for those near the point; at most `points`,
+    /// the pair capacity) and the slots at most [`ANCHOR_COST`] times: each lip's features
+    /// alone, both sides in one scan, then all around (`anchor_cost`).
     pub const fn bound(vertices: u64, points: u64, features: u64) -> LineWork {
         let f = if points < FIT_POINTS as u64 {
             points
@@ -74,7 +74,7 @@ impl LineWork {
         };
         let start_fit = f * f.saturating_sub(1) / 2 * (1 + CARRIED_BY_ONE_VISITS) * f + 3 * f;
         let grow_points = (vertices + 2) * points;
-        let anchor = ANCHOR_COST * (features + 20) + points;
+        let anchor = anchor_cost(features, points);
         let start_anchor = 2 * anchor;
         let grow_anchor = (vertices + 2) * anchor;
         LineWork {
@@ -109,7 +109,7 @@ struct Tracked<'s, T> {
 impl<T> Tracked<'_, T> {
     /// The visits of one anchoring ([`anchor_cost`]) on these features and split pairs.
     fn anchor_cost(&self) -> u64 {
-        anchor_cost(self.features.len(), self.split.scanned())
+        anchor_cost(self.features.len() as u64, self.split.scanned() as u64)
     }
 }
 
@@ -510,11 +510,13 @@ const ANCHOR_COST: u64 = 4;
 
 /// The visits of one anchoring with `features` slots and `pairs` split pairs (at most the
 /// neighbour pairs, which the bound counts): a scan of the split pairs for those near the
-/// point, then at most [`ANCHOR_COST`] scans of the slots, each with the 20 triangles of the six nearest (a slot's lip is looked up among at
-/// most `2 LIP_PAIRS` features, part of its visit). A bound: the two scans among the lips'
-/// features alone visit those features only (at most `2 LIP_PAIRS` each).
-const fn anchor_cost(features: usize, pairs: usize) -> u64 {
-    ANCHOR_COST * (features as u64 + 20) + pairs as u64
+/// point, then at most [`ANCHOR_COST`] scans of the slots, each followed by the 20 triangles
+/// of the six nearest, and 20 more after the scan that fills both sides (the six nearest of
+/// each: 40 triangles). A slot's lip is looked up among at most `2 LIP_PAIRS` features, part
+/// of its visit. A bound: the two scans among the lips' features alone visit those features
+/// only (at most `2 LIP_PAIRS` each, and no more than the slots).
+const fn anchor_cost(features: u64, pairs: u64) -> u64 {
+    ANCHOR_COST * (features + 20) + 20 + pairs
 }
 
 /// Features a vertex is anchored to: three on each side of the line.

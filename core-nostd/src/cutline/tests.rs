@@ -297,7 +297,6 @@ const FAN: [[u32; 2]; 11] = [
     [81, 83],
     [92, 94],
 ];
-const FAN_SPLIT: [u32; 11] = [u32::MAX; 11];
 
 /// The vertices a fresh line adds when it meets separation points along x = 50, point `k`
 /// on pair `pairs[k]` of `table`, with the features' residuals `residuals`.
@@ -311,7 +310,6 @@ fn start_on(table: &[[u32; 2]], pairs: &[u32], residuals: &[[f64; 2]; 121]) -> u
     let mut line = CutLine::new(16, &mut rs, &mut is).unwrap();
     let mut scratch = [[0.0; 2]; 16];
     let points: [[f64; 2]; 13] = core::array::from_fn(|k| [50.0, 20.0 + 5.0 * k as f64]);
-
     line.update(
         1,
         &points[..pairs.len()],
@@ -343,7 +341,6 @@ fn a_line_starts_only_along_points_whose_pairs_open_across_it() {
 
 #[test]
 fn a_line_one_feature_carries_does_not_start() {
-    let _ = FAN_SPLIT;
     let residuals = parting([3.0, 0.0]);
     // Nine points, all on pairs of feature 60: its track alone would make the cut.
     assert_eq!(start_on(&FAN, &OWN_PAIR[..9], &residuals), 0);

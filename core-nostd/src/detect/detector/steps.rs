@@ -378,7 +378,8 @@ impl<'a, T: Real> Detector<'a, T> {
     /// Step 4, persistence and separation points: an outlier pair between two features that
     /// agree with most of their other neighbours extends its streak; after `persistence`
     /// frames in a row it is split, and its midpoint between the tracked features is a
-    /// separation point. Returns the split pairs.
+    /// separation point. Lists every split pair, measured this frame or not, in `keys` for
+    /// [`Detector::split_pairs`]. Returns how many pairs are split and measured this frame.
     pub(super) fn separation_points(
         &mut self,
         frame: u32,

@@ -201,6 +201,48 @@ fn a_lip_that_jumps_together_is_kept_and_splits() {
 }
 
 #[test]
+fn the_split_pairs_the_cut_line_reads_are_those_counted_as_split() {
+    // The lip of the test above jumps from frame 2 on; frames 6 and 7 observe nothing (split
+    // pairs stay split unmeasured). After every frame the list the detector hands the cut line
+    // is the pairs whose state says split, in the pairs' order; after a new start, none.
+    let mut s = store();
+    let mut det = detector(&mut s, 400, 2000);
+    let uv = grid(20, 10.0);
+    det.init(&uv, &[[0.0; 2]; 400], &config()).unwrap();
+    let mut d = [[0.0; 2]; 400];
+    let mut listed = 0;
+    for frame in 0..8u32 {
+        for (k, dk) in d.iter_mut().enumerate() {
+            let x = ((k as u64 * 40_503 + u64::from(frame) * 9_973) * 2_654_435_761) % 1_000_003;
+            *dk = [x as f64 / 1_000_003.0 - 0.5, 0.0];
+            if frame >= 2 && uv[k][0] > 95.0 {
+                dk[0] += 12.0;
+            }
+        }
+        let observed = if frame < 6 { [1; 400] } else { [0; 400] };
+        let r = det.update(frame, &d, &observed, &uv, &config());
+        let split = det.split_pairs();
+        let expected = det
+            .pairs()
+            .iter()
+            .enumerate()
+            .filter(|&(k, _)| det.is_split(k))
+            .map(|(_, p)| *p);
+        assert!(split.iter().eq(expected), "frame {frame}");
+        assert_eq!(split.scanned(), split.iter().count());
+        if frame >= 6 {
+            // Nothing measured: no pair is split this frame, and those split before stay.
+            assert_eq!(r.split, 0);
+            assert_eq!(split.scanned(), listed, "frame {frame}");
+        }
+        listed = split.scanned();
+    }
+    assert!(listed > 0);
+    det.init(&uv, &[[0.0; 2]; 400], &config()).unwrap();
+    assert_eq!(det.split_pairs().iter().count(), 0);
+}
+
+#[test]
 fn too_many_pairs_is_a_capacity_error() {
     let mut s = store();
     let mut det = detector(&mut s, 400, 100);
