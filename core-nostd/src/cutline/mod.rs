@@ -64,8 +64,9 @@ impl LineWork {
     ///   looks ahead (`points`), with one anchoring per vertex and per front.
     ///
     /// An anchoring scans the split pairs once (for those near the point; at most `points`,
-    /// the pair capacity) and the slots at most [`ANCHOR_COST`] times: each lip's features
-    /// alone, both sides in one scan, then all around (`anchor_cost`).
+    /// the pair capacity) and the slots at most four times: each lip's features alone, both
+    /// sides in one scan, then all around, each scan followed by the 20 triangles of the six
+    /// nearest and the one for both sides by 20 more (`anchor_cost`).
     pub const fn bound(vertices: u64, points: u64, features: u64) -> LineWork {
         let f = if points < FIT_POINTS as u64 {
             points
