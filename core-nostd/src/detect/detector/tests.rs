@@ -164,12 +164,27 @@ fn a_single_jumping_feature_is_filtered_and_cuts_nothing() {
     assert_eq!(r.pairs_lost, 8);
 }
 
+/// Frame `frame`'s residuals of a cut opening under the camera on grid `uv`: half a pixel of
+/// noise everywhere, and from frame 2 on the right half (x > 95 px) 12 px to the right, all
+/// together, as a lip does when the scissor passes.
+fn lip_residuals(uv: &[[f64; 2]; 400], frame: u32, d: &mut [[f64; 2]; 400]) {
+    for (k, dk) in d.iter_mut().enumerate() {
+        let h = |salt: u64| {
+            let x =
+                ((k as u64 * 40_503 + u64::from(frame) * 9_973 + salt) * 2_654_435_761) % 1_000_003;
+            x as f64 / 1_000_003.0 - 0.5
+        };
+        *dk = [h(1), h(7)];
+        if frame >= 2 && uv[k][0] > 95.0 {
+            dk[0] += 12.0;
+        }
+    }
+}
+
 #[test]
 #[cfg(feature = "temporal-filter")]
 fn a_lip_that_jumps_together_is_kept_and_splits() {
-    // A cut opening under the camera: from frame 2 on, the residuals of the right half of the
-    // grid (x > 95 px) jump by 12 px to the right, all together, as a lip does when the
-    // scissor passes. Each of its features has neighbours on its own lip that moved alike: none
+    // A cut opening under the camera ([`lip_residuals`]). Each of its features has neighbours on its own lip that moved alike: none
     // is a tracking failure, and the pairs across the cut split.
     let mut s = store();
     let mut det = detector(&mut s, 400, 2000);
@@ -178,17 +193,7 @@ fn a_lip_that_jumps_together_is_kept_and_splits() {
     let mut d = [[0.0; 2]; 400];
     let mut split = 0;
     for frame in 0..8 {
-        for (k, dk) in d.iter_mut().enumerate() {
-            let h = |salt: u64| {
-                let x =
-                    ((k as u64 * 40_503 + frame as u64 * 9_973 + salt) * 2_654_435_761) % 1_000_003;
-                x as f64 / 1_000_003.0 - 0.5
-            };
-            *dk = [h(1), h(7)];
-            if frame >= 2 && uv[k][0] > 95.0 {
-                dk[0] += 12.0;
-            }
-        }
+        lip_residuals(&uv, frame, &mut d);
         let r = det.update(frame, &d, &[1; 400], &uv, &config());
         assert_eq!(r.features_filtered, 0, "frame {frame}");
         split = r.split;
@@ -202,7 +207,7 @@ fn a_lip_that_jumps_together_is_kept_and_splits() {
 
 #[test]
 fn the_split_pairs_the_cut_line_reads_are_those_counted_as_split() {
-    // The lip of the test above jumps from frame 2 on; frames 6 and 7 observe nothing (split
+    // The lip of [`lip_residuals`] jumps from frame 2 on; frames 6 and 7 observe nothing (split
     // pairs stay split unmeasured). After every frame the list the detector hands the cut line
     // is the pairs whose state says split, in the pairs' order; after a new start, none.
     let mut s = store();
@@ -211,14 +216,8 @@ fn the_split_pairs_the_cut_line_reads_are_those_counted_as_split() {
     det.init(&uv, &[[0.0; 2]; 400], &config()).unwrap();
     let mut d = [[0.0; 2]; 400];
     let mut listed = 0;
-    for frame in 0..8u32 {
-        for (k, dk) in d.iter_mut().enumerate() {
-            let x = ((k as u64 * 40_503 + u64::from(frame) * 9_973) * 2_654_435_761) % 1_000_003;
-            *dk = [x as f64 / 1_000_003.0 - 0.5, 0.0];
-            if frame >= 2 && uv[k][0] > 95.0 {
-                dk[0] += 12.0;
-            }
-        }
+    for frame in 0..8 {
+        lip_residuals(&uv, frame, &mut d);
         let observed = if frame < 6 { [1; 400] } else { [0; 400] };
         let r = det.update(frame, &d, &observed, &uv, &config());
         let split = det.split_pairs();
