@@ -1246,3 +1246,54 @@ fn a_single_line_search_trial_closes_the_frame() {
         }
     }
 }
+
+/// A quasi-Newton model whose steps its line search refuses keeps moving. A beam's tip pulled
+/// 40 px by stiff springs: the frozen factor, taken at rest, is far softer than the stretched
+/// beam, so the recursion's whole step overshoots and one trial refuses it. Before the memory
+/// shortened the next step after a refusal, every later step came out as long and was refused
+/// too: the model stood still from the first frame on, its gradient at 405 to the last. Now
+/// it moves in most frames and its gradient falls by three orders of magnitude while the
+/// features stay put.
+#[test]
+fn a_quasi_newton_model_keeps_moving_after_its_line_search_refuses_a_step() {
+    let beam = Cantilever::new([10, 2, 2]);
+    let input = beam.input();
+    let mut cfg = config(beam.cam, 1e-4, Strategy::QuasiNewton, 1e-3);
+    cfg.solver.newton_iterations = 2;
+    cfg.solver.line_search_steps = 1;
+    let mut storage = ModelStorage::with_features(&input, 64).unwrap();
+    let mut model = storage.model(&input, &cfg).unwrap();
+    model.embed_features(&beam.frame0).unwrap();
+    let pulled_by = |s: f64| -> Vec<Observation<f64>> {
+        beam.frame0
+            .iter()
+            .map(|o| Observation {
+                id: o.id,
+                uv: [o.uv[0], o.uv[1] - 40.0 * s],
+            })
+            .collect()
+    };
+    let (mut refused, mut still, mut pulled_gradient) = (0, 0, f64::NAN);
+    let mut last = 0.0;
+    for frame in 1..=40 {
+        let before = model.positions().to_vec();
+        let r = model
+            .step(&pulled_by((frame as f64 / 5.0).min(1.0)))
+            .unwrap();
+        refused += usize::from(r.min_step_length == 0.0);
+        still += usize::from(model.positions() == before.as_slice());
+        if frame == 5 {
+            pulled_gradient = r.gradient_norm_after;
+        }
+        last = r.gradient_norm_after;
+    }
+    eprintln!(
+        "{refused} of 40 frames refused a step, {still} left the model where it was; gradient {pulled_gradient:e} once pulled, {last:e} at the end"
+    );
+    assert!(refused > 0, "no step refused: the case tests nothing");
+    assert!(
+        2 * still < 40,
+        "{still} of 40 frames left the model where it was"
+    );
+    assert!(last <= 1e-2 * pulled_gradient);
+}

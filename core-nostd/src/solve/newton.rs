@@ -118,6 +118,9 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
             }
             let last = it + 1 == newton;
             let (alpha, at_end) = self.line_search(&e, slope, trials, last, &mut work)?;
+            if quasi {
+                self.secant.rescale(alpha);
+            }
             if last {
                 closing = at_end;
             } else {
@@ -277,8 +280,8 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
         Ok(())
     }
 
-    /// The quasi-Newton step ([`Strategy::QuasiNewton`]): `step = −H ∇E`, `H` the frozen
-    /// factor's inverse corrected by the secant pairs, with one solve in the factor's precision
+    /// The quasi-Newton step ([`Strategy::QuasiNewton`]): `step = −c H ∇E`, `H` the frozen
+    /// factor's inverse corrected by the secant pairs, `c ≤ 1` the memory's step scale, with one solve in the factor's precision
     /// (in mixed precision too: refining it would need the Hessian the strategy does not
     /// assemble, and `H` is an approximation anyway).
     fn quasi_newton_step(&mut self, work: &mut WorkCount) -> Result<(), Error> {
@@ -296,8 +299,10 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
         secant.apply(n, step, |q| {
             factor.solve_converting(&live.symbolic, q, solve_work)
         })?;
+        // Shortened after steps the line search refused (`SecantMemory::rescale`).
+        let scale = -secant.scale();
         for s in step.iter_mut() {
-            *s = -*s;
+            *s *= scale;
         }
         work.solves += 1;
         work.solve_flops += live.symbolic.solve_flops();

@@ -9,6 +9,11 @@
 //! is not positive (the energy not convex along the step) is not stored, so the matrix the
 //! recursion applies stays positive definite.
 //!
+//! **Step scale.** Each step is the recursion's times a scale the memory keeps across frames:
+//! halved after a step the line search refused, doubled (up to 1) after one it took whole
+//! ([`SecantMemory::rescale`]), so that a frozen factor far stiffer or softer than where the
+//! model stands cannot make it refuse the same step forever.
+//!
 //! **Layout.** Slot `k` of the steps and of the changes lies at `k n .. (k + 1) n`, `n` the
 //! unknowns of the topology in service; a cut changes `n`, and the memory is cleared with the
 //! frozen factor then.
@@ -25,6 +30,10 @@ use crate::storage::{Fingerprint, Slab, prefix, prefix_mut, sum, times};
 /// error 1.37 against 1.75 mm with two steps a frame); each costs `4 n` multiply-adds a step.
 pub const SECANT_PAIRS: usize = 5;
 
+/// The shortest share of the recursion's step that refusals cut a step down to (2⁻²⁰: twenty
+/// refusals in a row, after which twenty steps taken bring it back).
+const MIN_SCALE: f64 = 9.5367431640625e-7;
+
 /// The last [`SECANT_PAIRS`] steps and gradient changes, in caller storage (see the module
 /// documentation).
 #[derive(Debug)]
@@ -39,11 +48,15 @@ pub(crate) struct SecantMemory<'a, T> {
     alpha: &'a mut [T],
     /// The slot the next pair goes to.
     next: usize,
+    /// The length of the next step as a share of the recursion's (see
+    /// [`SecantMemory::rescale`]).
+    scale: T,
     /// What [`SecantMemory::checkpoint`] copied.
     saved_steps: &'a mut [T],
     saved_changes: &'a mut [T],
     saved_rho: &'a mut [T],
     saved_next: usize,
+    saved_scale: T,
 }
 
 impl<'a, T: Real> SecantMemory<'a, T> {
@@ -69,10 +82,12 @@ impl<'a, T: Real> SecantMemory<'a, T> {
             rho: reals.take(SECANT_PAIRS)?,
             alpha: reals.take(SECANT_PAIRS)?,
             next: 0,
+            scale: T::one(),
             saved_steps: reals.take(pairs)?,
             saved_changes: reals.take(pairs)?,
             saved_rho: reals.take(SECANT_PAIRS)?,
             saved_next: 0,
+            saved_scale: T::one(),
         };
         memory.clear();
         Ok(memory)
@@ -84,6 +99,33 @@ impl<'a, T: Real> SecantMemory<'a, T> {
             x.fill(T::zero());
         }
         self.next = 0;
+        self.scale = T::one();
+    }
+
+    /// The share of the recursion's step the next step takes (`1` unless steps were refused,
+    /// see [`SecantMemory::rescale`]).
+    pub(crate) fn scale(&self) -> T {
+        self.scale
+    }
+
+    /// Follows the line search's verdict on a step: refused (`alpha` 0), the next step is half
+    /// as long (down to [`MIN_SCALE`]); taken whole (`alpha` 1), twice as long, up to the
+    /// recursion's own; taken shortened, as long.
+    ///
+    /// Why: the frozen factor is the Hessian where it was taken (at rest, or at a cut), and a
+    /// body stretched far from there is stiffer (Saint Venant–Kirchhoff stiffens in tension,
+    /// and the inversion barrier rises), so the recursion's step can overshoot. The pairs
+    /// correct it only along the steps taken, and a refused step stores none: the next frame's
+    /// step came out as long, was refused again, and the model stopped moving for good while
+    /// its features moved on (the liver's quasi-Newton copy from its tenth frame; a beam pulled
+    /// 40 px with stiff springs from its first, `tests/model_solve.rs`). With one trial
+    /// nothing else shortens a step.
+    pub(crate) fn rescale(&mut self, alpha: T) {
+        if alpha == T::zero() {
+            self.scale = (self.scale * T::of(0.5)).max(T::of(MIN_SCALE));
+        } else if alpha >= T::one() {
+            self.scale = (self.scale * T::of(2.0)).min(T::one());
+        }
     }
 
     /// Stores the pair of a step `s` (`step`) that took the gradient from `before` to `after`
@@ -209,6 +251,7 @@ impl<'a, T: Real> SecantMemory<'a, T> {
         crate::storage::copy_front(self.saved_changes, self.changes, len);
         crate::storage::copy_front(self.saved_rho, self.rho, SECANT_PAIRS);
         self.saved_next = self.next;
+        self.saved_scale = self.scale;
         Self::copies(n)
     }
 
@@ -219,11 +262,13 @@ impl<'a, T: Real> SecantMemory<'a, T> {
         crate::storage::copy_front(self.changes, self.saved_changes, len);
         crate::storage::copy_front(self.rho, self.saved_rho, SECANT_PAIRS);
         self.next = self.saved_next;
+        self.scale = self.saved_scale;
     }
 
     /// Scalars a checkpoint of `n` unknowns copies.
     pub(crate) const fn copies(n: usize) -> u64 {
-        (times(2, times(SECANT_PAIRS, n)) + SECANT_PAIRS) as u64
+        // The pairs, `1 / sᵀy`, and the step scale.
+        (times(2, times(SECANT_PAIRS, n)) + SECANT_PAIRS + 1) as u64
     }
 
     /// Hashes the memory of `n` unknowns.
@@ -233,6 +278,7 @@ impl<'a, T: Real> SecantMemory<'a, T> {
         h.reals(self.changes.iter().take(len));
         h.reals(self.rho.iter());
         h.words(core::iter::once(&(self.next as u32)));
+        h.reals(core::iter::once(&self.scale));
     }
 }
 
@@ -352,5 +398,37 @@ mod tests {
         // Cleared: the initial inverse alone again.
         memory.clear();
         assert_eq!(h_times(&mut memory, &x), d);
+    }
+
+    /// The step scale: halved by each refused step down to its floor, doubled by each whole
+    /// step up to 1, kept by a shortened one; put back by a rollback, reset by a clear.
+    #[test]
+    fn refused_steps_shorten_the_next_and_whole_ones_lengthen_it_back() {
+        let mut reals = [0.0; SecantMemory::<f64>::real_len(N)];
+        let mut slab = Slab::new(&mut reals, Resource::RealStorage);
+        let mut memory = SecantMemory::new(N, &mut slab).unwrap();
+        assert_eq!(memory.scale(), 1.0);
+        memory.rescale(1.0);
+        assert_eq!(memory.scale(), 1.0);
+        memory.rescale(0.0);
+        memory.rescale(0.0);
+        assert_eq!(memory.scale(), 0.25);
+        memory.rescale(0.5);
+        assert_eq!(memory.scale(), 0.25);
+        memory.checkpoint(N);
+        memory.rescale(1.0);
+        assert_eq!(memory.scale(), 0.5);
+        memory.rollback(N);
+        assert_eq!(memory.scale(), 0.25);
+        for _ in 0..100 {
+            memory.rescale(0.0);
+        }
+        assert_eq!(memory.scale(), MIN_SCALE);
+        for _ in 0..19 {
+            memory.rescale(1.0);
+        }
+        assert_eq!(memory.scale(), 0.5);
+        memory.clear();
+        assert_eq!(memory.scale(), 1.0);
     }
 }
