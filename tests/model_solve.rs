@@ -1252,8 +1252,9 @@ fn a_single_line_search_trial_closes_the_frame() {
 /// beam, so the recursion's whole step overshoots and one trial refuses it. Before the memory
 /// shortened the next step after a refusal, every later step came out as long and was refused
 /// too: the model stood still from the first frame on, its gradient at 405 to the last. Now
-/// it moves in most frames and its gradient falls by three orders of magnitude while the
-/// features stay put.
+/// it moves in at least three frames of four and its gradient falls by more than three orders
+/// of magnitude while the features stay put (with the scale doubled after a whole step, it
+/// stood still in 13 frames, every other step refused, and its gradient fell to 0.14).
 #[test]
 fn a_quasi_newton_model_keeps_moving_after_its_line_search_refuses_a_step() {
     let beam = Cantilever::new([10, 2, 2]);
@@ -1292,8 +1293,8 @@ fn a_quasi_newton_model_keeps_moving_after_its_line_search_refuses_a_step() {
     );
     assert!(refused > 0, "no step refused: the case tests nothing");
     assert!(
-        2 * still < 40,
+        4 * still <= 40,
         "{still} of 40 frames left the model where it was"
     );
-    assert!(last <= 1e-2 * pulled_gradient);
+    assert!(last <= 1e-3 * pulled_gradient);
 }
