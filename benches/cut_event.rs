@@ -287,8 +287,8 @@ const STAGES: [(&str, &[&str]); 7] = [
 ];
 
 /// The settings the split runs: each scene's own, and on the liver `Refactor` and the
-/// quasi-Newton strategy with one step of one line-search trial (the liver's recommended
-/// setting in the report) and with two.
+/// quasi-Newton strategy with one step of one line-search trial (the cheapest setting the
+/// report runs) and with two.
 const SPLITS: [(&str, &str); 6] = [
     ("band-side-cut", "own"),
     ("band-middle-cut", "own"),
