@@ -591,45 +591,52 @@ fn embed_features_refuses_without_a_trace() {
     );
 }
 
+/// A failed re-embedding keeps what the frozen factor's preparation touched: the quasi-Newton
+/// strategy's secant pairs (and their step scale) included, which that preparation clears
+/// before the detector's pairs, the last step, are counted.
 #[test]
 fn embed_features_with_more_pairs_than_the_capacity_keeps_the_features_and_detector() {
-    // Room for the pairs of 4 features (at most 6) but not for those of 36.
-    let b = bench();
-    let mut storage = OwnedStorage::<f64>::new(&b.capacities(64, 6)).unwrap();
-    let mut model = storage
-        .model(
-            &b.input(),
-            &b.config(Strategy::Frozen { pcg_iterations: 8 }),
-        )
-        .unwrap();
-    let all = b.frame0();
-    let few: Vec<Observation<f64>> = [0, 5, 30, 35].iter().map(|&k| all[k]).collect();
-    model.embed_features(&few).unwrap();
-    let frame: Vec<Observation<f64>> = few
-        .iter()
-        .map(|o| obs(o.id, o.uv[0] + 0.5, o.uv[1]))
-        .collect();
-    model.step(&frame).unwrap();
-    let e = refused(
-        &mut model,
-        "too many pairs",
-        |m| m.embed_features(&all),
-        |e| {
-            matches!(
-                e,
-                Error::Capacity {
-                    resource: Resource::Pairs,
-                    available: 6,
-                    ..
-                }
-            )
-        },
-    );
-    // The count of pairs needed is the whole count, not the first that did not fit.
-    if let Error::Capacity { needed, .. } = e {
-        assert!(needed > 7, "needed {needed}");
+    for strategy in [
+        Strategy::Frozen { pcg_iterations: 8 },
+        Strategy::QuasiNewton,
+    ] {
+        // Room for the pairs of 4 features (at most 6) but not for those of 36.
+        let b = bench();
+        let mut storage = OwnedStorage::<f64>::new(&b.capacities(64, 6)).unwrap();
+        let mut model = storage.model(&b.input(), &b.config(strategy)).unwrap();
+        let all = b.frame0();
+        let few: Vec<Observation<f64>> = [0, 5, 30, 35].iter().map(|&k| all[k]).collect();
+        model.embed_features(&few).unwrap();
+        // Frames that move, so that the quasi-Newton strategy holds secant pairs.
+        let frame = |t: f64| -> Vec<Observation<f64>> {
+            few.iter()
+                .map(|o| obs(o.id, o.uv[0] + 0.5 * t, o.uv[1]))
+                .collect()
+        };
+        for t in 1..=3 {
+            model.step(&frame(t as f64)).unwrap();
+        }
+        let e = refused(
+            &mut model,
+            &format!("{strategy:?}: too many pairs"),
+            |m| m.embed_features(&all),
+            |e| {
+                matches!(
+                    e,
+                    Error::Capacity {
+                        resource: Resource::Pairs,
+                        available: 6,
+                        ..
+                    }
+                )
+            },
+        );
+        // The count of pairs needed is the whole count, not the first that did not fit.
+        if let Error::Capacity { needed, .. } = e {
+            assert!(needed > 7, "needed {needed}");
+        }
+        model.step(&frame(4.0)).unwrap();
     }
-    model.step(&frame).unwrap();
 }
 
 #[test]

@@ -52,8 +52,9 @@ impl<T: Real, F: Real> Model<'_, T, F> {
     /// [`crate::Coupling::Relative`], their stiffness ([`Model::spring_stiffness`]).
     ///
     /// All or nothing: the features and their embedding are copied aside first (once, `9 ·`
-    /// [`Capacities::features`] entries at most), the detector counts its pairs before it
-    /// stores any, and the factor keeps its previous values until the call succeeds
+    /// [`Capacities::features`] entries at most), and so are the quasi-Newton strategy's
+    /// secant pairs, which preparing the frozen factor clears; the detector counts its pairs
+    /// before it stores any, and the factor keeps its previous values until the call succeeds
     /// ([`LdlFactor::checkpoint`]).
     ///
     /// # Errors
@@ -69,6 +70,9 @@ impl<T: Real, F: Real> Model<'_, T, F> {
         // The frozen factor's assembly keeps the elements' share for the quasi-Newton strategy.
         let n = self.n_unknowns();
         self.kept.checkpoint(n);
+        // Preparing the frozen factor clears the quasi-Newton strategy's secant memory, and the
+        // detector's pairs, counted after it, can still be refused.
+        self.secant.checkpoint(n);
         let springs = (
             self.spring_stiffness,
             self.spring_threshold_px,
@@ -85,6 +89,7 @@ impl<T: Real, F: Real> Model<'_, T, F> {
                 self.live.features.copy_from(&self.saved.embedding);
                 self.factored = factored;
                 self.kept.rollback(n);
+                self.secant.rollback(n);
                 (
                     self.spring_stiffness,
                     self.spring_threshold_px,
