@@ -182,7 +182,7 @@ fn instructions_counts_every_frame_or_says_why_not() {
     }
     assert!(output.status.success(), "{stderr}");
     let lines: Vec<&str> = stdout.lines().collect();
-    assert_eq!(lines[0], "frame,instructions,cut_event");
+    assert_eq!(lines[0], "frame,instructions,cut_event,cut_work");
     assert_eq!(lines.len(), 9, "{stdout}");
     for (k, line) in lines[1..].iter().enumerate() {
         let fields: Vec<&str> = line.split(',').collect();
@@ -190,11 +190,14 @@ fn instructions_counts_every_frame_or_says_why_not() {
         let count: u64 = fields[1].parse().unwrap();
         assert!(count > 1_000_000, "{line}");
         assert!(["true", "false"].contains(&fields[2]), "{line}");
+        assert!(["true", "false"].contains(&fields[3]), "{line}");
+        // A frame that cut the mesh ran a cut event.
+        assert!(fields[2] == "false" || fields[3] == "true", "{line}");
     }
     // band-side-cut's line is detected and the mesh cut at frame 7.
     assert_eq!(
         lines[7],
-        format!("7,{},true", lines[7].split(',').nth(1).unwrap())
+        format!("7,{},true,true", lines[7].split(',').nth(1).unwrap())
     );
 }
 

@@ -503,10 +503,20 @@ pub(super) fn instructions_command(
     let counts = crate::report::page::instructions_per_frame(dir, &setting, frames)?;
     // Which frames cut the mesh: the same run, by the host.
     let trace = crate::run::run_once(&scene, true, None, false).map_err(|e| e.to_string())?;
-    outln!("frame,instructions,cut_event")?;
+    // `cut_event`: the frame cut the mesh; `cut_work`: it ran a cut event, one that cut or one
+    // that found nothing new to cut (its geometry runs all the same). A steady frame has
+    // neither; a worst-case timing test of the steady frame takes the frames without
+    // `cut_work`.
+    outln!("frame,instructions,cut_event,cut_work")?;
     for (k, count) in counts.iter().enumerate() {
         let f = k + 1;
-        outln!("{f},{count},{}", trace.cuts.frames.contains(&f))?;
+        let cut_work = trace
+            .frames
+            .iter()
+            .find(|r| r.frame == f)
+            .and_then(|r| r.work.as_ref())
+            .is_some_and(|w| w.cut.is_some());
+        outln!("{f},{count},{},{cut_work}", trace.cuts.frames.contains(&f))?;
     }
     Ok(())
 }

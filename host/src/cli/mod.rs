@@ -126,7 +126,8 @@ pub enum Command {
     CountFrames(CountFramesArgs),
     /// Count the instructions of every frame of a scene with callgrind (needs valgrind), with
     /// the scene's own solver setting: one CSV line per frame (frame, instructions, whether it
-    /// cut the mesh). Deterministic: the numbers a worst-case timing test can assert.
+    /// cut the mesh, whether it ran a cut event at all, one that found nothing new to cut
+    /// included). Deterministic: the numbers a worst-case timing test can assert.
     Instructions {
         /// The scene directory.
         scene: PathBuf,
