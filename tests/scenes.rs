@@ -247,8 +247,12 @@ fn stiff_springs_do_not_move_the_model_in_depth() {
 /// on `band-side-cut` all of it (Dice at least 0.97, at least 75 % of the uncut model's Dice
 /// deficit closed, the targets at least 40 % nearer the truth than the uncut model's and nearer
 /// than the rest model's); on `band-middle-cut` the Dice and the targets; on `liver-lobe` the
-/// targets nearer than the rest model's. What is missing (the middle cut closes 68 % of the
-/// deficit, the liver 32 % with a Dice of 0.944) is in the README under "Scenes".
+/// targets nearer than the rest model's, and at least 40 % of its deficit closed (42 % since a
+/// cut event cuts along the whole line as it is seen then, 32 % when it cut only the segments
+/// added since the last event: the line's first vertices, fitted tilted across the cut, are
+/// straightened later, and the material between is cut then). What is missing (the middle cut
+/// closes 69 % of the deficit, the liver 42 % with a Dice of 0.953) is in the README under
+/// "Scenes".
 #[test]
 fn the_cut_scenes_keep_what_they_reach_of_issue_10() {
     let closed = |s: &Summary| (s.dice_final - s.dice_final_uncut) / (1.0 - s.dice_final_uncut);
@@ -261,6 +265,7 @@ fn the_cut_scenes_keep_what_they_reach_of_issue_10() {
         assert!(s.tre_mm_final <= 0.6 * s.tre_mm_final_uncut, "{s:?}");
     }
     let liver = run("liver-lobe");
+    assert!(closed(&liver) >= 0.40, "{liver:?}");
     for s in [&side, &middle, &liver] {
         eprintln!(
             "{}: Dice {:.3} (uncut {:.3}, {:.0} % closed), targets {:.2} mm (uncut {:.2}, rest {:.2})",

@@ -30,7 +30,7 @@ use nalgebra::Vector3;
 
 use crate::camera::Camera;
 #[cfg(feature = "cut")]
-use crate::cut::{self, CutEvent, CutReport, CutWork};
+use crate::cut::{self, CutReport, CutWork};
 #[cfg(feature = "detect")]
 use crate::cutline::{CutLine, CutLineReport, LineWork};
 use crate::detect::DetectionConfig;
