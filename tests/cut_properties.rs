@@ -1,7 +1,9 @@
 //! Property test of cutting (issue 10): random meshes cut along random planes and polylines —
 //! through the whole object, partial cuts that stop inside an element, internal slits, cuts
-//! through nodes, along edges and faces, nearly tangent to the boundary, bent polylines, and a
-//! second cut that continues a first — with capacities that sometimes cannot hold the cut.
+//! through nodes, along edges and faces, nearly tangent to the boundary, bent polylines, a
+//! second cut that continues a first, and a line cut again whole after its first vertices moved
+//! (as each cut event cuts the detected line) — with capacities that sometimes cannot hold the
+//! cut.
 //!
 //! After every cut: each element positive and above the quality floor, the boundary closed and
 //! manifold and outward, every feature and target in its tetrahedron and on its own side, the
@@ -44,6 +46,11 @@ enum Kind {
     Bent,
     /// A partial cut, then its continuation through the rest.
     Progressive,
+    /// A partial cut, then the whole line again, as a cut event cuts it once the line has grown:
+    /// its first vertices moved across it by up to 15 px (a quarter of the time not at all, so
+    /// that part of the surface runs along the faces the first cut separated), then on through
+    /// the rest.
+    Recut,
 }
 
 #[derive(Clone, Debug)]
@@ -75,6 +82,7 @@ fn case() -> impl proptest::strategy::Strategy<Value = Case> {
             Just(Kind::NearlyTangent),
             Just(Kind::Bent),
             Just(Kind::Progressive),
+            Just(Kind::Recut),
         ],
         0.0f64..30.0,
         prop_oneof![
@@ -253,6 +261,21 @@ fn polylines(c: &Case, s: &Setup, rng: &mut Rng) -> Vec<Vec<[f64; 2]>> {
                 vec![b, [b[0] + d[0] * 50.0, b[1] + d[1] * 50.0]],
             ]
         }
+        Kind::Recut => {
+            let (a, b) = (inside_point(rng), inside_point(rng));
+            let d = [b[0] - a[0], b[1] - a[1]];
+            let start = [a[0] - d[0] * 50.0, a[1] - d[1] * 50.0];
+            let l = d[0].hypot(d[1]).max(1e-12);
+            let across = [-d[1] / l, d[0] / l];
+            let shift = if rng.uniform() < 0.25 {
+                0.0
+            } else {
+                (rng.uniform() - 0.5) * 30.0
+            };
+            let moved = |p: [f64; 2]| [p[0] + across[0] * shift, p[1] + across[1] * shift];
+            let end = [b[0] + d[0] * 50.0, b[1] + d[1] * 50.0];
+            vec![vec![start, a], vec![moved(start), moved(a), end]]
+        }
     }
 }
 
@@ -414,21 +437,24 @@ proptest! {
     }
 }
 
-/// The property above is not vacuous: most generated cases do cut, and some are refused.
+/// The property above is not vacuous: most generated cases do cut, some are refused, and some
+/// lines cut again whole change the mesh a second time.
 #[test]
 fn most_random_cases_cut_and_some_overflow() {
     use proptest::strategy::{Strategy as _, ValueTree};
     let mut runner = proptest::test_runner::TestRunner::deterministic();
-    let (mut applied, mut refused, cases) = (0, 0, 200);
+    let (mut applied, mut refused, mut recut, cases) = (0, 0, 0, 200);
     for _ in 0..cases {
         let c = case().new_tree(&mut runner).unwrap().current();
         let outcome = run(&c).unwrap_or_else(|e| panic!("{c:?}: {e}"));
         applied += usize::from(outcome.applied > 0);
         refused += outcome.refused;
+        recut += usize::from(matches!(c.kind, Kind::Recut) && outcome.applied == 2);
     }
-    eprintln!("{applied} of {cases} cases cut, {refused} refused");
+    eprintln!("{applied} of {cases} cases cut, {refused} refused, {recut} lines cut again");
     assert!(applied >= cases / 2, "{applied} of {cases} cases cut");
     assert!(refused >= 5, "{refused} refused");
+    assert!(recut >= 3, "{recut} lines cut again");
 }
 
 /// The slab of the tests below: 10 × 4 elements of 1 cm, one element (6 mm) thick, held at
