@@ -96,33 +96,6 @@ impl CutEvent {
     pub fn changes_mesh(&self) -> bool {
         self.faces_cut > 0
     }
-
-    /// Adds the counts of `other` (the next part of one event).
-    pub fn merge(&mut self, other: &CutEvent) {
-        self.nodes_moved += other.nodes_moved;
-        self.nodes_declared += other.nodes_declared;
-        self.tets_split += other.tets_split;
-        self.tets_split_at_ends += other.tets_split_at_ends;
-        self.ends_inside += other.ends_inside;
-        self.tets_added += other.tets_added;
-        self.edge_nodes += other.edge_nodes;
-        self.faces_cut += other.faces_cut;
-        self.faces_kept_joined += other.faces_kept_joined;
-        self.nodes_duplicated += other.nodes_duplicated;
-        self.points_reembedded += other.points_reembedded;
-        self.features_moved_across += other.features_moved_across;
-        self.min_quality_milli = if self.tets_split == other.tets_split {
-            other.min_quality_milli
-        } else {
-            self.min_quality_milli.min(other.min_quality_milli)
-        };
-        let (w, o) = (&mut self.work, &other.work);
-        w.node_tests += o.node_tests;
-        w.element_tests += o.element_tests;
-        w.faces_sorted += o.faces_sorted;
-        w.star_entries += o.star_entries;
-        w.embed_tests += o.embed_tests;
-    }
 }
 
 /// A cut event as [`crate::Model::step`] reports it.

@@ -264,9 +264,6 @@ impl<'a, T: Real> CutLine<'a, T> {
             return;
         };
         let slots = if end == 0 {
-            if let Some(r) = self.applied.as_mut() {
-                *r = [r[0] + 1, r[1] + 1];
-            }
             // Vertices `0..n` move to `1..=n`.
             anchors.rotate_right(1);
             weights.rotate_right(1);

@@ -160,21 +160,9 @@ pub struct CutLine<'a, T> {
     moved: [u32; 2],
     detected_frame: Option<u32>,
     capped: bool,
-    /// The vertices (an index range, inclusive) whose segments have been applied to the mesh:
-    /// the line grows only at its ends, so they stay contiguous.
-    applied: Option<[usize; 2]>,
-}
-
-/// A part of the line not yet applied to the mesh: vertices `first..=last`, and which of its
-/// two ends are open (the line's own ends) rather than continuing the part already applied.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct PendingPart {
-    /// First vertex.
-    pub first: usize,
-    /// Last vertex.
-    pub last: usize,
-    /// Whether each end is an end of the line.
-    pub open: [bool; 2],
+    /// The vertices the line had when it was last applied to the mesh (0 before): it only
+    /// grows, so it has grown since exactly when it holds more.
+    applied: usize,
 }
 
 fn sub<T: Real>(a: [T; 2], b: [T; 2]) -> [T; 2] {
@@ -223,7 +211,7 @@ impl<'a, T: Real> CutLine<'a, T> {
             moved: [0; 2],
             detected_frame: None,
             capped: false,
-            applied: None,
+            applied: 0,
         })
     }
 
@@ -232,10 +220,9 @@ impl<'a, T: Real> CutLine<'a, T> {
         h.words(self.anchors.iter().take(self.n).flatten());
         h.reals(self.weights.iter().take(self.n).flatten());
         h.reals(self.direction.iter().flatten());
-        let applied = self.applied.map_or([u32::MAX; 2], |r| r.map(|v| v as u32));
         let detected = self.detected_frame.unwrap_or(u32::MAX);
         h.words([self.n as u32, detected, u32::from(self.capped)].iter());
-        h.words(applied.iter().chain(self.moved.iter()));
+        h.words([self.applied as u32].iter().chain(self.moved.iter()));
     }
 
     /// Forgets the line.
@@ -243,44 +230,19 @@ impl<'a, T: Real> CutLine<'a, T> {
         self.n = 0;
         self.detected_frame = None;
         self.capped = false;
-        self.applied = None;
+        self.applied = 0;
     }
 
-    /// The parts of the line not yet applied to the mesh (at most one per end; the whole line
-    /// before anything is applied).
-    pub fn pending(&self) -> [Option<PendingPart>; 2] {
-        if self.n < 2 {
-            return [None, None];
-        }
-        let last = self.n - 1;
-        match self.applied {
-            None => [
-                Some(PendingPart {
-                    first: 0,
-                    last,
-                    open: [true, true],
-                }),
-                None,
-            ],
-            Some([lo, hi]) => [
-                (lo > 0).then_some(PendingPart {
-                    first: 0,
-                    last: lo,
-                    open: [true, false],
-                }),
-                (hi < last).then_some(PendingPart {
-                    first: hi,
-                    last,
-                    open: [false, true],
-                }),
-            ],
-        }
+    /// Whether the line has grown since it was last applied to the mesh ([`Self::mark_applied`]),
+    /// or has started and was never applied: then a cut event is due.
+    pub fn grown(&self) -> bool {
+        self.n >= 2 && self.n > self.applied
     }
 
     /// Records that the whole line as it is now has been applied to the mesh.
     pub fn mark_applied(&mut self) {
         if self.n >= 2 {
-            self.applied = Some([0, self.n - 1]);
+            self.applied = self.n;
         }
     }
 

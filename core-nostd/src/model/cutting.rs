@@ -72,7 +72,7 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
             .cut
             .line
             .project(self.features.targets(), self.cut.pixels);
-        if m < 2 || self.cut.line.pending().iter().all(Option::is_none) {
+        if m < 2 || !self.cut.line.grown() {
             return Ok(CutReport::default());
         }
         let spacing = self.cut.detector.spacing();

@@ -26,9 +26,9 @@ use crate::real::Real;
 use crate::solve::dot;
 use crate::storage::{Fingerprint, Slab, prefix, prefix_mut, sum, times};
 
-/// Pairs the quasi-Newton strategy remembers. On the liver, five did better than two and as
-/// well as ten (target error 1.55 against 2.25 and 1.60 mm with one step of one trial a frame,
-/// `incise sweep`); each costs `4 n` multiply-adds a step.
+/// Pairs the quasi-Newton strategy remembers. On the liver, five did better than two and about
+/// as well as ten (target error 1.61 against 2.03 and 1.62 mm with one step of one trial a
+/// frame; twenty, 1.54 mm for four times the memory); each costs `4 n` multiply-adds a step.
 pub const SECANT_PAIRS: usize = 5;
 
 /// The shortest share of the recursion's step that refusals cut a step down to (2⁻²⁰: twenty
