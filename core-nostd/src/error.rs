@@ -152,6 +152,20 @@ pub enum Parameter {
 
 impl fmt::Display for Parameter {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        // The ranges bounded by the solver's constants, which the message gives as numbers.
+        let bounded = match self {
+            Parameter::NewtonIterations => {
+                Some(("newton_iterations", crate::solve::MAX_NEWTON_ITERATIONS))
+            }
+            Parameter::LineSearchSteps => {
+                Some(("line_search_steps", crate::solve::MAX_LINE_SEARCH_STEPS))
+            }
+            Parameter::PcgIterations => Some(("pcg_iterations", crate::solve::MAX_PCG_ITERATIONS)),
+            _ => None,
+        };
+        if let Some((name, max)) = bounded {
+            return write!(f, "{name} must lie in 1..={max}");
+        }
         let s = match self {
             Parameter::YoungModulus => "Young's modulus must be positive and finite",
             Parameter::Law => {
@@ -173,14 +187,9 @@ impl fmt::Display for Parameter {
             Parameter::Projection => {
                 "this camera projection is not built into the core: enable its feature (perspective, orthographic)"
             }
-            Parameter::NewtonIterations => {
-                "newton_iterations must lie in 1..=MAX_NEWTON_ITERATIONS"
-            }
-            Parameter::LineSearchSteps => "line_search_steps must lie in 1..=MAX_LINE_SEARCH_STEPS",
             Parameter::Strategy => {
                 "this strategy is not built into the core: enable its feature (refactor, frozen, factor-once)"
             }
-            Parameter::PcgIterations => "pcg_iterations must lie in 1..=MAX_PCG_ITERATIONS",
             Parameter::ImageMargin => "image margin must be non-negative and finite",
             Parameter::RadiusPx => {
                 "detection radius_px must be finite and non-negative (0 derives it from the features' density)"
@@ -209,6 +218,9 @@ impl fmt::Display for Parameter {
                 "detection max_outlier_fraction must be positive and finite"
             }
             Parameter::Depth => "detection depth must be finite and not zero",
+            Parameter::NewtonIterations | Parameter::LineSearchSteps | Parameter::PcgIterations => {
+                ""
+            }
         };
         f.write_str(s)
     }

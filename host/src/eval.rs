@@ -271,7 +271,13 @@ pub fn eval_family(family_path: &Path, options: &EvalOptions) -> Result<FamilySu
     };
     let mut results = Vec::with_capacity(chosen.len());
     let mut pictures = vec![];
-    for (s, kind) in chosen {
+    // Without a terminal the bar draws nothing: a line per variant says where a long run is.
+    let plain = options.progress && !std::io::IsTerminal::is_terminal(&std::io::stderr());
+    let total = chosen.len();
+    for (k, (s, kind)) in chosen.into_iter().enumerate() {
+        if plain {
+            eprintln!("{}: {} ({}/{total})", family.name, s.name, k + 1);
+        }
         let dir = work.join(&s.name);
         if options.fresh || !is_generated(s, &base, &dir) {
             bar.set_message(format!("{} (generating)", s.name));

@@ -3,6 +3,7 @@
 use clap::Parser;
 
 fn main() {
+    incise::vtu::quiet_reader_panics();
     let cli = incise::cli::Cli::parse();
     std::process::exit(incise::cli::run(cli));
 }

@@ -222,7 +222,8 @@ pub fn read_vtu(path: &Path) -> Result<VtuMesh, VtuError> {
         )));
     }
     // vtkio panics on some damaged files (an `unwrap` in its XML reader, found by
-    // `tests/fuzz_readers.rs`): a panic there is an unreadable file, not a crash.
+    // `tests/fuzz_readers.rs`): a panic there is an unreadable file, not a crash. The programs
+    // install [`quiet_reader_panics`], so that it prints nothing but the error below.
     let vtk = std::panic::catch_unwind(|| vtkio::Vtk::import(path))
         .map_err(|_| fail("cannot read: the VTK reader failed on the file's XML".into()))?
         .map_err(|e| fail(format!("cannot read: {e}")))?;
@@ -446,6 +447,20 @@ fn write_array<W: Write, R: IntoIterator<Item = T>, T: Display>(
         writeln!(w)?;
     }
     writeln!(w, "        </DataArray>")
+}
+
+/// Installs a panic hook that prints nothing for a panic inside the VTK reader (which
+/// [`read_vtu`] turns into an error naming the file) and leaves every other panic to the hook
+/// in place before. Installed once by the programs at start, so that no thread's hook is
+/// swapped while another reads a file.
+pub fn quiet_reader_panics() {
+    let before = std::panic::take_hook();
+    std::panic::set_hook(Box::new(move |info| {
+        if info.location().is_some_and(|l| l.file().contains("vtkio")) {
+            return;
+        }
+        before(info);
+    }));
 }
 
 #[cfg(test)]

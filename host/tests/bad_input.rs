@@ -282,6 +282,116 @@ fn scenarios_that_would_write_an_unusable_scene_are_refused() {
 }
 
 #[test]
+fn values_the_core_refuses_are_named_by_their_key_and_line() {
+    // A solver value: the line of the key, the bound as a number (not a constant's name).
+    run_refuses(
+        "newton_iterations = 3",
+        "newton_iterations = 0",
+        &["scene.toml:26:", "[solver] newton_iterations", "1..=64"],
+    );
+    run_refuses(
+        "strategy = \"factor-once\"",
+        "strategy = \"fast\"",
+        &["scene.toml:24:", "[solver] strategy"],
+    );
+    // A detection value, in the section a scene adds to study a setting.
+    run_refuses(
+        "[capacities]",
+        "[detection]\nalpha = -5.0\n\n[capacities]",
+        &["scene.toml:33:", "[detection] alpha"],
+    );
+    // More internal targets than the capacity: both files named, before the model is built.
+    let tmp = scene_with("targets = 64", "targets = 2");
+    copy_dir(&fixture().join("gt"), &tmp.path().join("gt"));
+    let output = incise().arg("run").arg(tmp.path()).output().unwrap();
+    refused(
+        &output,
+        &["scene.toml:", "[capacities] targets", "targets.csv"],
+    );
+}
+
+#[test]
+fn a_camera_or_a_grasp_that_cannot_be_simulated_is_refused_naming_its_key() {
+    gen_refuses(
+        "up = [0.0, 1.0, 0.0]",
+        "up = [0.0, 0.0, 1.0]",
+        &["scenario.toml:36:", "[camera] up"],
+    );
+    gen_refuses(
+        "target = [0.055, 0.015, 0.0]",
+        "target = [0.055, 0.015, 0.5]",
+        &["scenario.toml:35:", "[camera] target"],
+    );
+    gen_refuses(
+        "end = 28",
+        "end = 40",
+        &["[motion.grasp] end", "frames (40)"],
+    );
+    gen_refuses(
+        "end = 28",
+        "end = 28\nrotation_degrees = 10.0\naxis = [0.0, 0.0, 0.0]",
+        &["[motion.grasp] axis"],
+    );
+}
+
+#[test]
+fn a_damaged_mesh_is_an_error_naming_it_with_no_panic_printed() {
+    // A VTU file the VTK reader panics on (a zlib header of zeros).
+    let zeros = "AAAAAAAAAAAAAAAAAAAAAA==";
+    let array = |kind: &str, name: &str| {
+        format!("<DataArray type=\"{kind}\" {name} format=\"binary\">\n{zeros}\n</DataArray>")
+    };
+    let vtu = format!(
+        "<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\" version=\"0.1\" \
+         byte_order=\"LittleEndian\" compressor=\"vtkZLibDataCompressor\">\n\
+         <UnstructuredGrid><Piece NumberOfPoints=\"5\" NumberOfCells=\"2\">\n\
+         <Points>{}</Points><Cells>{}{}{}</Cells></Piece></UnstructuredGrid></VTKFile>\n",
+        array("Float64", "NumberOfComponents=\"3\""),
+        array("Int64", "Name=\"connectivity\""),
+        array("Int64", "Name=\"offsets\""),
+        array("UInt8", "Name=\"types\""),
+    );
+    let tmp = scene_with("mesh = \"model.msh\"", "mesh = \"damaged.vtu\"");
+    std::fs::write(tmp.path().join("damaged.vtu"), vtu).unwrap();
+    let output = incise().arg("run").arg(tmp.path()).output().unwrap();
+    let e = refused(&output, &["damaged.vtu", "cannot read"]);
+    assert!(!e.contains("backtrace") && e.lines().count() == 1, "{e}");
+}
+
+#[test]
+fn an_output_that_cannot_be_written_is_named_and_another_scene_never_replaces_the_scenario() {
+    // An output directory that is a file.
+    let tmp = tempfile::tempdir().unwrap();
+    let file = tmp.path().join("a-file");
+    std::fs::write(&file, "").unwrap();
+    let output = incise()
+        .arg("run")
+        .arg(fixture())
+        .arg("--out")
+        .arg(&file)
+        .output()
+        .unwrap();
+    refused(&output, &[&file.display().to_string()]);
+    // The object left whole, or another model mesh, written into the scenario's own
+    // directory: refused before anything is simulated, the scenario as it was.
+    let scenario = scenario_with(tmp.path(), "frames = 40", "frames = 40");
+    let before = std::fs::read(&scenario).unwrap();
+    for option in [&["--intact"][..], &["--model-mesh", "refined"][..]] {
+        let output = incise()
+            .arg("gen")
+            .arg(&scenario)
+            .args(option)
+            .arg("--out")
+            .arg(tmp.path().join("."))
+            .output()
+            .unwrap();
+        refused(&output, &["own directory", option[0]]);
+    }
+    assert_eq!(std::fs::read(&scenario).unwrap(), before);
+    assert!(!tmp.path().join("scene.toml").exists());
+}
+
+#[test]
 fn unreadable_files_are_named_once() {
     let tmp = tempfile::tempdir().unwrap();
     let missing = tmp.path().join("missing.toml");

@@ -199,6 +199,32 @@ fn instructions_counts_every_frame_or_says_why_not() {
         lines[7],
         format!("7,{},true,true", lines[7].split(',').nth(1).unwrap())
     );
+    // A counted run that fails says why, not what valgrind sums up after it.
+    let tmp = tempfile::tempdir().unwrap();
+    let copy = tmp.path().join("scene");
+    for sub in ["", "gt"] {
+        let from = std::path::Path::new(scene).join(sub);
+        std::fs::create_dir_all(copy.join(sub)).unwrap();
+        for entry in std::fs::read_dir(&from).unwrap() {
+            let path = entry.unwrap().path();
+            if path.is_file() {
+                std::fs::copy(&path, copy.join(sub).join(path.file_name().unwrap())).unwrap();
+            }
+        }
+    }
+    std::fs::write(copy.join("gt/targets.csv"), "frame,id,x,y,z\n0,0,abc,1,2\n").unwrap();
+    let output = incise()
+        .arg("instructions")
+        .arg(&copy)
+        .args(["--frames", "1"])
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(output.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("targets.csv") && !stderr.contains("=="),
+        "{stderr}"
+    );
 }
 
 /// The counting program `incise report` runs under callgrind steps a scene as `incise

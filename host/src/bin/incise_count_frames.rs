@@ -16,6 +16,7 @@ struct Cli {
 }
 
 fn main() {
+    incise::vtu::quiet_reader_panics();
     let cli = Cli::parse();
     std::process::exit(incise::cli::count_frames(&cli.args));
 }

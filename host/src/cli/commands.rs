@@ -140,6 +140,10 @@ pub(super) fn codegen_command(
 
 pub(super) fn sweep_command(dir: &Path, out: Option<&Path>) -> Result<(), Failure> {
     let base = Scene::load(dir).map_err(|e| e.to_string())?;
+    // Made before the runs, so that a directory that cannot be made costs no sweep.
+    if let Some(out) = out {
+        std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
+    }
     let settings = crate::report::sweep_settings();
     let bar = indicatif::ProgressBar::new(settings.len() as u64);
     let mut rows = vec![];
@@ -153,7 +157,6 @@ pub(super) fn sweep_command(dir: &Path, out: Option<&Path>) -> Result<(), Failur
     bar.finish_and_clear();
     out!("{}", crate::report::sweep_table(&rows))?;
     if let Some(out) = out {
-        std::fs::create_dir_all(out).map_err(|e| e.to_string())?;
         let plot = out.join("error_vs_time.svg");
         crate::report::plot_sweep(&base.file.name, &rows, &plot)?;
         outln!("plot: {}", plot.display())?;
@@ -209,12 +212,23 @@ pub(super) fn gen_command(
         return Err(NO_OPENCV.into());
     }
     for path in scenarios {
-        let dir = match &out {
-            Some(o) => o.clone(),
-            None => path
-                .parent()
-                .map_or_else(|| PathBuf::from("."), Path::to_path_buf),
-        };
+        let own = path
+            .parent()
+            .map_or_else(|| PathBuf::from("."), Path::to_path_buf);
+        let dir = out.clone().unwrap_or_else(|| own.clone());
+        // An object left whole or another model mesh is another scene: written over the
+        // scenario's own, it would replace the committed scene (and, left whole, the scenario
+        // itself, rewritten without its slit). Refused before anything is simulated.
+        if (intact || model_mesh != ModelMesh::Scenario) && same_directory(&dir, &own) {
+            let what = if intact { "--intact" } else { "--model-mesh" };
+            return Err(format!(
+                "{}: {what} writes another scene, and --out {} is the scenario's own directory, \
+                 whose scene (and scenario) it would overwrite; give another --out",
+                path.display(),
+                dir.display()
+            )
+            .into());
+        }
         if intact {
             // `--intact` needs `--out` and refuses `--video` (clap): the scenario without its
             // slit goes beside the scene, so that `incise gen` on it regenerates the scene.
@@ -241,6 +255,20 @@ pub(super) fn gen_command(
         print_generated(&g)?;
     }
     Ok(())
+}
+
+/// Whether `a` and `b` name the same directory (after resolving links and `..`; a directory
+/// that does not exist yet is not the other, which exists).
+fn same_directory(a: &Path, b: &Path) -> bool {
+    let resolve = |p: &Path| {
+        let p = if p.as_os_str().is_empty() {
+            Path::new(".")
+        } else {
+            p
+        };
+        std::fs::canonicalize(p).ok()
+    };
+    matches!((resolve(a), resolve(b)), (Some(x), Some(y)) if x == y)
 }
 
 /// One line on a scene `gen` wrote.

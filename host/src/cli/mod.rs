@@ -13,7 +13,7 @@ use crate::scene::{ModelLaw, Precision, Scene};
 /// incise: keeps a pre-operative organ model aligned with endoscopic video while the surgeon
 /// cuts (Paulus et al., MICCAI 2015).
 #[derive(Debug, Parser)]
-#[command(name = "incise", version, about)]
+#[command(name = "incise", version)]
 pub struct Cli {
     /// What to do.
     #[command(subcommand)]

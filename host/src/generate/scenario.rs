@@ -229,6 +229,45 @@ pub struct CameraSpec {
     pub height: u32,
 }
 
+/// The camera's `eye`, `target` and `up` make a pose: finite, the eye apart from the target,
+/// and up not along the view.
+fn check_pose(c: &CameraSpec) -> Result<(), Refusal> {
+    let finite = [c.eye, c.target, c.up]
+        .iter()
+        .flatten()
+        .all(|x| x.is_finite());
+    let view: [f64; 3] = std::array::from_fn(|k| c.target[k] - c.eye[k]);
+    let norm = |v: [f64; 3]| v.iter().map(|a| a * a).sum::<f64>().sqrt();
+    let cross = [
+        view[1] * c.up[2] - view[2] * c.up[1],
+        view[2] * c.up[0] - view[0] * c.up[2],
+        view[0] * c.up[1] - view[1] * c.up[0],
+    ];
+    if !finite {
+        return Err(Refusal::new(
+            "camera",
+            "eye",
+            "eye, target and up must be finite",
+        ));
+    }
+    if norm(view) <= 0.0 {
+        return Err(Refusal::new(
+            "camera",
+            "target",
+            "the target must lie apart from the eye",
+        ));
+    }
+    // Up within about half a degree of the view leaves the image's orientation undefined.
+    if norm(cross) <= 1e-2 * norm(view) * norm(c.up) {
+        return Err(Refusal::new(
+            "camera",
+            "up",
+            format!("{:?} must not point along the view (eye to target)", c.up),
+        ));
+    }
+    Ok(())
+}
+
 /// `[tracking]`: features and their imperfections.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
@@ -390,13 +429,42 @@ impl Scenario {
         let c = &self.camera;
         limits::image_size(c.width, c.height)?;
         limits::positive("camera", "focal", c.focal)?;
+        check_pose(c)?;
+        self.check_grasps()?;
         limits::positive("model", "young", self.model.young)?;
         limits::poisson("model", "poisson", self.model.poisson)?;
         self.solver.config()?;
         self.detection
             .config()
             .validate()
-            .map_err(|e| Refusal::new("detection", "", e.to_string()))?;
+            .map_err(|e| crate::scene::refusal_of("detection", &e))?;
+        Ok(())
+    }
+
+    /// Each grasp's axis (a direction, unless it does not turn) and frames (`start ≤ end`,
+    /// within the scenario), so that a mistake is named here rather than found as a
+    /// non-finite position in the simulation.
+    fn check_grasps(&self) -> Result<(), Refusal> {
+        for (k, g) in self.motion.grasp.iter().enumerate() {
+            let norm = g.axis.iter().map(|a| a * a).sum::<f64>().sqrt();
+            if g.rotation_degrees != 0.0 && !(norm.is_finite() && norm > 0.0) {
+                return Err(Refusal::new(
+                    "motion.grasp",
+                    "axis",
+                    format!("grasp {k}: {:?} is not a direction to turn about", g.axis),
+                ));
+            }
+            if g.start > g.end || g.end >= self.frames {
+                return Err(Refusal::new(
+                    "motion.grasp",
+                    "end",
+                    format!(
+                        "grasp {k}: start {} and end {} must satisfy start <= end < frames ({})",
+                        g.start, g.end, self.frames
+                    ),
+                ));
+            }
+        }
         Ok(())
     }
 

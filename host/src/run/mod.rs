@@ -456,6 +456,8 @@ pub fn run_scene_with(
     sink: Option<&mut dyn FrameSink>,
     options: &RunOptions,
 ) -> Result<(Summary, Trace), RunError> {
+    // Read before the runs, so that a damaged file costs no run.
+    let true_outliers = Truth::load_outliers(scene)?;
     let trace = run_pass(
         scene,
         source,
@@ -474,7 +476,7 @@ pub fn run_scene_with(
         false,
     )?;
     let mut summary = Summary::new(scene, &trace, &uncut);
-    summary.filter_truth = Truth::load_outliers(scene)?.map(|outliers| {
+    summary.filter_truth = true_outliers.map(|outliers| {
         FilterTruth::new(
             &trace.detection.filtered,
             &outliers,

@@ -35,7 +35,7 @@ impl<'d, 's> Outputs<'d, 's> {
         sink: Option<&'s mut dyn FrameSink>,
     ) -> Result<Self, RunError> {
         if let Some(dir) = dir {
-            std::fs::create_dir_all(dir).map_err(output)?;
+            std::fs::create_dir_all(dir).map_err(output_at(dir))?;
         }
         Ok(Outputs {
             dir,
@@ -55,9 +55,8 @@ impl<'d, 's> Outputs<'d, 's> {
             sink.write(&canvas.image)?;
         }
         if let Some(dir) = self.dir {
-            canvas
-                .save(&dir.join(format!("frame_{f:04}.png")))
-                .map_err(output)?;
+            let file = dir.join(format!("frame_{f:04}.png"));
+            canvas.save(&file).map_err(output_at(&file))?;
         }
         Ok(())
     }
@@ -70,7 +69,8 @@ impl<'d, 's> Outputs<'d, 's> {
     ) -> Result<(), RunError> {
         if let Some(dir) = self.dir {
             let name = format!("mesh_{f:04}.vtu");
-            write_mesh_vtu(&dir.join(&name), model).map_err(output)?;
+            let file = dir.join(&name);
+            write_mesh_vtu(&file, model).map_err(output_at(&file))?;
             self.pvd.push((f as f64, name));
         }
         Ok(())
@@ -79,11 +79,17 @@ impl<'d, 's> Outputs<'d, 's> {
     /// Writes the mesh series (`mesh.pvd`) and the per-frame records (`frames.csv`).
     pub(crate) fn finish(self, frames: &[FrameRecord]) -> Result<(), RunError> {
         if let Some(dir) = self.dir {
-            vtu::write_pvd(&dir.join("mesh.pvd"), &self.pvd).map_err(output)?;
-            write_frames_csv(&dir.join("frames.csv"), frames).map_err(output)?;
+            let (pvd, csv) = (dir.join("mesh.pvd"), dir.join("frames.csv"));
+            vtu::write_pvd(&pvd, &self.pvd).map_err(output_at(&pvd))?;
+            write_frames_csv(&csv, frames).map_err(output_at(&csv))?;
         }
         Ok(())
     }
+}
+
+/// An output error that names the file or directory it came from.
+fn output_at<E: std::fmt::Display>(path: &Path) -> impl Fn(E) -> RunError + '_ {
+    move |e| output(format!("{}: {e}", path.display()))
 }
 
 /// Writes the model as it is (cut, with its lips apart) as a VTU file at `path`, with the

@@ -41,6 +41,23 @@ impl Truth {
         };
         let (p, t) = read("targets.csv")?;
         let targets = read_points_csv(&t, &p)?;
+        // The core carries as many targets as the capacity says: refused here, naming both
+        // files, rather than by the core once the model is built.
+        let room = scene.file.capacities.targets;
+        if let Some(first) = targets.first()
+            && first.len() > room
+        {
+            return Err(crate::scene::at_key(
+                &scene.dir,
+                "capacities",
+                "targets",
+                format!(
+                    "[capacities] targets: {room}, but {} holds {} targets at frame 0",
+                    p.display(),
+                    first.len()
+                ),
+            ));
+        }
         let (p, t) = read("surface.obj")?;
         let surface = read_obj(&t, &p)?;
         let (p, t) = read("cut.csv")?;

@@ -4,7 +4,7 @@
 use std::path::Path;
 
 use incise_core::nalgebra::{Matrix3, Vector3};
-use incise_core::{Camera, Coupling, Intrinsics, Projection, SolverConfig, Strategy};
+use incise_core::{Camera, Coupling, Intrinsics, Parameter, Projection, SolverConfig, Strategy};
 use serde::{Deserialize, Serialize};
 
 use super::SceneError;
@@ -340,6 +340,12 @@ impl SceneFile {
     /// A [`Refusal`] naming the first key at fault.
     pub fn check(&self) -> Result<(), Refusal> {
         self.capacities.check(self.detection.enabled)?;
+        // Checked here, where the text is at hand, so that the error names the key's line.
+        self.solver.config()?;
+        self.detection
+            .config()
+            .validate()
+            .map_err(|e| refusal_of("detection", &e))?;
         let c = &self.camera;
         limits::image_size(c.width, c.height)?;
         let m = &self.model;
@@ -467,11 +473,50 @@ impl SolverSection {
             depth_prior: s.depth_prior,
             image_margin: s.image_margin,
         };
-        config
-            .validate()
-            .map_err(|e| Refusal::new("solver", "", e.to_string()))?;
+        config.validate().map_err(|e| refusal_of("solver", &e))?;
         Ok(config)
     }
+}
+
+/// The scene key a core parameter is read from, for an error that points at its line.
+fn key_of(parameter: Parameter) -> &'static str {
+    match parameter {
+        Parameter::NewtonIterations => "newton_iterations",
+        Parameter::LineSearchSteps => "line_search_steps",
+        Parameter::PcgIterations => "pcg_iterations",
+        Parameter::Strategy => "strategy",
+        Parameter::Damping => "damping",
+        Parameter::DepthPrior => "depth_prior",
+        Parameter::SpringThreshold => "spring_threshold",
+        Parameter::SpringStiffness => "coupling",
+        Parameter::ImageMargin => "image_margin",
+        Parameter::RadiusPx => "radius",
+        Parameter::RadiusSpacings => "radius_spacings",
+        Parameter::MaxSurfaceRatio => "max_surface_ratio",
+        Parameter::OutlierSigmas => "outlier_sigmas",
+        Parameter::TemporalSigmas => "temporal_sigmas",
+        Parameter::MinDifferencePx => "min_difference",
+        Parameter::Persistence => "persistence",
+        Parameter::InitPoints => "init_points",
+        Parameter::AlphaDegrees => "alpha",
+        Parameter::MinStep => "min_step",
+        Parameter::MaxStep => "max_step",
+        Parameter::MinSupport => "min_support",
+        Parameter::LineTolerance => "line_tolerance",
+        Parameter::MaxOutlierFraction => "max_outlier_fraction",
+        Parameter::Depth => "depth",
+        _ => "",
+    }
+}
+
+/// A core error about `[section]` as a refusal naming the key it came from, where the core
+/// names one.
+pub(crate) fn refusal_of(section: &'static str, e: &incise_core::Error) -> Refusal {
+    let key = match e {
+        incise_core::Error::InvalidParameter { parameter } => key_of(*parameter),
+        _ => "",
+    };
+    Refusal::new(section, key, e.to_string())
 }
 
 #[cfg(test)]

@@ -31,6 +31,8 @@ use crate::storage::{ModelStorage, StorageError};
 mod file;
 mod formats;
 
+pub(crate) use file::refusal_of;
+
 pub use file::{
     CameraSection, DetectionSection, GroundTruthSection, ModelLaw, ModelSection, SceneFile,
     SolverSection, default_depth_prior,
@@ -315,7 +317,7 @@ pub fn silhouette_path(dir: &Path, frame: usize) -> PathBuf {
 
 /// An error at `[section] key` of the scene's `scene.toml` in `dir`, with its line (0 when the
 /// file cannot be read again).
-fn at_key(dir: &Path, section: &str, key: &str, message: String) -> SceneError {
+pub(crate) fn at_key(dir: &Path, section: &str, key: &str, message: String) -> SceneError {
     let toml = dir.join("scene.toml");
     let line = read_text(&toml).map_or(0, |text| limits::key_line(&text, section, key));
     SceneError::new(&toml, line, message)

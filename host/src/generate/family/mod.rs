@@ -454,7 +454,18 @@ pub fn generate_family(
         ProgressBar::hidden()
     };
     let mut done = Vec::with_capacity(scenarios.len());
-    for s in &scenarios {
+    // Without a terminal the bar draws nothing: a line per variant says where a long run is.
+    let plain = progress && !std::io::IsTerminal::is_terminal(&std::io::stderr());
+    for (k, s) in scenarios.iter().enumerate() {
+        if plain {
+            eprintln!(
+                "{}: {} ({}/{})",
+                family.name,
+                s.name,
+                k + 1,
+                scenarios.len()
+            );
+        }
         bar.set_message(s.name.clone());
         let g = generate_scenario(s, &base_dir, &out.join(&s.name), ModelMesh::Scenario, false)
             .map_err(|e| GenError(format!("{}: {e}", s.name)))?;

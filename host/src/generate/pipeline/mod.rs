@@ -485,6 +485,14 @@ pub fn generate_scenario(
     let mut sim = simulate_scenario(s, base, progress)?;
     sim.remodel(mesh);
     std::fs::create_dir_all(out).map_err(|e| at_file(out)(&e))?;
+    // A scene from an earlier scenario goes first: `write_scene` writes `scene.toml` last, so
+    // that an interrupted run leaves none, and this one must not leave the old one beside the
+    // new scenario, where it would pass for the scene of it (`incise eval` reuses such scenes).
+    let old = out.join("scene.toml");
+    match std::fs::remove_file(&old) {
+        Err(e) if e.kind() != std::io::ErrorKind::NotFound => return Err(at_file(&old)(&e)),
+        _ => {}
+    }
     let mut written = s.clone();
     rebase_mesh_paths(&mut written, base, out);
     let file = out.join("scenario.toml");

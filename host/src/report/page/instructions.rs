@@ -50,12 +50,14 @@ pub fn per_frame(
     // `dir` and its dumps go when it is dropped, after they are read.
     match output {
         Err(e) => Err(format!("valgrind could not be started ({e})")),
+        // The program's own error is its last line; valgrind's summary (`==pid== …`) follows it.
         Ok(o) if !o.status.success() => Err(format!(
             "the counted run failed: {}",
             String::from_utf8_lossy(&o.stderr)
                 .lines()
-                .last()
-                .unwrap_or("")
+                .rev()
+                .find(|l| !l.starts_with("==") && !l.trim().is_empty())
+                .unwrap_or("no message")
         )),
         Ok(_) => read_dumps(dir.path()),
     }
