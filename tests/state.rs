@@ -671,7 +671,20 @@ fn a_cut_that_cannot_be_made_leaves_the_model_as_it_was() {
                 }
             },
         );
-        let long = vec![line[0]; 65];
+        for extension in [f64::NAN, -1.0, f64::INFINITY] {
+            refused(
+                model,
+                "bad extension",
+                |m| m.cut_along(&line, extension),
+                |e| {
+                    *e == Error::InvalidParameter {
+                        parameter: incise_core::Parameter::CutExtension,
+                    }
+                },
+            );
+        }
+        // Longer than the cut line's capacity (32 vertices; the projections hold 64).
+        let long = vec![line[0]; 33];
         refused(
             model,
             "too long",
@@ -681,8 +694,8 @@ fn a_cut_that_cannot_be_made_leaves_the_model_as_it_was() {
                     e,
                     Error::Capacity {
                         resource: Resource::CutVertices,
-                        needed: 65,
-                        ..
+                        needed: 33,
+                        available: 32,
                     }
                 )
             },

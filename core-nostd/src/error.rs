@@ -148,6 +148,9 @@ pub enum Parameter {
     MaxOutlierFraction,
     /// Cut detection, `depth`: extrusion direction of the cut (finite, not zero).
     Depth,
+    /// [`crate::Model::cut_along`]'s `extension_px`: how far the cut reaches past the line's
+    /// ends, pixels (finite, non-negative).
+    CutExtension,
 }
 
 impl fmt::Display for Parameter {
@@ -218,6 +221,7 @@ impl fmt::Display for Parameter {
                 "detection max_outlier_fraction must be positive and finite"
             }
             Parameter::Depth => "detection depth must be finite and not zero",
+            Parameter::CutExtension => "the cut's extension must be finite and non-negative",
             Parameter::NewtonIterations | Parameter::LineSearchSteps | Parameter::PcgIterations => {
                 ""
             }

@@ -125,7 +125,7 @@ fn nearest_visible_point<T: Real>(
     accept: impl Fn(u32) -> bool,
 ) -> Option<(u32, [T; 4])> {
     let mut best: Option<(T, u32, [T; 3])> = None;
-    for (tri, &tet) in mesh.surface().iter().zip(mesh.surface_tet()) {
+    'triangles: for (tri, &tet) in mesh.surface().iter().zip(mesh.surface_tet()) {
         if !accept(tet) {
             continue;
         }
@@ -139,8 +139,9 @@ fn nearest_visible_point<T: Real>(
         }
         let mut q = [[T::zero(); 2]; 3];
         for (qk, pk) in q.iter_mut().zip(&p) {
+            // A corner the camera cannot project (behind it): the triangle has no image.
             let Ok(image) = camera.project(&nalgebra::Vector3::new(pk[0], pk[1], pk[2]), 0) else {
-                continue;
+                continue 'triangles;
             };
             *qk = [image.x, image.y];
         }

@@ -16,9 +16,9 @@ use crate::mesh::Mesh;
 use crate::real::Real;
 use crate::storage::times;
 
-/// Reals of scratch per polyline vertex: a plane (normal and offset) for the segment it
-/// starts, and the arc length up to it.
-pub(crate) const REALS_PER_VERTEX: usize = 5;
+/// Reals of scratch per polyline vertex: the plane (normal and offset) of the segment it
+/// starts.
+pub(crate) const REALS_PER_VERTEX: usize = 4;
 
 fn sub<T: Real>(a: [T; 2], b: [T; 2]) -> [T; 2] {
     [a[0] - b[0], a[1] - b[1]]

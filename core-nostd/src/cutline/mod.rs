@@ -6,9 +6,9 @@
 //! points inside an angle `α` of its direction, by a step between a minimum and a maximum, and
 //! only when enough points ahead support it.
 //!
-//! A vertex is anchored to the three tracked features around it when it is placed (an affine
-//! combination of their image positions), so the line moves with the real object rather than
-//! with the model, which, uncut, cannot follow the opening lips. The separation surface is made
+//! A vertex is anchored to tracked features around it when it is placed (three on each lip;
+//! the vertex is an affine combination of their six image positions), so the line moves with the real
+//! object rather than with the model, which, uncut, cannot follow the opening lips. The separation surface is made
 //! on demand: each vertex is carried onto the model surface along its camera ray and the line is
 //! extruded along the camera direction, or a configured depth vector, through the model.
 
@@ -145,10 +145,11 @@ impl<T: Real> Rules<T> {
 }
 
 /// Separation points considered when the line is started: bounds the robust fit's cost to
-/// `FIT_POINTS³ / 2` distance evaluations.
+/// `5 FIT_POINTS³ / 2` distance evaluations ([`LineWork::bound`]).
 pub const FIT_POINTS: usize = 64;
 
-/// The polyline in fixed storage: each vertex anchored to three feature slots.
+/// The polyline in fixed storage: each vertex anchored to six feature slots, three on each
+/// lip.
 #[derive(Debug)]
 pub struct CutLine<'a, T> {
     anchors: &'a mut [[u32; ANCHORS]],

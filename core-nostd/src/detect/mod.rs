@@ -249,9 +249,10 @@ pub struct DetectionWork {
 impl DetectionWork {
     /// The most work of one frame with `features` feature slots, `pairs` pairs and `degree`
     /// pairs at most per feature (at most `pairs`):
-    /// - feature visits `6 n`: the temporal filter's four passes (two without filtering), and
-    ///   the per-feature levels' two (the features past [`crate::robust::RANK_MAX`] pairs,
-    ///   then the groups of the network);
+    /// - feature visits `9 n`: the temporal filter's four passes (two without filtering), the
+    ///   per-feature levels' four (the features past [`crate::robust::RANK_MAX`] pairs, then
+    ///   the groups of the network: their longest list, the slopes gathered, the tertiles read
+    ///   back), and the outlier counts' reset;
     /// - pair visits `7 P`: the temporal filter's pairs, the differences, the pairs' slopes,
     ///   the per-feature lists (`2 P`), outliers, persistence;
     /// - selection steps: the median and MAD of the changes (`2 S(n)`) and of the differences
@@ -271,7 +272,7 @@ impl DetectionWork {
             networked
         };
         DetectionWork {
-            feature_visits: 6 * features,
+            feature_visits: 9 * features,
             pair_visits: 7 * pairs,
             selection_steps: 2 * select_bound(features)
                 + 2 * select_bound(pairs)

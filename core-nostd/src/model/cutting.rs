@@ -15,7 +15,7 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
     pub fn worst_case_cut_work(&self) -> (CutWork, WorkCount) {
         let cap = self.live.mesh.capacity();
         let features = self.features.capacity() as u64;
-        let segments = self.cut.pixels.len().saturating_sub(1) as u64;
+        let segments = self.cut.line.capacity().saturating_sub(1) as u64;
         let part = CutWork::bound(
             cap.nodes as u64,
             cap.tets as u64,
@@ -83,23 +83,27 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
     }
 
     /// Cuts the mesh along a polyline given in the image (pixels, at least two vertices, at
-    /// most [`Capacities::cut_vertices`] or [`Capacities::features`], whichever is larger),
+    /// most [`Capacities::cut_vertices`], what the cut's scratch holds a plane for),
     /// extruded along the camera rays (or the configured depth direction), as
     /// [`Model::apply_cut`] does with the detected line: for a cut known from elsewhere (a
     /// tracked instrument, a plan). Each end is extended by `extension_px` where that reaches
-    /// the model's silhouette, else by half of it.
+    /// the model's silhouette, else by half of it; by at least one pixel, so that the cut
+    /// reaches past the last vertex.
     ///
     /// # Errors
     /// [`Error::Capacity`] naming [`Resource::CutVertices`] for a polyline longer than the
-    /// storage; [`Error::NonFiniteInput`] for a non-finite vertex; otherwise as
-    /// [`Model::apply_cut`], and the model is then exactly as before the call.
+    /// storage; [`Error::NonFiniteInput`] for a non-finite vertex;
+    /// [`Error::InvalidParameter`] naming [`Parameter::CutExtension`] for an extension that is
+    /// negative or not finite; otherwise as [`Model::apply_cut`], and the model is then
+    /// exactly as before the call.
     pub fn cut_along(&mut self, polyline: &[[T; 2]], extension_px: T) -> Result<CutReport, Error> {
         let m = polyline.len();
-        if m > self.cut.pixels.len() {
+        let room = self.cut.line.capacity().min(self.cut.pixels.len());
+        if m > room {
             return Err(Error::Capacity {
                 resource: Resource::CutVertices,
                 needed: m,
-                available: self.cut.pixels.len(),
+                available: room,
             });
         }
         if let Some(position) = polyline
@@ -109,6 +113,11 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
             return Err(Error::NonFiniteInput {
                 resource: Resource::CutVertices,
                 position,
+            });
+        }
+        if !(extension_px.finite() && extension_px >= T::zero()) {
+            return Err(Error::InvalidParameter {
+                parameter: Parameter::CutExtension,
             });
         }
         if m < 2 {

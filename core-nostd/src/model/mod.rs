@@ -37,7 +37,7 @@ use crate::detect::DetectionConfig;
 #[cfg(feature = "detect")]
 use crate::detect::{DetectionReport, DetectionWork, Detector};
 use crate::embed::{Embedding, locate_at_rest};
-use crate::error::{Error, Resource};
+use crate::error::{Error, Parameter, Resource};
 use crate::features::{EmbedReport, Features, Observation, image_bounds, spacing_px};
 use crate::material::{InversionBarrier, Lame, Law};
 use crate::mesh::{Mesh, MeshInput};

@@ -304,8 +304,9 @@ impl<'a, T: Real> Detector<'a, T> {
             }
         }
         work.pair_visits += self.n_pairs as u64;
-        // The features past `RANK_MAX` pairs looked for, then the groups.
-        work.feature_visits += 2 * n as u64;
+        // The features past `RANK_MAX` pairs looked for, then the groups' three passes (their
+        // longest list, the gathering of the slopes, the tertiles read back).
+        work.feature_visits += 4 * n as u64;
         (active, median, T::of(MAD_TO_SIGMA) * mad)
     }
 
@@ -326,6 +327,7 @@ impl<'a, T: Real> Detector<'a, T> {
         for c in self.pair_counts.iter_mut().take(n) {
             *c = [0, 0];
         }
+        work.feature_visits += n as u64;
         let margin = (config.outlier_sigmas * deviation).max(config.min_difference_px);
         let mut outliers = 0;
         // A measured pair (`μ ≥ 0`) has both slots below `n` ([`Detector::measure_pairs`]),
@@ -336,10 +338,12 @@ impl<'a, T: Real> Detector<'a, T> {
             .zip(self.pair_state.iter_mut())
             .zip(self.difference.iter().zip(self.length.iter()));
         for ((&[i, j], state), (&mu, &len)) in pairs.take(self.n_pairs) {
+            // Cleared on every pair, so that one not measured this frame is not reported as an
+            // outlier of it ([`Detector::is_outlier`]).
+            *state &= !OUTLIER;
             if mu < T::zero() {
                 continue;
             }
-            *state &= !OUTLIER;
             let (i, j) = (i as usize, j as usize);
             let (Some(&a), Some(&b), Some(&si), Some(&sj), Some(&di), Some(&dj)) = (
                 targets.get(i),
