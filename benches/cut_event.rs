@@ -179,8 +179,14 @@ fn instructions_child(name: &str) {
                 cutting.push(f.to_string());
                 let (w, g) = (report.cut.work, report.cut.event.work);
                 println!(
-                    "CUT {f} {} {} {} {} {}",
-                    w.factor_flops, g.node_tests, g.element_tests, g.faces_sorted, g.star_entries
+                    "CUT {f} {} {} {} {} {} {} {}",
+                    w.factor_flops,
+                    g.node_tests,
+                    g.element_tests,
+                    g.faces_sorted,
+                    g.star_entries,
+                    g.segment_tests,
+                    g.triangle_tests
                 );
             }
         }
@@ -197,9 +203,11 @@ fn instructions() {
     std::fs::create_dir_all(&dir).expect("tmp dir");
     println!("## Instructions (callgrind): the steady frame and the cut events\n");
     println!(
-        "| scene | steady frame (median) | cutting frame | instructions | cut event alone | / steady | factor flops of the rebuild | node tests | element visits | faces sorted | star entries |"
+        "| scene | steady frame (median) | cutting frame | instructions | cut event alone | / steady | factor flops of the rebuild | node tests | element visits | faces sorted | star entries | segment tests | boundary triangle tests |"
     );
-    println!("| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |");
+    println!(
+        "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |"
+    );
     for name in SCENES {
         let out = dir.join(format!("cg-{name}"));
         let stdout = callgrind::run(
@@ -246,14 +254,16 @@ fn instructions() {
             let f = c[0] as usize;
             let ir = counts.iter().find(|x| x.0 == f).map_or(f64::NAN, |x| x.1);
             println!(
-                "| {name} | {m:.3e} | {f} | {ir:.3e} | {:.3e} | {:.1} | {:.3e} | {} | {} | {} | {} |",
+                "| {name} | {m:.3e} | {f} | {ir:.3e} | {:.3e} | {:.1} | {:.3e} | {} | {} | {} | {} | {} | {} |",
                 ir - m,
                 ir / m,
                 c[1] as f64,
                 c[2],
                 c[3],
                 c[4],
-                c[5]
+                c[5],
+                c[6],
+                c[7]
             );
         }
         for entry in std::fs::read_dir(&dir).unwrap() {

@@ -113,10 +113,15 @@ fn every_cut_event_keeps_the_mesh_valid_and_everything_on_its_side() {
                 "{name} frame {f}: {r:?} beyond {rebuild:?}"
             );
             eprintln!(
-                "{name}: cut at frame {f}: {} nodes, {} tetrahedra, {} faces cut, factor vs faer {rel:.1e}",
+                "{name}: cut at frame {f}: {} nodes, {} tetrahedra, {} faces cut, factor vs faer {rel:.1e}, \
+                 segment tests {} (bound {}), boundary triangle tests {} (bound {})",
                 model.mesh().n_nodes(),
                 model.mesh().n_tets(),
-                report.cut.event.faces_cut
+                report.cut.event.faces_cut,
+                g.segment_tests,
+                geometry.segment_tests,
+                g.triangle_tests,
+                geometry.triangle_tests
             );
         }
         assert!(events >= 1, "{name}: the mesh was never cut");

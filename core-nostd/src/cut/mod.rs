@@ -474,6 +474,7 @@ pub(crate) fn apply<T: Real>(
         if event.tets_split > 0 || event.nodes_moved > 0 {
             mesh.finish_edit(work)?;
         }
+        count_surface_tests(&sep, mesh, &mut event.work);
         return Ok(event);
     }
     let available = cut_store.len();
@@ -528,7 +529,20 @@ pub(crate) fn apply<T: Real>(
         phi,
         &mut event,
     );
+    count_surface_tests(&sep, mesh, &mut event.work);
     Ok(event)
+}
+
+/// Adds what the surface counted to `work`: its point–segment tests beyond the level set's,
+/// and its rays (each over every boundary triangle; the boundary is the one the rays were
+/// cast at, no larger than the mesh's now).
+fn count_surface_tests<T: Real>(
+    sep: &SeparationSurface<'_, T>,
+    mesh: &Mesh<'_, T>,
+    work: &mut CutWork,
+) {
+    work.segment_tests += sep.segment_tests() - work.node_tests;
+    work.triangle_tests += sep.rays() * mesh.surface().len() as u64;
 }
 
 /// `φ` of every node: its signed distance to the plane of the segment nearest to its image
@@ -542,13 +556,16 @@ fn level_set<T: Real>(
     phi: &mut [T],
     work: &mut CutWork,
 ) {
+    let before = sep.segment_tests();
     for (p, xv) in phi.iter_mut().zip(x) {
         *p = match sep.classify(xv) {
             Some((_, p)) => p,
             None => T::zero() / T::zero(),
         };
     }
-    work.node_tests += (x.len() * sep.segments()) as u64;
+    // The level set's own tests (a node behind the camera is not tested); the surface counts
+    // the others, [`CutWork::segment_tests`].
+    work.node_tests += sep.segment_tests() - before;
     for pair in lips.pairs() {
         for &v in pair {
             if let Some(p) = phi.get_mut(v as usize) {

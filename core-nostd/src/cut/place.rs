@@ -60,31 +60,24 @@ pub(super) fn snap_nodes<T: Real>(
         if !(pv.finite() && pv != T::zero()) {
             continue;
         }
-        // The nearest crossing on any edge, and on an edge the node may move along: (fraction
-        // of the edge from the node, the node at its other end).
+        // The crossings on the edges at `v`: (fraction of the edge from the node, the node at
+        // its other end).
+        let crossings = || {
+            incidence
+                .of(v)
+                .iter()
+                .filter_map(|&t| mesh.tets().get(t as usize))
+                .flatten()
+                .filter_map(|&w| {
+                    let &pw = phi.get(w as usize)?;
+                    (pw.finite() && sign(pw) == -sign(pv)).then(|| (pv / (pv - pw), w))
+                })
+        };
+        // The nearest crossing on any edge.
         let mut nearest: Option<(T, u32)> = None;
-        let mut along: Option<(T, u32)> = None;
-        for &t in incidence.of(v) {
-            let Some(tet) = mesh.tets().get(t as usize) else {
-                continue;
-            };
-            for &w in tet {
-                let Some(&pw) = phi.get(w as usize) else {
-                    continue;
-                };
-                if !(pw.finite() && sign(pw) == -sign(pv)) {
-                    continue;
-                }
-                let t_cross = pv / (pv - pw);
-                if nearest.is_none_or(|(b, _)| t_cross < b) {
-                    nearest = Some((t_cross, w));
-                }
-                let allowed = on_boundary.get(v) == Some(&0)
-                    || (on_boundary.get(w as usize) == Some(&1)
-                        && boundary_edge(mesh, v as u32, w));
-                if allowed && along.is_none_or(|(b, _)| t_cross < b) {
-                    along = Some((t_cross, w));
-                }
+        for (t_cross, w) in crossings() {
+            if nearest.is_none_or(|(b, _)| t_cross < b) {
+                nearest = Some((t_cross, w));
             }
         }
         let Some((t_near, w_near)) = nearest else {
@@ -95,6 +88,20 @@ pub(super) fn snap_nodes<T: Real>(
         };
         if !(t_near < tau && sep.in_extent(&lerp(xv, xw, t_near))) {
             continue;
+        }
+        // The node goes on the surface: the nearest crossing on an edge it may move along (a
+        // boundary node along a boundary edge only: each check scans the boundary, so it is
+        // made for the nodes that snap alone).
+        let mut along: Option<(T, u32)> = None;
+        for (t_cross, w) in crossings() {
+            let allowed = on_boundary.get(v) == Some(&0)
+                || (on_boundary.get(w as usize) == Some(&1) && {
+                    event.work.triangle_tests += mesh.surface().len() as u64;
+                    boundary_edge(mesh, v as u32, w)
+                });
+            if allowed && along.is_none_or(|(b, _)| t_cross < b) {
+                along = Some((t_cross, w));
+            }
         }
         let movable = |(t_cross, w): (T, u32)| -> bool {
             let wi = w as usize;

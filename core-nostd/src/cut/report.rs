@@ -16,6 +16,14 @@ pub struct CutWork {
     pub star_entries: u64,
     /// Point-in-piece and ray–triangle tests of the re-embedding.
     pub embed_tests: u64,
+    /// Point–segment tests of the image points classified against the polyline outside the
+    /// level set (which [`CutWork::node_tests`] counts): the snapping's, the selection's and
+    /// the cut faces' extent checks, and the features' sides.
+    pub segment_tests: u64,
+    /// Tests against the boundary triangles of the surface's construction (the rays through
+    /// its vertices, ends and tips to the model) and of the snapping (whether an edge lies
+    /// on the boundary).
+    pub triangle_tests: u64,
 }
 
 impl CutWork {
@@ -27,7 +35,12 @@ impl CutWork {
     /// all faces sorted; every node's star sorted, once to duplicate the nodes and in each
     /// pass of the edge check (the stars again, the edges at each node, the ring around each
     /// edge: 48 entries per tetrahedron a pass); every point re-embedded after each split, and
-    /// every feature checked against every boundary triangle.
+    /// every feature checked against every boundary triangle; outside the level set, every
+    /// node, every feature and sixteen points per tetrahedron (ten crossings or nodes of its
+    /// selection, two sides and a face centre for each of its faces) classified against every
+    /// segment; and `3 s + 6` rays to the model (one per segment and three in a depth
+    /// extrusion, two per end) and three boundary-edge checks per tetrahedron and node
+    /// (twelve per tetrahedron), each over every boundary triangle.
     pub fn bound(
         nodes: u64,
         tets: u64,
@@ -43,6 +56,8 @@ impl CutWork {
             star_entries: 12 * tets + 48 * tets * separate::MANIFOLD_PASSES as u64,
             embed_tests: 3 * (features + targets) * split::MAX_CHILDREN as u64
                 + features * triangles,
+            segment_tests: segments * (nodes + 16 * tets + features),
+            triangle_tests: (3 * segments + 6 + 12 * tets) * triangles,
         }
     }
 
@@ -53,6 +68,8 @@ impl CutWork {
             && self.faces_sorted <= bound.faces_sorted
             && self.star_entries <= bound.star_entries
             && self.embed_tests <= bound.embed_tests
+            && self.segment_tests <= bound.segment_tests
+            && self.triangle_tests <= bound.triangle_tests
     }
 }
 

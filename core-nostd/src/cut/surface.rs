@@ -11,6 +11,8 @@ use nalgebra::Vector3;
 
 use crate::camera::Camera;
 use crate::error::{Error, Resource};
+use core::cell::Cell;
+
 use crate::features::first_hit;
 use crate::mesh::Mesh;
 use crate::real::Real;
@@ -51,6 +53,11 @@ pub(crate) struct SeparationSurface<'s, T: Real> {
     planes: &'s [[T; 4]],
     camera: &'s Camera<T>,
     tube_px: T,
+    /// Point–segment tests made so far by [`SeparationSurface::foot`] (every classification
+    /// goes through it), for the cut's work count.
+    segment_tests: Cell<u64>,
+    /// Rays cast to the model while the surface was built, each over every boundary triangle.
+    rays: u64,
 }
 
 impl<'s, T: Real> SeparationSurface<'s, T> {
@@ -100,6 +107,7 @@ impl<'s, T: Real> SeparationSurface<'s, T> {
         // edge lies within a spacing: no feature beyond could have shown the cut going on, and
         // a bridge that thin left uncut would hold the lips together.
         // Returns the end and whether it lies inside the object (then the cut ends there).
+        let rays = Cell::new(0u64);
         let extend = |from: [T; 2], toward: [T; 2], open: bool| -> ([T; 2], bool) {
             let d = sub(from, toward);
             let len = dot2(d, d).sqrt();
@@ -107,6 +115,7 @@ impl<'s, T: Real> SeparationSurface<'s, T> {
                 return (from, false);
             }
             let along = |s: T| [from[0] + d[0] / len * s, from[1] + d[1] / len * s];
+            rays.set(rays.get() + 1);
             if first_hit(mesh, x, camera, along(ext)).is_some() {
                 (along(ext * T::of(0.5)), true)
             } else {
@@ -149,6 +158,7 @@ impl<'s, T: Real> SeparationSurface<'s, T> {
         centroid /= T::of(n.max(1) as f64);
         let view = camera.view_direction();
         let point_on_model = |uv: [T; 2]| -> Vector3<T> {
+            rays.set(rays.get() + 1);
             if let Some((tet, w)) = first_hit(mesh, x, camera, uv)
                 && let Some(nodes) = mesh.tets().get(tet as usize)
                 && let Some(p) = crate::embed::interpolate(x, nodes, &w)
@@ -267,6 +277,8 @@ impl<'s, T: Real> SeparationSurface<'s, T> {
             planes,
             camera,
             tube_px: ext,
+            segment_tests: Cell::new(0),
+            rays: rays.get(),
         })
     }
 
@@ -345,9 +357,21 @@ impl<'s, T: Real> SeparationSurface<'s, T> {
         self.planes.len()
     }
 
+    /// Point–segment tests made so far ([`SeparationSurface::foot`]).
+    pub fn segment_tests(&self) -> u64 {
+        self.segment_tests.get()
+    }
+
+    /// Rays cast to the model while the surface was built.
+    pub fn rays(&self) -> u64 {
+        self.rays
+    }
+
     /// Where image point `q` lies relative to the polyline.
     pub fn foot(&self, q: [T; 2]) -> Option<Foot<T>> {
         let last = self.segments().checked_sub(1)?;
+        self.segment_tests
+            .set(self.segment_tests.get() + self.segments() as u64);
         let mut best: Option<(T, usize, T, T)> = None;
         for k in 0..=last {
             let (a, b) = (self.vertex(k), self.vertex(k + 1));

@@ -759,6 +759,8 @@ const CUT_COUNTERS: &[Counter] = &[
     ("cut", "faces sorted", |w| w.cut.faces_sorted),
     ("cut", "star entries", |w| w.cut.star_entries),
     ("cut", "re-embedding tests", |w| w.cut.embed_tests),
+    ("cut", "segment tests", |w| w.cut.segment_tests),
+    ("cut", "boundary triangle tests", |w| w.cut.triangle_tests),
     ("rebuild", "element tangents", |w| {
         w.rebuild.element_tangents
     }),
