@@ -65,7 +65,7 @@ impl<T: Real> InversionBarrier<T> {
 
     /// What the gradient and the tangent share: `F = I + h`, the density and its derivatives
     /// at `det F`, and the cofactor of `F` (the derivative of `det F`).
-    #[inline]
+    #[inline(always)]
     fn strained(&self, h: &Matrix3<T>) -> Strained<T> {
         let f = Matrix3::identity() + h;
         let (psi, dpsi, d2psi) = self.density(f.determinant());

@@ -107,7 +107,7 @@ pub(crate) fn nodes<T: Real>(x: &[[T; 3]; 4]) -> [Vector3<T>; 4] {
 /// differences (the line search) and near-converged gradients noisy. Evaluated as
 /// `Σ_{k=1..3} (u_k − u_0) g_kᵀ` (equal because `Σ_a g_a = 0`), so a common translation
 /// cancels first.
-#[inline]
+#[inline(always)]
 pub fn displacement_gradient<T: Real>(u: &[[T; 3]; 4], g: &[Vector3<T>; 4]) -> Matrix3<T> {
     let p = nodes(u);
     (p[1] - p[0]) * g[1].transpose()

@@ -120,7 +120,7 @@ impl Law {
     /// [`Law::element_energy_of_h`]'s. SVK forms the strain once for both; a caller adds what
     /// else stresses the element (the [`InversionBarrier`]) to `P` and forms the nodes'
     /// gradient once from the sum ([`element_gradient_of_stress`]).
-    #[inline]
+    #[inline(always)]
     pub(crate) fn element_energy_stress_of_h<T: Real>(
         self,
         lame: &Lame<T>,
@@ -276,7 +276,7 @@ pub(crate) fn element_gradient_of_stress<T: Real>(
     gradient_from_stress(volume, p, g)
 }
 
-#[inline]
+#[inline(always)]
 fn gradient_from_stress<T: Real>(
     volume: T,
     p: &Matrix3<T>,
