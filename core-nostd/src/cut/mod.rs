@@ -75,8 +75,10 @@ pub const QUALITY_FLOOR: f64 = 0.02;
 
 /// Indices of workspace a cut needs for meshes of up to `nodes` nodes and `tets` tetrahedra.
 pub const fn work_len(nodes: usize, tets: usize) -> usize {
-    // Marks per node, incidence, a word and the former nodes per tetrahedron, crossed edges,
-    // the face sort (reused for the stars), the cut faces.
+    // Marks per node, incidence, a word and the former nodes per tetrahedron, crossed edges
+    // (first the snapping's boundary stars, three entries per boundary triangle, at most four
+    // triangles per tetrahedron), the face sort (first the stars' starts and stamps, then the
+    // stars of the separation), the cut faces.
     sum(&[
         nodes,
         nodes,
@@ -85,10 +87,18 @@ pub const fn work_len(nodes: usize, tets: usize) -> usize {
         tets,
         times(4, tets),
         times(12, tets),
-        times(16, tets),
+        face_room(nodes, tets),
         times(6, tets),
         8,
     ])
+}
+
+/// Indices of the face sort's room: four per face slot, and no fewer than the snapping's
+/// boundary stars take from it before (a start and a stamp per node, and one more start).
+const fn face_room(nodes: usize, tets: usize) -> usize {
+    let faces = times(16, tets);
+    let stars = sum(&[times(2, nodes), 4]);
+    if faces > stars { faces } else { stars }
 }
 
 /// Scalars of scratch a cut needs: `φ` and the two ends' `ψ` per node, and a plane per
@@ -297,7 +307,10 @@ pub(crate) fn apply<T: Real>(
     let status = ws.take(cap_tets)?;
     let parents = ws.take(4 * cap_tets)?.as_chunks_mut::<4>().0;
     let edges = ws.take(12 * cap_tets)?.as_chunks_mut::<2>().0;
-    let faces = ws.take(16 * cap_tets)?.as_chunks_mut::<4>().0;
+    let faces = ws
+        .take(face_room(cap_nodes, cap_tets))?
+        .as_chunks_mut::<4>()
+        .0;
     let cut_store = ws.take(6 * cap_tets)?.as_chunks_mut::<3>().0;
     let (n0, t0) = (mesh.n_nodes(), mesh.n_tets());
 
@@ -317,7 +330,18 @@ pub(crate) fn apply<T: Real>(
     );
     let incidence = Incidence::build(mesh.tets(), n0, inc_ptr, inc_list)?;
     // 2–4. Nodes onto the surface, the tetrahedra to split, and where the split stops.
-    place::snap_nodes(mesh, x, previous, phi, &sep, &incidence, mark, &mut event);
+    place::snap_nodes(
+        mesh,
+        x,
+        previous,
+        phi,
+        &sep,
+        &incidence,
+        mark,
+        faces.as_flattened_mut(),
+        edges.as_flattened_mut(),
+        &mut event,
+    )?;
     place::select(mesh, x, phi, &sep, status, &mut event.work);
     place::stop_at_extent_ends(mesh, phi, &incidence, status, &mut event);
     place::keep_above_floor(mesh, phi, status, &mut event);

@@ -20,9 +20,9 @@ pub struct CutWork {
     /// level set (which [`CutWork::node_tests`] counts): the snapping's, the selection's and
     /// the cut faces' extent checks, and the features' sides.
     pub segment_tests: u64,
-    /// Tests against the boundary triangles of the surface's construction (the rays through
-    /// its vertices, ends and tips to the model) and of the snapping (whether an edge lies
-    /// on the boundary).
+    /// Visits of the boundary triangles: the surface's construction (the rays through its
+    /// vertices, ends and tips to the model, each over every triangle) and the snapping (the
+    /// boundary triangles at each node, which tell whether an edge lies on the boundary).
     pub triangle_tests: u64,
 }
 
@@ -38,9 +38,10 @@ impl CutWork {
     /// every feature checked against every boundary triangle; outside the level set, every
     /// node, every feature and sixteen points per tetrahedron (ten crossings or nodes of its
     /// selection, two sides and a face centre for each of its faces) classified against every
-    /// segment; and `3 s + 6` rays to the model (one per segment and three in a depth
-    /// extrusion, two per end) and three boundary-edge checks per tetrahedron and node
-    /// (twelve per tetrahedron), each over every boundary triangle.
+    /// segment; `3 s + 6` rays to the model (one per segment and three in a depth extrusion,
+    /// two per end), each over every boundary triangle, and the snapping's boundary stars:
+    /// built in two passes over the boundary, each node's read at most once (every triangle
+    /// three times in all).
     pub fn bound(
         nodes: u64,
         tets: u64,
@@ -57,7 +58,7 @@ impl CutWork {
             embed_tests: 3 * (features + targets) * split::MAX_CHILDREN as u64
                 + features * triangles,
             segment_tests: segments * (nodes + 16 * tets + features),
-            triangle_tests: (3 * segments + 6 + 12 * tets) * triangles,
+            triangle_tests: (3 * segments + 11) * triangles,
         }
     }
 
