@@ -7,6 +7,9 @@ use std::process::{Command, Output};
 
 use incise::scene::Scene;
 
+mod common;
+use common::copy_dir;
+
 fn incise() -> Command {
     Command::new(env!("CARGO_BIN_EXE_incise"))
 }
@@ -405,19 +408,6 @@ fn unreadable_files_are_named_once() {
     let output = incise().arg("run").arg(tmp.path()).output().unwrap();
     let e = refused(&output, &["0040.png", "cannot read"]);
     assert_eq!(e.matches("0040.png").count(), 1, "{e}");
-}
-
-fn copy_dir(from: &Path, to: &Path) {
-    std::fs::create_dir_all(to).unwrap();
-    for e in std::fs::read_dir(from).unwrap() {
-        let p = e.unwrap().path();
-        let q = to.join(p.file_name().unwrap());
-        if p.is_dir() {
-            copy_dir(&p, &q);
-        } else {
-            std::fs::copy(&p, &q).unwrap();
-        }
-    }
 }
 
 #[test]

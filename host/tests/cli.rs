@@ -2,6 +2,8 @@
 
 use std::process::Command;
 
+mod common;
+
 fn incise() -> Command {
     Command::new(env!("CARGO_BIN_EXE_incise"))
 }
@@ -202,16 +204,7 @@ fn instructions_counts_every_frame_or_says_why_not() {
     // A counted run that fails says why, not what valgrind sums up after it.
     let tmp = tempfile::tempdir().unwrap();
     let copy = tmp.path().join("scene");
-    for sub in ["", "gt"] {
-        let from = std::path::Path::new(scene).join(sub);
-        std::fs::create_dir_all(copy.join(sub)).unwrap();
-        for entry in std::fs::read_dir(&from).unwrap() {
-            let path = entry.unwrap().path();
-            if path.is_file() {
-                std::fs::copy(&path, copy.join(sub).join(path.file_name().unwrap())).unwrap();
-            }
-        }
-    }
+    common::copy_dir(std::path::Path::new(scene), &copy);
     std::fs::write(copy.join("gt/targets.csv"), "frame,id,x,y,z\n0,0,abc,1,2\n").unwrap();
     let output = incise()
         .arg("instructions")

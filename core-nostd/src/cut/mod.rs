@@ -337,7 +337,6 @@ pub(crate) fn apply<T: Real>(
         phi,
         &sep,
         &incidence,
-        mark,
         faces.as_flattened_mut(),
         edges.as_flattened_mut(),
         &mut event,

@@ -19,67 +19,13 @@ use super::{CutEvent, CutWork, QUALITY_FLOOR, SNAP_TOLERANCE, crossing, lerp, si
 /// Marks a selected tetrahedron in the status array.
 pub(super) const SELECTED: u32 = 1;
 
-/// The boundary triangles at each node (`list[start[v]..start[v + 1]]`, triangle indices),
-/// built by a counting sort over the boundary: the snapping's boundary-edge test reads a
-/// node's own triangles instead of scanning the whole boundary.
-struct BoundaryStars<'w> {
-    start: &'w [u32],
-    list: &'w [u32],
-}
-
-impl<'w> BoundaryStars<'w> {
-    /// The stars of the `n` nodes' boundary `surface`, in `start` (at least `n + 1` entries)
-    /// and `list` (at least three per triangle); `None` if either is short.
-    fn build(
-        surface: &[[u32; 3]],
-        n: usize,
-        start: &'w mut [u32],
-        list: &'w mut [u32],
-    ) -> Option<Self> {
-        let start = start.get_mut(..=n)?;
-        let list = list.get_mut(..3 * surface.len())?;
-        start.fill(0);
-        for &v in surface.iter().flatten() {
-            *start.get_mut(v as usize + 1)? += 1;
-        }
-        let mut total = 0;
-        for s in start.iter_mut() {
-            total += *s;
-            *s = total;
-        }
-        // `start[v + 1]` is now the end of node `v`'s entries: filled from there backwards, it
-        // ends at the start of each.
-        for (k, tri) in surface.iter().enumerate() {
-            for &v in tri {
-                let end = start.get_mut(v as usize + 1)?;
-                *end -= 1;
-                *list.get_mut(*end as usize)? = k as u32;
-            }
-        }
-        // Every count taken back: `start[v + 1]` now holds node `v`'s start; shifted down by
-        // one, with the total last.
-        start.rotate_left(1);
-        *start.last_mut()? = total;
-        Some(BoundaryStars { start, list })
-    }
-
-    /// The boundary triangles at node `v`.
-    fn of(&self, v: usize) -> &[u32] {
-        match (self.start.get(v), self.start.get(v + 1)) {
-            (Some(&a), Some(&b)) => self.list.get(a as usize..b as usize).unwrap_or_default(),
-            _ => &[],
-        }
-    }
-}
-
 /// Snapping: where the surface crosses an edge within [`SNAP_TOLERANCE`] of a node (inside
 /// the extent), the node goes on the surface — moved there along the nearest such edge when
 /// every tetrahedron around it stays above [`QUALITY_FLOOR`] (or no worse than it was) and
 /// keeps its orientation in the current configuration, else only declared on it. A node on the
 /// boundary moves only along a boundary edge, so that the organ's surface keeps its shape;
-/// fixed nodes never move. `mark` is scratch of one entry per node; `stars` of two per node
-/// and one, `star_list` of three per boundary triangle (the boundary-edge test's, which
-/// [`super::work_len`] sizes).
+/// fixed nodes never move. `stars` is scratch of two entries per node and one, `star_list` of
+/// three per boundary triangle (the boundary-edge test's, which [`super::work_len`] sizes).
 #[allow(clippy::too_many_arguments)]
 pub(super) fn snap_nodes<T: Real>(
     mesh: &mut Mesh<'_, T>,
@@ -88,35 +34,22 @@ pub(super) fn snap_nodes<T: Real>(
     phi: &mut [T],
     sep: &SeparationSurface<'_, T>,
     incidence: &Incidence<'_>,
-    mark: &mut [u32],
     stars: &mut [u32],
     star_list: &mut [u32],
     event: &mut CutEvent,
 ) -> Result<(), Error> {
     let (floor, tau) = (T::of(QUALITY_FLOOR), T::of(SNAP_TOLERANCE));
     let n0 = mesh.n_nodes();
-    let Some(on_boundary) = mark.get_mut(..n0) else {
-        return Err(short(n0, mark.len()));
-    };
-    on_boundary.fill(0);
-    for tri in mesh.surface() {
-        for &v in tri {
-            if let Some(b) = on_boundary.get_mut(v as usize) {
-                *b = 1;
-            }
-        }
-    }
-    // Each node's boundary triangles, and a stamp per node: the nodes of the triangles at the
-    // node being snapped carry its stamp, so that whether an edge from it lies on the boundary
-    // is one lookup. Twice over the boundary to build, once more for the stamps at most.
-    let (stars_len, list_len) = (stars.len(), star_list.len());
+    // Each node's boundary triangles (none for an interior node), and a stamp per node: the
+    // nodes of the triangles at the node being snapped carry its stamp, so that whether an
+    // edge from it lies on the boundary is one lookup. Twice over the boundary to build, once
+    // more for the stamps at most.
+    let stars_len = stars.len();
     let (start, stamp) = stars.split_at_mut(stars_len.min(n0 + 1));
     let stamp = stamp.get_mut(..n0).ok_or(short(2 * n0 + 1, stars_len))?;
     stamp.fill(0);
-    let surface_len = mesh.surface().len();
-    let boundary = BoundaryStars::build(mesh.surface(), n0, start, star_list)
-        .ok_or(short(3 * surface_len, list_len))?;
-    event.work.triangle_tests += 2 * surface_len as u64;
+    let boundary = Incidence::build(mesh.surface(), n0, start, star_list)?;
+    event.work.triangle_tests += 2 * mesh.surface().len() as u64;
     for v in 0..n0 {
         let Some(&pv) = phi.get(v) else {
             continue;
@@ -155,7 +88,7 @@ pub(super) fn snap_nodes<T: Real>(
         }
         // The node goes on the surface: the nearest crossing on an edge it may move along (a
         // boundary node along a boundary edge only, an edge of one of its boundary triangles).
-        let interior = on_boundary.get(v) == Some(&0);
+        let interior = boundary.of(v).is_empty();
         if !interior {
             let own = v as u32 + 1;
             for &k in boundary.of(v) {
@@ -512,15 +445,15 @@ pub(super) fn keep_above_floor<T: Real>(
 
 #[cfg(test)]
 mod tests {
-    use super::BoundaryStars;
+    use super::Incidence;
 
     #[test]
-    fn the_boundary_stars_list_each_nodes_triangles() {
+    fn the_incidence_of_boundary_triangles_lists_each_nodes_triangles() {
         // A tetrahedron's boundary and a second, detached triangle; node 4 on no triangle.
         let surface = [[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2], [5, 6, 7]];
         let n = 8;
         let (mut start, mut list) = ([9u32; 9], [9u32; 15]);
-        let stars = BoundaryStars::build(&surface, n, &mut start, &mut list).unwrap();
+        let stars = Incidence::build(&surface, n, &mut start, &mut list).unwrap();
         for v in 0..n {
             let mut got: [u32; 4] = [u32::MAX; 4];
             for (g, &k) in got.iter_mut().zip(stars.of(v)) {
@@ -536,7 +469,7 @@ mod tests {
             assert_eq!(got, expected, "node {v}");
         }
         // Too little room: refused, not cut short.
-        assert!(BoundaryStars::build(&surface, n, &mut [0; 8], &mut [0; 15]).is_none());
-        assert!(BoundaryStars::build(&surface, n, &mut [0; 9], &mut [0; 14]).is_none());
+        assert!(Incidence::build(&surface, n, &mut [0; 8], &mut [0; 15]).is_err());
+        assert!(Incidence::build(&surface, n, &mut [0; 9], &mut [0; 14]).is_err());
     }
 }

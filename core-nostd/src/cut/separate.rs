@@ -11,22 +11,23 @@ use crate::real::Real;
 use crate::sparse::NONE;
 use crate::storage::{sum, times};
 
-/// Node → tetrahedra incidence, in compressed form, built into caller storage.
+/// Node → element incidence (the tetrahedra, or the boundary triangles, at each node), in
+/// compressed form, built into caller storage.
 pub(crate) struct Incidence<'w> {
     pub ptr: &'w [u32],
     pub tets: &'w [u32],
 }
 
 impl<'w> Incidence<'w> {
-    /// Builds the incidence of `tets` over `n_nodes` nodes into `ptr` (`n_nodes + 1`) and
-    /// `list` (`4 · tets.len()`).
-    pub fn build(
-        tets: &[[u32; 4]],
+    /// Builds the incidence of the `N`-node elements `tets` (tetrahedra, or triangles) over
+    /// `n_nodes` nodes into `ptr` (`n_nodes + 1`) and `list` (`N · tets.len()`).
+    pub fn build<const N: usize>(
+        tets: &[[u32; N]],
         n_nodes: usize,
         ptr: &'w mut [u32],
         list: &'w mut [u32],
     ) -> Result<Self, Error> {
-        let (n_ptr, n_list) = (sum(&[n_nodes, 1]), times(4, tets.len()));
+        let (n_ptr, n_list) = (sum(&[n_nodes, 1]), times(N, tets.len()));
         let available = ptr.len().saturating_add(list.len());
         let (Some(ptr), Some(list)) = (ptr.get_mut(..n_ptr), list.get_mut(..n_list)) else {
             return Err(Error::Capacity {
@@ -36,7 +37,11 @@ impl<'w> Incidence<'w> {
             });
         };
         let out_of_range = |t: usize, v: u32| Error::IndexOutOfRange {
-            resource: Resource::Tetrahedra,
+            resource: if N == 4 {
+                Resource::Tetrahedra
+            } else {
+                Resource::SurfaceTriangles
+            },
             position: t,
             index: v as usize,
             bound: n_nodes,
@@ -69,7 +74,7 @@ impl<'w> Incidence<'w> {
         Ok(Incidence { ptr, tets: list })
     }
 
-    /// Tetrahedra around node `v`.
+    /// Elements around node `v`.
     pub fn of(&self, v: usize) -> &[u32] {
         match (self.ptr.get(v), self.ptr.get(v + 1)) {
             (Some(&s), Some(&e)) => self.tets.get(s as usize..e as usize).unwrap_or(&[]),
