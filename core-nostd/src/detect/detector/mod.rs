@@ -125,14 +125,6 @@ impl<'d> SplitPairs<'d> {
     }
 }
 
-/// Whether feature `f` is observed this frame and not filtered out (`state`, one word per
-/// slot, whose [`OBSERVED`] bit step 1 set from the features' flags).
-fn usable(state: &[u32], f: u32) -> bool {
-    state
-        .get(f as usize)
-        .is_some_and(|&s| s & (OBSERVED | FILTERED) == OBSERVED)
-}
-
 /// Turns the per-cell counts `start[0..=cells]` (with `start[0] == 0`) into the end of
 /// each cell: `start[c]` becomes the sum of the counts up to `c`.
 fn accumulate(start: &mut [u32]) {

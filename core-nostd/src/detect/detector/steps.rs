@@ -78,12 +78,11 @@ impl<'a, T: Real> Detector<'a, T> {
                 }
             }
             let change = |f: usize| self.previous.get(f).copied().unwrap_or([T::zero(); 2]);
+            // The verdicts of the first `n` slots: a lookup in them is the test `< n`.
+            let verdicts = self.scratch.get_mut(..n).unwrap_or_default();
             for &[a, b] in self.pairs.get(..self.n_pairs).unwrap_or_default() {
                 let (a, b) = (a as usize, b as usize);
-                if a >= n || b >= n {
-                    continue;
-                }
-                let (Some(&va), Some(&vb)) = (self.scratch.get(a), self.scratch.get(b)) else {
+                let (Some(&va), Some(&vb)) = (verdicts.get(a), verdicts.get(b)) else {
                     continue;
                 };
                 // Two jumpers (rare) that jumped alike. `‖cₐ − c_b‖` is the same number from
@@ -91,7 +90,7 @@ impl<'a, T: Real> Detector<'a, T> {
                 // its own pairs.
                 if va != T::zero() && vb != T::zero() && norm(change(a), change(b)) <= limit {
                     for f in [a, b] {
-                        if let Some(v) = self.scratch.get_mut(f) {
+                        if let Some(v) = verdicts.get_mut(f) {
                             *v = -T::one();
                         }
                     }
@@ -138,17 +137,27 @@ impl<'a, T: Real> Detector<'a, T> {
         n: usize,
         work: &mut DetectionWork,
     ) -> (usize, T, T) {
-        // The pair buffers hold `n_pairs` entries, `scratch` at least as many; a measured
-        // pair's slots are below `n`, within `current` and `targets`. No lookup below
-        // fails.
+        // The pair buffers hold `n_pairs` entries, `scratch` at least as many (the zip runs
+        // over slices of that length, with no bounds check in the loop); a pair is measured
+        // when both its slots are below `n`, within `current` and `targets`, which the
+        // lookups in the slices cut to `n` check.
         let mut active = 0usize;
+        let mut lost = 0usize;
         let feature_state = &*self.feature_state;
+        let usable_states = feature_state.get(..n).unwrap_or_default();
+        let current = self.current.get(..n).unwrap_or_default();
+        let targets = targets.get(..n).unwrap_or_default();
+        let np = self.n_pairs;
+        let mut scratch = self.scratch.get_mut(..np).unwrap_or_default().iter_mut();
         let pairs = self
             .pairs
+            .get(..np)
+            .unwrap_or_default()
             .iter()
-            .zip(self.pair_state.iter_mut())
-            .zip(self.difference.iter_mut().zip(self.length.iter_mut()));
-        for ((&[i, j], state), (difference, length)) in pairs.take(self.n_pairs) {
+            .zip(self.pair_state.get_mut(..np).unwrap_or_default())
+            .zip(self.difference.get_mut(..np).unwrap_or_default())
+            .zip(self.length.get_mut(..np).unwrap_or_default());
+        for (((&[i, j], state), difference), length) in pairs {
             if newly_filtered
                 && *state & DROPPED == 0
                 && [i, j].iter().any(|&f| {
@@ -158,32 +167,31 @@ impl<'a, T: Real> Detector<'a, T> {
                 })
             {
                 *state |= DROPPED;
-                self.pairs_lost += 1;
+                lost += 1;
             }
-            let measured = if *state & DROPPED == 0
-                && usable(feature_state, i)
-                && usable(feature_state, j)
-                && (i as usize) < n
-                && (j as usize) < n
-            {
-                let (i, j) = (i as usize, j as usize);
-                match (
-                    self.current.get(i),
-                    self.current.get(j),
-                    targets.get(i),
-                    targets.get(j),
-                ) {
-                    (Some(&ci), Some(&cj), Some(&ti), Some(&tj)) => Some((ci, cj, ti, tj)),
-                    _ => None,
+            let (i, j) = (i as usize, j as usize);
+            let measured = match (
+                *state & DROPPED == 0,
+                usable_states.get(i),
+                usable_states.get(j),
+                current.get(i),
+                current.get(j),
+                targets.get(i),
+                targets.get(j),
+            ) {
+                (true, Some(&si), Some(&sj), Some(&ci), Some(&cj), Some(&ti), Some(&tj))
+                    // Both observed this frame, neither filtered out.
+                    if (si & sj) & OBSERVED != 0 && (si | sj) & FILTERED == 0 =>
+                {
+                    Some((ci, cj, ti, tj))
                 }
-            } else {
-                None
+                _ => None,
             };
             *difference = match measured {
                 Some((ci, cj, ti, tj)) => {
                     let mu = norm(ci, cj);
                     *length = norm(ti, tj);
-                    if let Some(slot) = self.scratch.get_mut(active) {
+                    if let Some(slot) = scratch.next() {
                         *slot = mu;
                         active += 1;
                     }
@@ -192,6 +200,7 @@ impl<'a, T: Real> Detector<'a, T> {
                 None => T::of(UNMEASURED),
             };
         }
+        self.pairs_lost += lost;
         // Every pair in use takes part, an unmeasured one as `+∞` behind the measured ones:
         // the selections cost as much in every frame of a topology, however many pairs are
         // measured, and the median and MAD are those of the measured pairs.
@@ -241,8 +250,14 @@ impl<'a, T: Real> Detector<'a, T> {
         // Then every pair's slope as the network orders it ([`network_value`], `+∞` while
         // unmeasured), in `keys`, computed once per pair rather than once for each of its two
         // features; `keys` holds a word for each of the `n_pairs` pairs.
-        let slopes = self.difference.iter().zip(self.length.iter());
-        for (key, (&mu, &length)) in self.keys.iter_mut().zip(slopes).take(self.n_pairs) {
+        let np = self.n_pairs;
+        let slopes = self
+            .difference
+            .get(..np)
+            .unwrap_or_default()
+            .iter()
+            .zip(self.length.get(..np).unwrap_or_default());
+        for (key, (&mu, &length)) in self.keys.iter_mut().zip(slopes) {
             *key = if mu >= T::zero() {
                 network_value(mu / length.max(T::EPS)).to_bits()
             } else {
@@ -268,10 +283,13 @@ impl<'a, T: Real> Detector<'a, T> {
                 *row = [f32::INFINITY; NETWORK_LANES];
             }
             let mut measured = [0usize; NETWORK_LANES];
-            for (lane, f) in group.clone().enumerate() {
+            for ((lane, f), slot) in group.clone().enumerate().zip(measured.iter_mut()) {
                 if !networked(f) {
                     continue;
                 }
+                // `lane` below `NETWORK_LANES` (the zip with `measured` stops there), so the
+                // row's slot is found with no test.
+                let lane = lane % NETWORK_LANES;
                 let mut m = 0;
                 for (row, &k) in rows.iter_mut().zip(incident_of(f)) {
                     let value = keys
@@ -282,9 +300,7 @@ impl<'a, T: Real> Detector<'a, T> {
                     }
                     m += usize::from(value < f32::INFINITY);
                 }
-                if let Some(slot) = measured.get_mut(lane) {
-                    *slot = m;
-                }
+                *slot = m;
             }
             // The group's comparators counted once: each is one vector step on every lane.
             work.selection_steps += lower_third_lanes(&mut rows, used);
@@ -331,13 +347,18 @@ impl<'a, T: Real> Detector<'a, T> {
         let margin = (config.outlier_sigmas * deviation).max(config.min_difference_px);
         let mut outliers = 0;
         // A measured pair (`μ ≥ 0`) has both slots below `n` ([`Detector::measure_pairs`]),
-        // so the lookups below do not fail.
+        // so the lookups below do not fail. The per-pair buffers hold at least `n_pairs`
+        // slots (the zips run over slices of that length, with no bounds check in the loop).
+        let np = self.n_pairs;
         let pairs = self
             .pairs
+            .get(..np)
+            .unwrap_or_default()
             .iter()
-            .zip(self.pair_state.iter_mut())
-            .zip(self.difference.iter().zip(self.length.iter()));
-        for ((&[i, j], state), (&mu, &len)) in pairs.take(self.n_pairs) {
+            .zip(self.pair_state.get_mut(..np).unwrap_or_default())
+            .zip(self.difference.get(..np).unwrap_or_default())
+            .zip(self.length.get(..np).unwrap_or_default());
+        for (((&[i, j], state), &mu), &len) in pairs {
             // Cleared on every pair, so that one not measured this frame is not reported as an
             // outlier of it ([`Detector::is_outlier`]).
             *state &= !OUTLIER;
@@ -345,14 +366,7 @@ impl<'a, T: Real> Detector<'a, T> {
                 continue;
             }
             let (i, j) = (i as usize, j as usize);
-            let (Some(&a), Some(&b), Some(&si), Some(&sj), Some(&di), Some(&dj)) = (
-                targets.get(i),
-                targets.get(j),
-                self.slope.get(i),
-                self.slope.get(j),
-                self.current.get(i),
-                self.current.get(j),
-            ) else {
+            let (Some(&si), Some(&sj)) = (self.slope.get(i), self.slope.get(j)) else {
                 continue;
             };
             let smooth = si.min(sj) * len;
@@ -360,6 +374,14 @@ impl<'a, T: Real> Detector<'a, T> {
             if out && config.opening_only {
                 // An opening cut leaves the model behind on both lips: across it, the
                 // residuals diverge along the line joining the two features.
+                let (Some(&a), Some(&b), Some(&di), Some(&dj)) = (
+                    targets.get(i),
+                    targets.get(j),
+                    self.current.get(i),
+                    self.current.get(j),
+                ) else {
+                    continue;
+                };
                 let (ux, uy) = (b[0] - a[0], b[1] - a[1]);
                 let opening = ((dj[0] - di[0]) * ux + (dj[1] - di[1]) * uy) / len.max(T::EPS);
                 out = opening >= T::of(0.5) * mu;
@@ -397,18 +419,23 @@ impl<'a, T: Real> Detector<'a, T> {
             })
         };
         let mut split = 0;
-        self.n_points = 0;
+        // Counted in locals and stored at the end, so that the loop keeps them in registers.
+        let mut n_points = 0;
         // The selections are done with `keys`: it lists the split pairs from here on.
-        self.n_split = 0;
+        let mut n_split = 0;
         let pair_counts = &*self.pair_counts;
+        // Every per-pair buffer holds at least `n_pairs` slots: the zips below run over all
+        // of them, on slices of one length, with no bounds check left in the loop.
+        let np = self.n_pairs;
         let pairs = self
             .pairs
+            .get(..np)
+            .unwrap_or_default()
             .iter()
-            .zip(self.pair_state.iter_mut())
-            .zip(self.difference.iter().zip(self.split_since.iter_mut()));
-        for (k, ((&[i, j], pair_state), (&difference, split_since))) in
-            pairs.take(self.n_pairs).enumerate()
-        {
+            .zip(self.pair_state.get_mut(..np).unwrap_or_default())
+            .zip(self.difference.get(..np).unwrap_or_default())
+            .zip(self.split_since.get_mut(..np).unwrap_or_default());
+        for (k, (((&[i, j], pair_state), &difference), split_since)) in pairs.enumerate() {
             // Unmeasured pairs keep their streak (a dropped frame does not reset it).
             if difference >= T::zero() {
                 let out = *pair_state & OUTLIER != 0;
@@ -431,9 +458,9 @@ impl<'a, T: Real> Detector<'a, T> {
                     // The separation point: between the two tracked features, where the cut
                     // runs (a measured pair's slots are within `targets`), while there is room.
                     if let (Some(point), Some(since), Some(pair), Some(&a), Some(&b)) = (
-                        self.points.get_mut(self.n_points),
-                        self.point_since.get_mut(self.n_points),
-                        self.point_pair.get_mut(self.n_points),
+                        self.points.get_mut(n_points),
+                        self.point_since.get_mut(n_points),
+                        self.point_pair.get_mut(n_points),
                         targets.get(i as usize),
                         targets.get(j as usize),
                     ) {
@@ -441,19 +468,21 @@ impl<'a, T: Real> Detector<'a, T> {
                         *since = *split_since;
                         // `k < n_pairs`, which fits the `u32` slots.
                         *pair = k as u32;
-                        self.n_points += 1;
+                        n_points += 1;
                     }
                 }
                 *pair_state = next;
             }
             // Split now or before: listed for the cut line (`keys` holds a word per pair).
             if *pair_state & SPLIT != 0
-                && let Some(slot) = self.keys.get_mut(self.n_split)
+                && let Some(slot) = self.keys.get_mut(n_split)
             {
                 *slot = k as u32;
-                self.n_split += 1;
+                n_split += 1;
             }
         }
+        self.n_points = n_points;
+        self.n_split = n_split;
         work.pair_visits += self.n_pairs as u64;
         split
     }
