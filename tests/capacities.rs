@@ -107,7 +107,7 @@ fn check_part_lengths(c: &Capacities) {
     );
     assert_eq!(
         Detector::<f64>::index_len(f, p),
-        sat(8 * w(p) + 5 * w(f) + w(GRID_CELLS) + 2 + w(f.max(p)))
+        sat(8 * w(p) + 4 * w(f) + w(GRID_CELLS) + 1 + w(f.max(p)))
     );
     // Six anchors (nodes and weights) per vertex.
     assert_eq!(CutLine::<f64>::real_len(v), sat(6 * w(v)));

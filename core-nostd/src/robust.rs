@@ -20,13 +20,12 @@
 //!   digit, four passes; the rank's key is the value.
 //!
 //! Where many short lists each need a rank (every feature's lower tertile over its pairs), the
-//! detector orders four of them at once instead, one to a lane of a sorting network pruned to
-//! the lowest third of its ranks ([`lower_third_lanes`]): its comparators are fixed for a
-//! length, taken from a table built at compile time, and each is a vector minimum and maximum
-//! on the four lanes, so that four lists of 20 to 40 values cost about what one rank count
-//! did.
+//! detector orders all the values once instead, by [`radix_order`] (stable, from the lowest
+//! of four digits, every pass over every key), and reads each list's rank off a walk in that
+//! order: about 125 instructions a pair on the liver (the sort 75 of them), where sorting
+//! networks pruned to the lowest third, four lists at a time, took about 140.
 //!
-//! Neither recursion nor storage beyond the caller's, one array of [`RADIX_BINS`] counts and
+//! Neither recursion nor storage beyond the caller's, two arrays of [`RADIX_BINS`] counts and
 //! one of [`RANK_MAX`] keys on the stack.
 
 use crate::real::Real;
@@ -134,17 +133,6 @@ pub const fn select_bound(n: u64) -> u64 {
         heap_select_bound(n)
     } else {
         radix_steps(n)
-    }
-}
-
-/// Most steps of [`select_rounded`] per value, over selections of at most `m` values each:
-/// a bound on `Σ select_bound(mᵢ) / Σ mᵢ` for any parts `mᵢ ≤ m`. The rank count takes
-/// `⌈mᵢ/4⌉·4 ≤ 64` per value, the heap `2 ⌈log₂ mᵢ⌉ < 64` and the radix fewer than 9.
-pub const fn select_rate_bound(m: u64) -> u64 {
-    if m <= RANK_MAX as u64 {
-        m.div_ceil(RANK_LANES as u64) * RANK_LANES as u64
-    } else {
-        RANK_MAX as u64
     }
 }
 
@@ -339,6 +327,71 @@ fn radix_select<T: Real>(v: &[T], k: usize, keys: &mut [u32]) -> (T, u64) {
     (from_single_key(prefix), radix_steps(n as u64))
 }
 
+/// Steps of [`radix_order`] on `n` keys: a pass to count the lowest digit, four to scatter by
+/// each digit (counting the next one on the way), and the four digits' counts turned into
+/// starts.
+pub const fn radix_order_steps(n: u64) -> u64 {
+    5 * n + 4 * RADIX_BINS as u64
+}
+
+/// Writes to `order` the indices `0 .. keys.len()` in ascending order of their keys (equal
+/// keys in ascending index: the sort is stable), by radix from the lowest digit, with `spare`
+/// (as long) as the second buffer the passes alternate with; returns its steps
+/// ([`radix_order_steps`]). Every pass visits every key, so the work is the same for any
+/// data. Nothing is written when either buffer is shorter than `keys`.
+///
+/// Each pass counts the next digit of the keys it moves, so that one pass over the keys
+/// before the first is the only one that moves nothing, with two arrays of counts on the
+/// stack.
+pub fn radix_order(keys: &[u32], order: &mut [u32], spare: &mut [u32]) -> u64 {
+    let n = keys.len();
+    let (Some(order), Some(spare)) = (order.get_mut(..n), spare.get_mut(..n)) else {
+        return 0;
+    };
+    let [mut now, mut next] = [[0u32; RADIX_BINS]; 2];
+    for &key in keys {
+        count(&mut now, key);
+    }
+    // From the identity into `spare`, then back and forth; the fourth pass ends in `order`.
+    // The indices fit `u32`: the callers' buffers hold at most `u32::MAX` pairs.
+    scatter_by_digit(keys, 0..n as u32, 0, &mut now, &mut next, spare);
+    scatter_by_digit(keys, spare.iter().copied(), 1, &mut next, &mut now, order);
+    scatter_by_digit(keys, order.iter().copied(), 2, &mut now, &mut next, spare);
+    scatter_by_digit(keys, spare.iter().copied(), 3, &mut next, &mut now, order);
+    radix_order_steps(n as u64)
+}
+
+/// One pass of [`radix_order`]: the indices of `from`, in that order, to `to` by their keys'
+/// digit `digit` (from the lowest), whose counts `counts` holds on entry; counts digit
+/// `digit + 1` of the same keys into `next` (emptied first).
+fn scatter_by_digit(
+    keys: &[u32],
+    from: impl Iterator<Item = u32>,
+    digit: u32,
+    counts: &mut [u32; RADIX_BINS],
+    next: &mut [u32; RADIX_BINS],
+    to: &mut [u32],
+) {
+    // The counts turned into the first slot of each digit's run.
+    let mut start = 0;
+    for c in counts.iter_mut() {
+        (*c, start) = (start, start + *c);
+    }
+    next.fill(0);
+    let shift = digit * RADIX_BITS;
+    for k in from {
+        // `k` indexes `keys` (the indices moved are those of `keys`).
+        let key = keys.get(k as usize).copied().unwrap_or(0);
+        if let Some(slot) = counts.get_mut(((key >> shift) as usize) & (RADIX_BINS - 1)) {
+            if let Some(to) = to.get_mut(*slot as usize) {
+                *to = k;
+            }
+            *slot += 1;
+        }
+        count(next, key.checked_shr(shift + RADIX_BITS).unwrap_or(0));
+    }
+}
+
 /// The digit whose keys hold rank `rank` among the counted ones (the counts before it are
 /// ranks below), and the rank among that digit's keys. Every count is read, found or not:
 /// the instructions do not follow the data.
@@ -358,17 +411,13 @@ fn digit_of_rank(counts: &[u32; RADIX_BINS], mut rank: usize) -> (u32, usize) {
     (found.unwrap_or(0), rank)
 }
 
-/// Lanes of [`lower_third_lanes`]: as many independent orderings side by side, one per lane, four
-/// `f32` to a 128-bit vector.
-pub const NETWORK_LANES: usize = 4;
-
-/// `x` as [`lower_third_lanes`] orders it: rounded to single precision ([`round_single`], `-0.0` as
-/// `+0.0`), every non-finite value `+∞`. Two values order as their [`single_key`]s do and are
-/// equal exactly when the keys are, so the rank `k` of these is [`select_rounded`]'s of the
-/// same values ([`from_network_value`]); in `f32`, so that the network's minimum and maximum
-/// are one vector instruction each.
+/// `x` rounded to single precision ([`round_single`], `-0.0` as `+0.0`), every non-finite
+/// value `+∞`, as an `f32`. Two values order as their [`single_key`]s do and are equal
+/// exactly when the keys are, so the rank `k` of these is [`select_rounded`]'s of the same
+/// values ([`from_single_value`]); and the bits of a non-negative one order as the values do,
+/// so that [`radix_order`] sorts them as keys.
 #[inline]
-pub fn network_value<T: Real>(x: T) -> f32 {
+pub fn single_value<T: Real>(x: T) -> f32 {
     if x.finite() {
         to_single(x) + 0.0
     } else {
@@ -376,276 +425,10 @@ pub fn network_value<T: Real>(x: T) -> f32 {
     }
 }
 
-/// The value of `T` that [`select_rounded`] returns for the rank whose [`network_value`] is
+/// The value of `T` that [`select_rounded`] returns for the rank whose [`single_value`] is
 /// `x`.
-pub fn from_network_value<T: Real>(x: f32) -> T {
+pub fn from_single_value<T: Real>(x: f32) -> T {
     T::of(f64::from(x))
-}
-
-/// The lengths the network is built for: a lane of `m` values is sorted by the network of the
-/// first length at least `m` ([`network_length`]), the rows past `m` holding `+∞`. Multiples
-/// of eight from 8 (and 2 and 4 below), so that a padded network does at most a few
-/// comparators more per value than one of the exact length (at most 10 per value of the
-/// longest lane, [`network_rate_bound`]), with every table together about 4 KiB.
-pub const NETWORK_LENGTHS: [usize; 10] = [2, 4, 8, 16, 24, 32, 40, 48, 56, RANK_MAX];
-
-/// The length of the network that sorts `m ≤ RANK_MAX` values: the first of
-/// [`NETWORK_LENGTHS`] at least `m` (0 below 2, where nothing is to sort; [`RANK_MAX`] above).
-pub const fn network_length(m: usize) -> usize {
-    if m < 2 {
-        return 0;
-    }
-    let mut rest: &[usize] = &NETWORK_LENGTHS;
-    while let [length, tail @ ..] = rest {
-        if *length >= m {
-            return *length;
-        }
-        rest = tail;
-    }
-    RANK_MAX
-}
-
-/// Knuth's merge exchange on `n` values (Batcher's odd–even merge for any `n`; *The Art of
-/// Computer Programming* 5.2.2, algorithm M): its comparators in order, each handed to `emit`
-/// as `(i, j)` with `i < j`, the smaller value to go to `i`. A macro rather than a function so
-/// that the counting and the filling of the table run the same loops in a `const` context.
-macro_rules! merge_exchange {
-    ($n:expr, |$i:ident, $j:ident| $emit:block) => {{
-        let n: usize = $n;
-        if n >= 2 {
-            let t = ceil_log2(n as u64);
-            let top = 1usize << (t - 1);
-            let mut p = top;
-            while p > 0 {
-                let (mut q, mut r, mut d) = (top, 0, p);
-                loop {
-                    let mut $i = 0;
-                    while $i + d < n {
-                        if $i & p == r {
-                            let $j = $i + d;
-                            $emit
-                        }
-                        $i += 1;
-                    }
-                    if q == p {
-                        break;
-                    }
-                    d = q - p;
-                    q >>= 1;
-                    r = p;
-                }
-                p >>= 1;
-            }
-        }
-    }};
-}
-
-/// Comparators of the merge exchange on `n` values.
-pub const fn network_comparators(n: usize) -> usize {
-    let mut c = 0;
-    merge_exchange!(n, |i, j| {
-        let _ = (i, j);
-        c += 1;
-    });
-    c
-}
-
-/// The ranks a network of `length` values orders, `0 .. lower_third(length)`: every rank the
-/// detector's tertile can read in a lane of at most `length` values
-/// ([`quantile_index`]`(m, 1/3) ≤ ⌊(m − 1)/3⌋ ≤ ⌊(length − 1)/3⌋`).
-pub const fn lower_third(length: usize) -> usize {
-    if length == 0 { 0 } else { (length - 1) / 3 + 1 }
-}
-
-/// Comparators of the longest merge exchange, [`RANK_MAX`] values.
-const MERGE_EXCHANGE_MAX: usize = network_comparators(RANK_MAX);
-
-/// The merge exchange on `n ≤ RANK_MAX` values pruned to the comparators that the ranks
-/// `0 .. lower_third(n)` depend on, in order, and how many there are. Walking the network
-/// backwards, a comparator stays when it writes a wire that a rank kept so far reads, and then
-/// both its wires are read: a comparator left out writes only wires no kept rank reads after
-/// it, so the kept ranks hold what the whole network puts there (about 15 % fewer comparators
-/// on the lengths past 8). Only evaluated when the crate is compiled (an index out of range
-/// fails the build); the wires are bits of a `u64`, `RANK_MAX` being 64.
-#[allow(clippy::indexing_slicing)]
-const fn lower_third_network(n: usize) -> ([[u8; 2]; MERGE_EXCHANGE_MAX], usize) {
-    let mut full = [[0u8; 2]; MERGE_EXCHANGE_MAX];
-    let mut len = 0;
-    merge_exchange!(n, |i, j| {
-        full[len] = [i as u8, j as u8];
-        len += 1;
-    });
-    let kept = lower_third(n);
-    let mut read: u64 = if kept >= 64 {
-        u64::MAX
-    } else {
-        (1 << kept) - 1
-    };
-    let mut keep = [false; MERGE_EXCHANGE_MAX];
-    let mut k = len;
-    while k > 0 {
-        k -= 1;
-        let wires = (1u64 << full[k][0]) | (1u64 << full[k][1]);
-        if read & wires != 0 {
-            keep[k] = true;
-            read |= wires;
-        }
-    }
-    let mut network = [[0u8; 2]; MERGE_EXCHANGE_MAX];
-    let mut m = 0;
-    while k < len {
-        if keep[k] {
-            network[m] = full[k];
-            m += 1;
-        }
-        k += 1;
-    }
-    (network, m)
-}
-
-/// Comparators of each network of [`NETWORK_LENGTHS`].
-// Evaluated when the crate is compiled: an index out of range fails the build, never a call.
-#[allow(clippy::indexing_slicing)]
-const NETWORK_SIZES: [usize; NETWORK_LENGTHS.len()] = {
-    let mut sizes = [0; NETWORK_LENGTHS.len()];
-    let mut k = 0;
-    while k < NETWORK_LENGTHS.len() {
-        sizes[k] = lower_third_network(NETWORK_LENGTHS[k]).1;
-        k += 1;
-    }
-    sizes
-};
-
-/// Where each network of [`NETWORK_LENGTHS`] starts in [`NETWORK_TABLE`], and its end.
-// Evaluated when the crate is compiled: an index out of range fails the build, never a call.
-#[allow(clippy::indexing_slicing)]
-const NETWORK_STARTS: [usize; NETWORK_LENGTHS.len() + 1] = {
-    let mut starts = [0; NETWORK_LENGTHS.len() + 1];
-    let mut k = 0;
-    while k < NETWORK_LENGTHS.len() {
-        starts[k + 1] = starts[k] + NETWORK_SIZES[k];
-        k += 1;
-    }
-    starts
-};
-
-/// Comparators of every network of [`NETWORK_LENGTHS`] together.
-#[allow(clippy::indexing_slicing)] // as above, at compile time
-const NETWORK_TABLE_LENGTH: usize = NETWORK_STARTS[NETWORK_LENGTHS.len()];
-
-// What [`NETWORK_LENGTHS`] says of the tables, checked when the crate is compiled: every
-// table together under 4 KiB (1,753 comparators of two bytes), at most 10 comparators per
-// value of the longest lane.
-const _: () = assert!(NETWORK_TABLE_LENGTH <= 1753 && network_rate_bound(RANK_MAX as u64) <= 10);
-
-/// Every network of [`NETWORK_LENGTHS`] one after another, as row pairs, built at compile
-/// time; [`network_of`] finds one.
-// Evaluated when the crate is compiled: an index out of range fails the build, never a call.
-#[allow(clippy::indexing_slicing)]
-static NETWORK_TABLE: [[u8; 2]; NETWORK_TABLE_LENGTH] = {
-    let mut table = [[0u8; 2]; NETWORK_TABLE_LENGTH];
-    let mut at = 0;
-    let mut k = 0;
-    while k < NETWORK_LENGTHS.len() {
-        let (network, len) = lower_third_network(NETWORK_LENGTHS[k]);
-        let mut c = 0;
-        while c < len {
-            table[at] = network[c];
-            at += 1;
-            c += 1;
-        }
-        k += 1;
-    }
-    table
-};
-
-/// The comparators that order the lowest third of `m` values: the network of
-/// [`network_length`]`(m)` (none below 2).
-fn network_of(m: usize) -> &'static [[u8; 2]] {
-    let length = network_length(m);
-    let k = NETWORK_LENGTHS.iter().position(|&l| l == length);
-    match k.and_then(|k| Some((*NETWORK_STARTS.get(k)?, *NETWORK_STARTS.get(k + 1)?))) {
-        Some((start, end)) => NETWORK_TABLE.get(start..end).unwrap_or_default(),
-        None => &[],
-    }
-}
-
-/// Comparators of [`lower_third_lanes`] for lanes of `m` values: those of the network of
-/// [`network_length`]`(m)`.
-pub const fn network_comparators_of(m: usize) -> usize {
-    let length = network_length(m);
-    let (mut lengths, mut sizes): (&[usize], &[usize]) = (&NETWORK_LENGTHS, &NETWORK_SIZES);
-    while let ([l, lengths_after @ ..], [c, sizes_after @ ..]) = (lengths, sizes) {
-        if *l == length {
-            return *c;
-        }
-        (lengths, sizes) = (lengths_after, sizes_after);
-    }
-    0
-}
-
-/// Most comparators of [`lower_third_lanes`] per value of the longest lane, over lanes of up
-/// to `m` values: `max C(k) / k` over `2 ≤ k ≤ min(m, RANK_MAX)`, rounded up, with `C`
-/// [`network_comparators_of`]. Lanes whose longest holds `k` values take `C(k)` comparators,
-/// each on every lane at once.
-pub const fn network_rate_bound(m: u64) -> u64 {
-    let top = if m < RANK_MAX as u64 {
-        m as usize
-    } else {
-        RANK_MAX
-    };
-    let mut rate = 0;
-    let mut k = 2;
-    while k <= top {
-        let per_value = network_comparators_of(k).div_ceil(k) as u64;
-        if per_value > rate {
-            rate = per_value;
-        }
-        k += 1;
-    }
-    rate
-}
-
-/// Orders the lowest third of each lane of the first `m` rows: afterwards rows
-/// `0 .. lower_third(network_length(m))` hold each lane's smallest values ascending, as a sort
-/// would (`v[i][lane]`: value `i` of the lane; no NaN, which [`network_value`] never makes; the
-/// rows from `m` to [`network_length`]`(m)` must hold `+∞`; the rows past the third are
-/// left in some order). A merge-exchange network pruned to those ranks, whose comparators do
-/// not depend on the data; returns how many it applied (each on every lane). The comparators
-/// come from a table built at compile time, so the loop is one pair of row indices, two
-/// loads, a vector minimum and maximum and two stores per comparator: where a feature's 20 to
-/// 30 values took the rank count about 2,000 instructions each, the network orders four of
-/// them in about 3,700 (on the liver, whose groups of four mostly pad to 32 or 40 rows).
-pub fn lower_third_lanes(v: &mut [[f32; NETWORK_LANES]; RANK_MAX], m: usize) -> u64 {
-    let network = network_of(m);
-    for &[i, j] in network {
-        exchange(v, usize::from(i), usize::from(j));
-    }
-    network.len() as u64
-}
-
-/// One comparator on every lane: the smaller value of rows `i` and `j` to `i`, the larger to
-/// `j`. On copies of whole rows, so that the compiler makes it a vector minimum and maximum;
-/// the indices taken modulo [`RANK_MAX`] (a power of two, and they are below it) so that no
-/// bounds check is left.
-#[inline(always)]
-fn exchange(v: &mut [[f32; NETWORK_LANES]; RANK_MAX], i: usize, j: usize) {
-    let (i, j) = (i % RANK_MAX, j % RANK_MAX);
-    let (Some(&x), Some(&y)) = (v.get(i), v.get(j)) else {
-        return;
-    };
-    let (mut low, mut high) = (x, y);
-    for ((lo, hi), (&a, &b)) in low.iter_mut().zip(high.iter_mut()).zip(x.iter().zip(&y)) {
-        if b < a {
-            (*lo, *hi) = (b, a);
-        }
-    }
-    if let Some(a) = v.get_mut(i) {
-        *a = low;
-    }
-    if let Some(b) = v.get_mut(j) {
-        *b = high;
-    }
 }
 
 /// Counts one key whose digit is the low [`RADIX_BITS`] bits of `digit`.
@@ -977,92 +760,57 @@ mod tests {
     }
 
     #[test]
-    fn the_network_orders_every_lanes_lowest_third_as_the_rank_count() {
-        for n in 0..=RANK_MAX {
-            let mut lanes = [[f32::INFINITY; NETWORK_LANES]; RANK_MAX];
-            let mut values = [[0.0f64; 64]; NETWORK_LANES];
-            for (lane, v) in values.iter_mut().enumerate() {
-                *v = shuffled(n, lane + n, lane % 2 == 1);
-                for (row, &x) in lanes.iter_mut().zip(v.iter()).take(n) {
-                    row[lane] = network_value(x);
-                }
+    fn radix_order_sorts_stably_in_its_steps() {
+        // Keys with long runs of duplicates, every byte of them in use, and the extremes.
+        for n in [0usize, 1, 2, 7, 300, 1000] {
+            let keys: [u32; 1000] = core::array::from_fn(|k| match k % 5 {
+                0 => 0,
+                1 => u32::MAX,
+                _ => (k as u32).wrapping_mul(2_654_435_761) >> (k % 3 * 8),
+            });
+            let keys = &keys[..n];
+            let (mut order, mut spare) = ([u32::MAX; 1000], [0u32; 1000]);
+            assert_eq!(
+                radix_order(keys, &mut order, &mut spare),
+                radix_order_steps(n as u64)
+            );
+            for w in order[..n].windows(2) {
+                let (a, b) = (keys[w[0] as usize], keys[w[1] as usize]);
+                assert!(a < b || (a == b && w[0] < w[1]), "{n}: {w:?}");
             }
-            let comparators = lower_third_lanes(&mut lanes, n);
-            // The padded network's comparators, fewer than the whole merge exchange's from 8
-            // on, within the bound per value of the lane.
-            assert_eq!(comparators, network_comparators_of(n) as u64);
-            let whole = network_comparators(network_length(n)) as u64;
-            assert!(
-                comparators <= whole && (n <= 4 || comparators < whole),
-                "{n}"
-            );
-            assert!(
-                comparators <= n as u64 * network_rate_bound(n as u64),
-                "{n}"
-            );
-            assert!(
-                comparators <= n as u64 * network_rate_bound(RANK_MAX as u64),
-                "{n}"
-            );
-            // Every rank of the lowest third, which holds every rank the tertile reads (one
-            // value is in place without a network).
-            let kept = lower_third(network_length(n).max(n));
-            for m in 1..=n {
-                assert!(quantile_index(m, 1.0 / 3.0) < kept, "{m} of {n}");
-            }
-            for (lane, v) in values.iter().enumerate() {
-                for k in 0..n.min(kept) {
-                    let (expected, _) = select_rounded(&mut { *v }[..n], k, &mut []);
-                    let got: f64 = from_network_value(lanes[k][lane]);
-                    assert!(
-                        same_in_order(got, expected),
-                        "n {n} lane {lane} rank {k}: {got} against {expected}"
-                    );
-                    if expected.is_finite() {
-                        assert_eq!(got.to_bits(), (expected + 0.0).to_bits());
-                    }
-                }
+            // A permutation: every index once.
+            let mut seen = [false; 1000];
+            for &k in &order[..n] {
+                assert!(!seen[k as usize]);
+                seen[k as usize] = true;
             }
         }
+        // Buffers too short: nothing written.
+        let mut short = [7u32; 2];
+        assert_eq!(radix_order(&[3, 2, 1], &mut short, &mut [0; 3]), 0);
+        assert_eq!(short, [7, 7]);
     }
 
     #[test]
-    fn the_short_networks_order_the_lowest_third_of_every_sequence_of_zeros_and_ones() {
-        // The 0–1 principle (Knuth 5.3.4, exercises 11 and 16, for selection networks too):
-        // a comparator network puts the lowest ranks of every input in place if it does so
-        // for every input of zeros and ones; all 2¹⁶ inputs of the lengths up to 16, four to
-        // a row. The longer networks are checked on shuffles above.
-        for &length in NETWORK_LENGTHS.iter().filter(|&&l| l <= 16) {
-            for first in (0u32..1 << length).step_by(NETWORK_LANES) {
-                let mut lanes = [[f32::INFINITY; NETWORK_LANES]; RANK_MAX];
-                for lane in 0..NETWORK_LANES {
-                    let bits = first + lane as u32;
-                    for (i, row) in lanes.iter_mut().take(length).enumerate() {
-                        row[lane] = ((bits >> i) & 1) as f32;
-                    }
-                }
-                lower_third_lanes(&mut lanes, length);
-                for lane in 0..NETWORK_LANES {
-                    let ones = (first + lane as u32).count_ones() as usize;
-                    for (i, row) in lanes.iter().take(lower_third(length)).enumerate() {
-                        let expected = if i < length - ones { 0.0 } else { 1.0 };
-                        assert_eq!(row[lane], expected, "length {length} input {first}+{lane}");
-                    }
-                }
-            }
-        }
-    }
-
-    #[test]
-    fn the_rate_bound_bounds_selections_on_parts() {
-        // Every part size up to 2,000 against the rate of the largest: Σ S(mᵢ) ≤ rate · Σ mᵢ
-        // follows from S(m) ≤ rate(M) · m for m ≤ M.
-        for largest in 1..2000u64 {
-            for m in 1..=largest {
+    fn single_values_sorted_as_keys_give_the_selections_ranks() {
+        // Non-negative values (the detector's slopes), duplicates and `+∞` among them: the
+        // rank `k` of their `single_value` bits, ordered by `radix_order`, is the value
+        // `select_rounded` finds.
+        for n in 1..=64 {
+            let v = shuffled(n, n, n % 3 == 0).map(|x: f64| if x.is_nan() { x } else { x.abs() });
+            let keys: [u32; 64] = core::array::from_fn(|k| single_value(v[k]).to_bits());
+            let (mut order, mut spare) = ([0u32; 64], [0u32; 64]);
+            radix_order(&keys[..n], &mut order, &mut spare);
+            for k in 0..n {
+                let (expected, _) = select_rounded(&mut { v }[..n], k, &mut []);
+                let got: f64 = from_single_value(f32::from_bits(keys[order[k] as usize]));
                 assert!(
-                    select_bound(m) <= select_rate_bound(largest) * m,
-                    "{m} {largest}"
+                    same_in_order(got, expected),
+                    "n {n} rank {k}: {got} against {expected}"
                 );
+                if expected.is_finite() {
+                    assert_eq!(got.to_bits(), (expected + 0.0).to_bits());
+                }
             }
         }
     }

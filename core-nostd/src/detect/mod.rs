@@ -247,36 +247,23 @@ pub struct DetectionWork {
 }
 
 impl DetectionWork {
-    /// The most work of one frame with `features` feature slots, `pairs` pairs and `degree`
-    /// pairs at most per feature (at most `pairs`):
-    /// - feature visits `9 n`: the temporal filter's four passes (two without filtering), the
-    ///   per-feature levels' four (the features past [`crate::robust::RANK_MAX`] pairs, then
-    ///   the groups of the network: their longest list, the slopes gathered, the tertiles read
-    ///   back), and the outlier counts' reset;
-    /// - pair visits `7 P`: the temporal filter's pairs, the differences, the pairs' slopes,
-    ///   the per-feature lists (`2 P`), outliers, persistence;
+    /// The most work of one frame with `features` feature slots and `pairs` pairs:
+    /// - feature visits `7 n`: the temporal filter's four passes (two without filtering), the
+    ///   per-feature tertiles' two (the counts reset; the ranks set and the slopes cleared),
+    ///   and the outlier counts' reset;
+    /// - pair visits `6 P`: the temporal filter's pairs, the differences, the pairs' slopes,
+    ///   the walk in order of slope, outliers, persistence;
     /// - selection steps: the median and MAD of the changes (`2 S(n)`) and of the differences
     ///   (`2 S(P)`), with `S(m)` the bound of one selection ([`crate::robust::select_bound`]),
-    ///   and each feature's lower tertile over its `dᵢ` pairs (`≤ r · 2P` as `Σ dᵢ = 2P`,
-    ///   with `r` the most steps per value of the two ways it is found: four features at a
-    ///   time by a sorting network pruned to the lowest third, one step per comparator for the four,
-    ///   [`crate::robust::network_rate_bound`]`(2P)` per value of the four's longest list
-    ///   (at most 10); or alone, past [`crate::robust::RANK_MAX`] pairs, by a selection,
-    ///   [`crate::robust::select_rate_bound`]`(2P)` per value).
+    ///   and the pairs ordered by slope ([`crate::robust::radix_order_steps`]`(P)`).
     pub const fn bound(features: u64, pairs: u64) -> DetectionWork {
-        use crate::robust::{network_rate_bound, select_bound, select_rate_bound};
-        let (selected, networked) = (select_rate_bound(2 * pairs), network_rate_bound(2 * pairs));
-        let tertile_rate = if selected > networked {
-            selected
-        } else {
-            networked
-        };
+        use crate::robust::{radix_order_steps, select_bound};
         DetectionWork {
-            feature_visits: 9 * features,
-            pair_visits: 7 * pairs,
+            feature_visits: 7 * features,
+            pair_visits: 6 * pairs,
             selection_steps: 2 * select_bound(features)
                 + 2 * select_bound(pairs)
-                + tertile_rate * 2 * pairs,
+                + radix_order_steps(pairs),
         }
     }
 

@@ -6,8 +6,8 @@ use crate::error::{Error, Resource};
 use crate::features::{image_bounds, spacing_px};
 use crate::real::Real;
 use crate::robust::{
-    KEY_WORDS, MAD_TO_SIGMA, NETWORK_LANES, RANK_MAX, from_network_value, lower_third_lanes,
-    median_mad_of, network_length, network_value, quantile_index, quantile_of,
+    KEY_WORDS, MAD_TO_SIGMA, from_single_value, median_mad_of, quantile_index, radix_order,
+    single_value,
 };
 use crate::storage::{Slab, sum, times};
 
@@ -40,9 +40,9 @@ pub struct Detector<'a, T> {
     feature_state: &'a mut [u32],
     /// Per feature, this frame: measured pairs and outlier pairs.
     pair_counts: &'a mut [[u32; 2]],
-    /// Per feature, the pairs it belongs to (`incident[incident_start[i]..incident_start[i + 1]]`).
-    incident_start: &'a mut [u32],
-    incident: &'a mut [u32],
+    /// The pairs in ascending order of their slopes this frame (`order[..n_pairs]`), and the
+    /// radix sort's second buffer (`order[n_pairs..2 n_pairs]`).
+    order: &'a mut [u32],
     /// Per pair, this frame: `μ_ij`, or [`UNMEASURED`].
     difference: &'a mut [T],
     /// Per feature, this frame: the smooth part of the residual field around it, as a
@@ -166,8 +166,6 @@ impl<'a, T: Real> Detector<'a, T> {
             times(3, features),
             GRID_CELLS + 1,
             features,
-            features,
-            1,
             times(3, pairs),
             times(KEY_WORDS, larger(features, pairs)),
         ])
@@ -190,8 +188,7 @@ impl<'a, T: Real> Detector<'a, T> {
             feature_state: indices.take(features)?,
             pair_counts: indices.take(times(2, features))?.as_chunks_mut::<2>().0,
             grid: indices.take(sum(&[GRID_CELLS + 1, features]))?,
-            incident_start: indices.take(sum(&[features, 1]))?,
-            incident: indices.take(times(2, pairs))?,
+            order: indices.take(times(2, pairs))?,
             previous: reals.take(times(2, features))?.as_chunks_mut::<2>().0,
             current: reals.take(times(2, features))?.as_chunks_mut::<2>().0,
             difference: reals.take(pairs)?,
@@ -221,8 +218,7 @@ impl<'a, T: Real> Detector<'a, T> {
         h.reals(self.current.iter().flatten());
         h.words(self.feature_state.iter());
         h.words(self.pair_counts.iter().flatten());
-        h.words(self.incident_start.iter());
-        h.words(self.incident.iter());
+        h.words(self.order.iter());
         h.reals(self.difference.iter());
         h.reals(self.length.iter());
         h.reals(self.slope.iter());
@@ -346,7 +342,7 @@ impl<'a, T: Real> Detector<'a, T> {
             .feature_state
             .len()
             .min(self.previous.len())
-            .min(self.incident_start.len().saturating_sub(1));
+            .min(self.pair_counts.len());
         if n > slots || d.len() != n {
             return Err(Error::Capacity {
                 resource: Resource::Features,
@@ -472,30 +468,6 @@ impl<'a, T: Real> Detector<'a, T> {
                 *n_pairs += 1;
             }
         });
-        // Each feature's pairs, by counting sort (`n` was checked against the buffers above,
-        // the pairs' slots are below `n`, and `incident` holds two per pair).
-        let start = self.incident_start.get_mut(..=n).unwrap_or_default();
-        start.fill(0);
-        let pairs = self.pairs.get(..self.n_pairs).unwrap_or_default();
-        for &[i, j] in pairs {
-            for f in [i, j] {
-                if let Some(c) = start.get_mut(f as usize + 1) {
-                    *c += 1;
-                }
-            }
-        }
-        accumulate(start);
-        for (k, &[i, j]) in pairs.iter().enumerate() {
-            for f in [i, j] {
-                if let Some(slot) = start.get_mut(f as usize) {
-                    if let Some(entry) = self.incident.get_mut(*slot as usize) {
-                        *entry = k as u32;
-                    }
-                    *slot += 1;
-                }
-            }
-        }
-        ends_to_starts(start);
         for ((previous, state), &di) in self
             .previous
             .iter_mut()
@@ -523,7 +495,7 @@ impl<'a, T: Real> Detector<'a, T> {
             .min(observed.len())
             .min(targets.len())
             .min(self.feature_state.len())
-            .min(self.incident_start.len().saturating_sub(1));
+            .min(self.pair_counts.len());
         let mut work = DetectionWork::default();
         let newly_filtered = self.temporal_filter(d, observed, n, config, &mut work);
         let (active, median, deviation) = self.measure_pairs(newly_filtered, targets, n, &mut work);

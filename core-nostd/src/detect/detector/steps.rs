@@ -201,6 +201,7 @@ impl<'a, T: Real> Detector<'a, T> {
             };
         }
         self.pairs_lost += lost;
+        work.pair_visits += np as u64;
         // Every pair in use takes part, an unmeasured one as `+∞` behind the measured ones:
         // the selections cost as much in every frame of a topology, however many pairs are
         // measured, and the median and MAD are those of the measured pairs.
@@ -210,119 +211,81 @@ impl<'a, T: Real> Detector<'a, T> {
             self.keys,
         );
         work.selection_steps += steps;
-        // Each feature's lower tertile of its pairs' slopes `μ / length` (an unmeasured pair
-        // taking part as `+∞`, so that the work is that of the topology, however many pairs
-        // are measured). `incident_start` holds `n + 1` ascending starts into `incident`,
-        // whose entries are pair indices below `n_pairs`.
-        let incident_start = &*self.incident_start;
-        let incident = &*self.incident;
-        let incident_of = |f: usize| match (incident_start.get(f), incident_start.get(f + 1)) {
-            (Some(&lo), Some(&hi)) => incident.get(lo as usize..hi as usize).unwrap_or_default(),
-            _ => &[],
-        };
-        let networked = |f: usize| incident_of(f).len() <= RANK_MAX;
-        // First the features with more than [`RANK_MAX`] pairs, each selected alone (with
-        // `scratch` and `keys` as its selection's room, before `keys` holds the slopes).
-        for f in (0..n).filter(|&f| !networked(f)) {
-            let incident = incident_of(f);
-            let mut m = 0;
-            for &k in incident {
-                if let (Some(slope), Some(slot)) = (
-                    slope_of(self.difference, self.length, k),
-                    self.scratch.get_mut(m),
-                ) {
-                    *slot = slope;
-                    m += 1;
-                }
-            }
-            let (tertile, steps) = quantile_of(
-                self.scratch.get_mut(..incident.len()).unwrap_or_default(),
-                m,
-                T::of(1.0 / 3.0),
-                self.keys,
-            );
-            work.pair_visits += incident.len() as u64;
-            work.selection_steps += steps;
-            if let Some(slope) = self.slope.get_mut(f) {
-                *slope = if m >= 3 { tertile } else { T::zero() };
-            }
-        }
-        // Then every pair's slope as the network orders it ([`network_value`], `+∞` while
-        // unmeasured), in `keys`, computed once per pair rather than once for each of its two
-        // features; `keys` holds a word for each of the `n_pairs` pairs.
+        // Each feature's lower tertile of its pairs' slopes `μ / ℓ`, rounded to single
+        // precision as the selections round ([`single_value`]): the pairs are walked once in
+        // ascending order of slope, and a feature's tertile is the slope of its pair of rank
+        // `⌊(m − 1)/3⌋` among its `m` measured ones (unmeasured pairs order last, as `+∞`).
+        // Every pair takes part, so that the work is that of the topology, however many
+        // pairs are measured.
+        //
+        // First each pair's slope as a key (the bits of a non-negative `f32` order as the
+        // values do) in `keys`, which holds a word for each of the `n_pairs` pairs, and each
+        // feature's measured pairs counted in its `pair_counts` (which the outlier step
+        // resets for its own counts).
         let np = self.n_pairs;
+        let counts = self.pair_counts.get_mut(..n).unwrap_or_default();
+        for c in counts.iter_mut() {
+            *c = [0, 0];
+        }
+        let infinite = f32::INFINITY.to_bits();
+        let pairs = self.pairs.get(..np).unwrap_or_default();
         let slopes = self
             .difference
             .get(..np)
             .unwrap_or_default()
             .iter()
             .zip(self.length.get(..np).unwrap_or_default());
-        for (key, (&mu, &length)) in self.keys.iter_mut().zip(slopes) {
+        for ((key, &[i, j]), (&mu, &length)) in self.keys.iter_mut().zip(pairs).zip(slopes) {
             *key = if mu >= T::zero() {
-                network_value(mu / length.max(T::EPS)).to_bits()
+                single_value(mu / length.max(T::EPS)).to_bits()
             } else {
-                f32::INFINITY.to_bits()
+                infinite
             };
-        }
-        work.pair_visits += self.n_pairs as u64;
-        // The other features [`NETWORK_LANES`] at a time, one to a lane of a sorting network
-        // as long as the most pairs among them, pruned to the lowest third of its ranks
-        // ([`lower_third_lanes`]). A measured slope is finite ([`network_value`] of a finite
-        // value), so a lane's measured pairs are its values below `+∞`.
-        let keys = &*self.keys;
-        let mut rows = [[f32::INFINITY; NETWORK_LANES]; RANK_MAX];
-        for first in (0..n).step_by(NETWORK_LANES) {
-            let group = first..(first + NETWORK_LANES).min(n);
-            let used = group
-                .clone()
-                .filter(|&f| networked(f))
-                .map(|f| incident_of(f).len())
-                .max()
-                .unwrap_or(0);
-            for row in rows.iter_mut().take(network_length(used)) {
-                *row = [f32::INFINITY; NETWORK_LANES];
-            }
-            let mut measured = [0usize; NETWORK_LANES];
-            for ((lane, f), slot) in group.clone().enumerate().zip(measured.iter_mut()) {
-                if !networked(f) {
-                    continue;
-                }
-                // `lane` below `NETWORK_LANES` (the zip with `measured` stops there), so the
-                // row's slot is found with no test.
-                let lane = lane % NETWORK_LANES;
-                let mut m = 0;
-                for (row, &k) in rows.iter_mut().zip(incident_of(f)) {
-                    let value = keys
-                        .get(k as usize)
-                        .map_or(f32::INFINITY, |&key| f32::from_bits(key));
-                    if let Some(x) = row.get_mut(lane) {
-                        *x = value;
+            // A finite slope is a measured pair's (whose slots are below `n`).
+            if *key < infinite {
+                for f in [i, j] {
+                    if let Some(c) = counts.get_mut(f as usize) {
+                        c[0] += 1;
                     }
-                    m += usize::from(value < f32::INFINITY);
-                }
-                *slot = m;
-            }
-            // The group's comparators counted once: each is one vector step on every lane.
-            work.selection_steps += lower_third_lanes(&mut rows, used);
-            for (lane, f) in group.enumerate() {
-                if !networked(f) {
-                    continue;
-                }
-                let m = measured.get(lane).copied().unwrap_or(0);
-                let tertile = rows
-                    .get(quantile_index(m, T::of(1.0 / 3.0)))
-                    .and_then(|row| row.get(lane))
-                    .map_or(T::zero(), |&x| from_network_value(x));
-                work.pair_visits += incident_of(f).len() as u64;
-                if let Some(slope) = self.slope.get_mut(f) {
-                    *slope = if m >= 3 { tertile } else { T::zero() };
                 }
             }
         }
-        work.pair_visits += self.n_pairs as u64;
-        // The features past `RANK_MAX` pairs looked for, then the groups' three passes (their
-        // longest list, the gathering of the slopes, the tertiles read back).
-        work.feature_visits += 4 * n as u64;
+        // Each feature's rank to find (none below three measured pairs, whose slope is zero)
+        // in its first count, the pairs of it seen so far in its second.
+        let slopes_out = self.slope.get_mut(..n).unwrap_or_default();
+        for (c, slope) in counts.iter_mut().zip(slopes_out.iter_mut()) {
+            let m = c[0] as usize;
+            c[0] = if m >= 3 {
+                quantile_index(m, T::of(1.0 / 3.0)) as u32
+            } else {
+                u32::MAX
+            };
+            *slope = T::zero();
+        }
+        // The pairs in ascending order of slope, in the first half of `order` (the second is
+        // the sort's other buffer).
+        let keys = self.keys.get(..np).unwrap_or_default();
+        let (order, spare) = self.order.split_at_mut(np.min(self.order.len()));
+        work.selection_steps += radix_order(keys, order, spare);
+        for &k in &*order {
+            let (Some(&key), Some(&[i, j])) = (keys.get(k as usize), pairs.get(k as usize)) else {
+                continue;
+            };
+            for f in [i, j] {
+                if let (Some(c), Some(slope)) =
+                    (counts.get_mut(f as usize), slopes_out.get_mut(f as usize))
+                {
+                    if c[1] == c[0] {
+                        *slope = from_single_value(f32::from_bits(key));
+                    }
+                    c[1] += 1;
+                }
+            }
+        }
+        // The slopes and the walk.
+        work.pair_visits += 2 * np as u64;
+        // The counts' reset, and the ranks and slopes set.
+        work.feature_visits += 2 * n as u64;
         (active, median, T::of(MAD_TO_SIGMA) * mad)
     }
 
@@ -485,13 +448,5 @@ impl<'a, T: Real> Detector<'a, T> {
         self.n_split = n_split;
         work.pair_visits += self.n_pairs as u64;
         split
-    }
-}
-
-/// Pair `k`'s slope `μ / length`, or none while it is unmeasured (`μ < 0`).
-fn slope_of<T: Real>(difference: &[T], length: &[T], k: u32) -> Option<T> {
-    match (difference.get(k as usize), length.get(k as usize)) {
-        (Some(&mu), Some(&length)) if mu >= T::zero() => Some(mu / length.max(T::EPS)),
-        _ => None,
     }
 }
