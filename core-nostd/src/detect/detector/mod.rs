@@ -53,8 +53,9 @@ pub struct Detector<'a, T> {
     /// Sort space for the robust statistics.
     scratch: &'a mut [T],
     /// Key space of their radix selections ([`crate::robust::select_rounded`]): as many
-    /// values as `scratch`, [`KEY_WORDS`] words each. Free once the selections of a frame are
-    /// done, it then holds the split pairs' indices, ascending (`keys[..n_split]`, written by
+    /// values as `scratch`, [`KEY_WORDS`] words each. Once the selections of a frame are done
+    /// it holds the pairs' slopes as keys for the tertiles' sort, and then the split pairs'
+    /// indices, ascending (`keys[..n_split]`, written by
     /// the last step): the cut line looks for the split pairs near a vertex several times a
     /// frame, and scans those alone instead of every pair ([`SplitPairs`]).
     keys: &'a mut [u32],
