@@ -7,7 +7,7 @@
 //! follow them. Both need one value of known rank, not the whole order, and
 //! [`select_rounded`] finds it, rounded to single precision (a noise level needs no more; see
 //! there), in one of three ways, each doing the same work whatever the data:
-//! - on up to [`RANK_MAX`] values (a feature's neighbour pairs) by counting, for every value,
+//! - on up to [`RANK_MAX`] values by counting, for every value,
 //!   the values below it: `m²` comparisons of 32-bit integer keys, four at a time, no branch;
 //! - on more, but fewer than [`RADIX_MIN`] (or without room for keys), with a heap of the `h`
 //!   values nearest that end (`h` at most half the values): at most `2 n ⌈log₂ n⌉`
@@ -114,9 +114,9 @@ pub const KEY_WORDS: usize = 1;
 /// Values up to which [`select_rounded`] finds a rank by counting, for each value, the
 /// values below it: `m²` comparisons of integer keys, four to a vector
 /// (SSE2's `pcmpgtd`), with no branch on the data; the keys are held in an array of this
-/// many on the stack. On a feature's 20 to 30 pairs this takes about as many instructions as
-/// the heap on order keys it replaced (on the liver, about 2,000 a tertile), whose
-/// comparisons (`2 m ⌈log₂ m⌉`) each branched on the data and swapped.
+/// many on the stack. On 20 to 30 values this took about as many instructions as the heap on
+/// order keys it replaced (about 2,000 a selection), whose comparisons (`2 m ⌈log₂ m⌉`) each
+/// branched on the data and swapped.
 pub const RANK_MAX: usize = 64;
 
 /// Lanes of the rank count: the keys are padded to a multiple of this many.
@@ -134,6 +134,23 @@ pub const fn select_bound(n: u64) -> u64 {
     } else {
         radix_steps(n)
     }
+}
+
+/// Most steps [`select_rounded`] makes on any number of values up to `n`: [`select_bound`] is
+/// not monotone (the rank count on 64 values takes more steps than the heap on 65, the heap on
+/// 299 more than the radix on 300), and a caller that selects among the slots it has in use
+/// is bounded by its capacity through this envelope. `select_bound` rises within each of its
+/// three ranges, so the largest over `0..=n` is that at `n` or at the end of a range below it.
+pub const fn select_bound_up_to(n: u64) -> u64 {
+    let (rank_end, heap_end) = (RANK_MAX as u64, RADIX_MIN as u64 - 1);
+    let mut most = select_bound(n);
+    if n > rank_end && select_bound(rank_end) > most {
+        most = select_bound(rank_end);
+    }
+    if n > heap_end && select_bound(heap_end) > most {
+        most = select_bound(heap_end);
+    }
+    most
 }
 
 /// Comparisons of the rank count on `n` values: each against the padded `n`.
@@ -237,7 +254,8 @@ fn from_single_key<T: Real>(key: u32) -> T {
 /// [`RADIX_MIN`] on by radix, between the two (or without room for keys) with a heap. `v`
 /// may be reordered.
 ///
-/// Why rounded: the detector's medians, deviations and tertiles are noise levels, for which
+/// Why rounded: the detector's medians and deviations (and its tertiles, which
+/// [`single_value`] rounds alike) are noise levels, for which
 /// a relative 6·10⁻⁸ is nothing, and a 32-bit key halves the radix's passes and its storage
 /// against a 64-bit one and lets the rank count compare four keys at once.
 pub fn select_rounded<T: Real>(v: &mut [T], k: usize, keys: &mut [u32]) -> (T, u64) {
@@ -345,7 +363,10 @@ pub const fn radix_order_steps(n: u64) -> u64 {
 /// stack.
 pub fn radix_order(keys: &[u32], order: &mut [u32], spare: &mut [u32]) -> u64 {
     let n = keys.len();
-    let (Some(order), Some(spare)) = (order.get_mut(..n), spare.get_mut(..n)) else {
+    // The indices and the counts are `u32`: more keys than they count are refused too.
+    let (Some(order), Some(spare), Ok(last)) =
+        (order.get_mut(..n), spare.get_mut(..n), u32::try_from(n))
+    else {
         return 0;
     };
     let [mut now, mut next] = [[0u32; RADIX_BINS]; 2];
@@ -353,8 +374,7 @@ pub fn radix_order(keys: &[u32], order: &mut [u32], spare: &mut [u32]) -> u64 {
         count(&mut now, key);
     }
     // From the identity into `spare`, then back and forth; the fourth pass ends in `order`.
-    // The indices fit `u32`: the callers' buffers hold at most `u32::MAX` pairs.
-    scatter_by_digit(keys, 0..n as u32, 0, &mut now, &mut next, spare);
+    scatter_by_digit(keys, 0..last, 0, &mut now, &mut next, spare);
     scatter_by_digit(keys, spare.iter().copied(), 1, &mut next, &mut now, order);
     scatter_by_digit(keys, order.iter().copied(), 2, &mut now, &mut next, spare);
     scatter_by_digit(keys, spare.iter().copied(), 3, &mut next, &mut now, order);
@@ -363,7 +383,7 @@ pub fn radix_order(keys: &[u32], order: &mut [u32], spare: &mut [u32]) -> u64 {
 
 /// One pass of [`radix_order`]: the indices of `from`, in that order, to `to` by their keys'
 /// digit `digit` (from the lowest), whose counts `counts` holds on entry; counts digit
-/// `digit + 1` of the same keys into `next` (emptied first).
+/// `digit + 1` of the same keys into `next` (emptied first), if the keys have one.
 fn scatter_by_digit(
     keys: &[u32],
     from: impl Iterator<Item = u32>,
@@ -379,6 +399,7 @@ fn scatter_by_digit(
     }
     next.fill(0);
     let shift = digit * RADIX_BITS;
+    let counting = shift + RADIX_BITS < u32::BITS;
     for k in from {
         // `k` indexes `keys` (the indices moved are those of `keys`).
         let key = keys.get(k as usize).copied().unwrap_or(0);
@@ -388,7 +409,9 @@ fn scatter_by_digit(
             }
             *slot += 1;
         }
-        count(next, key.checked_shr(shift + RADIX_BITS).unwrap_or(0));
+        if counting {
+            count(next, key.checked_shr(shift + RADIX_BITS).unwrap_or(0));
+        }
     }
 }
 
@@ -785,10 +808,26 @@ mod tests {
                 seen[k as usize] = true;
             }
         }
-        // Buffers too short: nothing written.
+        // Either buffer too short: nothing written.
         let mut short = [7u32; 2];
         assert_eq!(radix_order(&[3, 2, 1], &mut short, &mut [0; 3]), 0);
         assert_eq!(short, [7, 7]);
+        let mut order = [7u32; 3];
+        assert_eq!(radix_order(&[3, 2, 1], &mut order, &mut [0; 2]), 0);
+        assert_eq!(order, [7, 7, 7]);
+    }
+
+    #[test]
+    fn the_envelope_bounds_every_selection_up_to_its_count() {
+        // `select_bound` falls where the rank count gives way to the heap (64 → 65) and the
+        // heap to the radix (299 → 300); the envelope bounds every count up to its own.
+        assert!(select_bound(65) < select_bound(64));
+        assert!(select_bound(300) < select_bound(299));
+        let mut most = 0;
+        for n in 0..5000u64 {
+            most = most.max(select_bound(n));
+            assert_eq!(select_bound_up_to(n), most, "{n}");
+        }
     }
 
     #[test]
@@ -796,8 +835,24 @@ mod tests {
         // Non-negative values (the detector's slopes), duplicates and `+∞` among them: the
         // rank `k` of their `single_value` bits, ordered by `radix_order`, is the value
         // `select_rounded` finds.
+        // Besides the shuffles' integers: a subnormal, values past `f32`'s range, and values
+        // that single precision rounds together.
+        let odd = [
+            1e-310,
+            4e38,
+            1e300,
+            1.0 + 1e-12,
+            1.0,
+            1.0 - 1e-12,
+            0.1,
+            0.1 + 1e-17,
+        ];
         for n in 1..=64 {
-            let v = shuffled(n, n, n % 3 == 0).map(|x: f64| if x.is_nan() { x } else { x.abs() });
+            let mut v =
+                shuffled(n, n, n % 3 == 0).map(|x: f64| if x.is_nan() { x } else { x.abs() });
+            for (k, &x) in odd.iter().enumerate().filter(|&(k, _)| n > 8 && k < n / 8) {
+                v[(k * 5 + n) % n] = x;
+            }
             let keys: [u32; 64] = core::array::from_fn(|k| single_value(v[k]).to_bits());
             let (mut order, mut spare) = ([0u32; 64], [0u32; 64]);
             radix_order(&keys[..n], &mut order, &mut spare);

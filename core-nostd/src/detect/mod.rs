@@ -238,11 +238,12 @@ pub struct DetectionReport<T> {
 pub struct DetectionWork {
     /// Feature visits (temporal filter, per-feature statistics).
     pub feature_visits: u64,
-    /// Pair visits (differences, thresholds, persistence).
+    /// Pair visits (the temporal filter's pairs, differences, slopes, the walk in order of
+    /// slope, thresholds, persistence).
     pub pair_visits: u64,
-    /// Steps of the robust statistics' selections ([`crate::robust::select_rounded`]:
+    /// Steps of the robust statistics: the selections' ([`crate::robust::select_rounded`]:
     /// comparisons of its rank count or heap on few values, visits of its radix passes on
-    /// many).
+    /// many) and the sort of the pairs' slopes ([`crate::robust::radix_order`]).
     pub selection_steps: u64,
 }
 
@@ -254,15 +255,16 @@ impl DetectionWork {
     /// - pair visits `6 P`: the temporal filter's pairs, the differences, the pairs' slopes,
     ///   the walk in order of slope, outliers, persistence;
     /// - selection steps: the median and MAD of the changes (`2 S(n)`) and of the differences
-    ///   (`2 S(P)`), with `S(m)` the bound of one selection ([`crate::robust::select_bound`]),
-    ///   and the pairs ordered by slope ([`crate::robust::radix_order_steps`]`(P)`).
+    ///   (`2 S(P)`), with `S(m)` the most steps of one selection among at most `m` values
+    ///   ([`crate::robust::select_bound_up_to`]: the slots in use, however few), and the pairs
+    ///   ordered by slope ([`crate::robust::radix_order_steps`]`(P)`).
     pub const fn bound(features: u64, pairs: u64) -> DetectionWork {
-        use crate::robust::{radix_order_steps, select_bound};
+        use crate::robust::{radix_order_steps, select_bound_up_to};
         DetectionWork {
             feature_visits: 7 * features,
             pair_visits: 6 * pairs,
-            selection_steps: 2 * select_bound(features)
-                + 2 * select_bound(pairs)
+            selection_steps: 2 * select_bound_up_to(features)
+                + 2 * select_bound_up_to(pairs)
                 + radix_order_steps(pairs),
         }
     }

@@ -113,7 +113,9 @@ impl<T: Real> InversionBarrier<T> {
 
     /// Adds the element's barrier energy to `energy` and its stress `ψ'(J) cof F` to `p` (zeros
     /// at or above the floor), `h` as in [`InversionBarrier::element_energy`]: for a gradient
-    /// formed once from the element's whole stress.
+    /// formed once from the element's whole stress. Inlined always, as the other kernels of a
+    /// gradient-only assembly are.
+    #[inline(always)]
     pub(crate) fn add_element_stress(
         &self,
         volume: T,

@@ -267,7 +267,9 @@ pub(crate) fn element_gradient_of_h<T: Real>(
 }
 
 /// Element gradient `∂W/∂x_a = V P g_a` (N) of the stress `p`, the node-0 entry
-/// `−(f_1 + f_2 + f_3)` as in [`element_gradient`].
+/// `−(f_1 + f_2 + f_3)` as in [`element_gradient`]. Inlined always, as the kernels of a
+/// gradient-only assembly are (see [`Law::element_energy_stress_of_h`]).
+#[inline(always)]
 pub(crate) fn element_gradient_of_stress<T: Real>(
     volume: T,
     p: &Matrix3<T>,

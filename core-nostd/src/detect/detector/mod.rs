@@ -9,6 +9,8 @@ use crate::robust::{
     KEY_WORDS, MAD_TO_SIGMA, from_single_value, median_mad_of, quantile_index, radix_order,
     single_value,
 };
+#[cfg(all(test, feature = "f64"))]
+use crate::robust::{RANK_MAX, quantile_of};
 use crate::storage::{Slab, sum, times};
 
 const STREAK: u32 = 0xff;
@@ -38,7 +40,8 @@ pub struct Detector<'a, T> {
     previous: &'a mut [[T; 2]],
     current: &'a mut [[T; 2]],
     feature_state: &'a mut [u32],
-    /// Per feature, this frame: measured pairs and outlier pairs.
+    /// Per feature, this frame: measured pairs and outlier pairs (set by the outlier step;
+    /// before it, the tertiles' walk holds each feature's rank to find and its pairs seen).
     pair_counts: &'a mut [[u32; 2]],
     /// The pairs in ascending order of their slopes this frame (`order[..n_pairs]`), and the
     /// radix sort's second buffer (`order[n_pairs..2 n_pairs]`).
@@ -219,7 +222,6 @@ impl<'a, T: Real> Detector<'a, T> {
         h.reals(self.current.iter().flatten());
         h.words(self.feature_state.iter());
         h.words(self.pair_counts.iter().flatten());
-        h.words(self.order.iter());
         h.reals(self.difference.iter());
         h.reals(self.length.iter());
         h.reals(self.slope.iter());

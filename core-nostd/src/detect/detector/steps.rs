@@ -266,8 +266,12 @@ impl<'a, T: Real> Detector<'a, T> {
         // the sort's other buffer).
         let keys = self.keys.get(..np).unwrap_or_default();
         let (order, spare) = self.order.split_at_mut(np.min(self.order.len()));
-        work.selection_steps += radix_order(keys, order, spare);
-        for &k in &*order {
+        let sorted = radix_order(keys, order, spare);
+        work.selection_steps += sorted;
+        // No steps: `order` or its spare half too short for the pairs (never, as the storage
+        // is carved), and no order to walk: the slopes stay zero.
+        let order = if sorted > 0 { &*order } else { &[] };
+        for &k in order {
             let (Some(&key), Some(&[i, j])) = (keys.get(k as usize), pairs.get(k as usize)) else {
                 continue;
             };

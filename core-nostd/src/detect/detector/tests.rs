@@ -257,3 +257,79 @@ fn too_many_pairs_is_a_capacity_error() {
     ));
     assert!(det.pairs().is_empty());
 }
+
+#[test]
+fn each_features_tertile_is_its_measured_slopes_own() {
+    // An 11 × 11 grid 10 px apart paired within 46 px: the nine middle features have 65 to
+    // 68 pairs (what the selections once took apart from the others), the corners 21.
+    // Residuals that differ from feature to feature, the last row unobserved (its pairs
+    // unmeasured), and feature 0 too, so that it has no measured pair at all.
+    let (side, n) = (11usize, 121usize);
+    let uv = grid(side, 10.0);
+    let config = DetectionConfig {
+        radius_px: 46.0,
+        ..DetectionConfig::paper()
+    };
+    let mut observed = [1u32; 400];
+    for (k, o) in observed.iter_mut().enumerate().take(n) {
+        if k == 0 || k >= n - side {
+            *o = 0;
+        }
+    }
+    let residual = |k: usize, frame: usize| {
+        let x = (k * 7 + frame * 3) as f64;
+        [
+            1.5 * libm::sin(x * 1.3) + 0.02 * uv[k][0],
+            libm::cos(x * 0.7),
+        ]
+    };
+    let mut s = store();
+    let mut det = detector(&mut s, n, 2800);
+    let d0: [[f64; 2]; 400] = core::array::from_fn(|k| residual(k, 0));
+    det.init(&uv[..n], &d0[..n], &config).unwrap();
+    let degree = |f: usize| {
+        det.pairs()
+            .iter()
+            .filter(|p| p.contains(&(f as u32)))
+            .count()
+    };
+    assert!(
+        (0..n).any(|f| degree(f) > RANK_MAX),
+        "a feature past 64 pairs"
+    );
+    for frame in 1..4 {
+        let d: [[f64; 2]; 400] = core::array::from_fn(|k| residual(k, frame));
+        det.update(frame as u32, &d[..n], &observed[..n], &uv[..n], &config);
+        let mut measured_somewhere = false;
+        let mut most_m = 0;
+        for f in 0..n {
+            let mut slopes = [0.0f64; 144];
+            let mut m = 0;
+            for (k, pair) in det.pairs().iter().enumerate() {
+                let mu = det.difference[k];
+                if pair.contains(&(f as u32)) && mu >= 0.0 {
+                    slopes[m] = mu / det.length[k].max(f64::EPSILON);
+                    m += 1;
+                }
+            }
+            let expected = if m >= 3 {
+                quantile_of(&mut slopes[..m], m, 1.0 / 3.0, &mut []).0
+            } else {
+                0.0
+            };
+            assert_eq!(
+                det.slope[f].to_bits(),
+                expected.to_bits(),
+                "frame {frame}, feature {f} of {m} measured pairs: {} against {expected}",
+                det.slope[f]
+            );
+            measured_somewhere |= m > RANK_MAX;
+            most_m = most_m.max(m);
+        }
+        assert!(
+            measured_somewhere,
+            "a tertile over more than 64 pairs ({most_m} at most)"
+        );
+        assert_eq!(det.slope[0], 0.0);
+    }
+}
