@@ -222,7 +222,6 @@ impl<'a, T: Real> Detector<'a, T> {
         // values do) in `keys`, which holds a word for each of the `n_pairs` pairs, and each
         // feature's measured pairs counted in its `pair_counts` (which the outlier step
         // resets for its own counts).
-        let np = self.n_pairs;
         let counts = self.pair_counts.get_mut(..n).unwrap_or_default();
         for c in counts.iter_mut() {
             *c = [0, 0];
