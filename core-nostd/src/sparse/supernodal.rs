@@ -436,6 +436,15 @@ fn axpy4<T: Real>(y: &mut [T], x: [&[T]; 4], c: [T; 4]) {
     }
 }
 
+/// `y −= c_0 x_0`, then `y −= c_1 x_1`, … in one pass: each entry takes the four products
+/// in that order, as four calls of [`axpy`] would subtract them.
+#[inline(always)]
+fn axpy4_in_order<T: Real>(y: &mut [T], x: [&[T]; 4], c: [T; 4]) {
+    for ((((yi, &a), &b), &e), &g) in y.iter_mut().zip(x[0]).zip(x[1]).zip(x[2]).zip(x[3]) {
+        *yi = (((*yi - c[0] * a) - c[1] * b) - c[2] * e) - c[3] * g;
+    }
+}
+
 /// `y −= c x`.
 #[inline(always)]
 fn axpy<T: Real>(y: &mut [T], x: &[T], c: T) {
@@ -791,35 +800,70 @@ pub(crate) fn solve<T: Real>(
         let Some(wb) = w.get_mut(f..f + wd) else {
             return Err(outside(Resource::Vector, f, f + wd, w_len));
         };
+        // The diagonal block: column c updates the block's later unknowns, and the rows
+        // below it gather in `t`. Four columns at a time: their own triangle in straight
+        // lines, then the block's rows below the four take the four columns' updates in one
+        // pass, each entry in column order (as a pass per column gave them, the same value
+        // bit for bit), and `t` the four's products with the rows below the block.
         let mut c = 0;
-        while c < wd {
-            // The diagonal block: column c updates the block's later unknowns, and the rows
-            // below it gather in `t`.
-            let cols = if c + 4 <= wd { 4 } else { 1 };
+        while c + 4 <= wd {
             let mut x: [&[T]; 4] = [&[]; 4];
-            let mut xs = [T::zero(); 4];
-            for (q, (xq, xsq)) in x.iter_mut().zip(xs.iter_mut()).enumerate().take(cols) {
+            let mut rest: [&[T]; 4] = [&[]; 4];
+            let mut tri = [T::zero(); 6];
+            for (q, (xq, rq)) in x.iter_mut().zip(rest.iter_mut()).enumerate() {
                 let cq = c + q;
                 let col = pan.column(l, f + cq)?;
-                let (Some((inner, outer)), Some(([.., xc], later))) = (
-                    col.split_at_checked(wd - cq - 1),
-                    wb.split_at_mut_checked(cq + 1),
-                ) else {
+                // Rows `cq + 1 .. c + 4` (the four's triangle), `c + 4 .. wd` (the block's rows
+                // below the four), then the rows below the block.
+                let Some(((mine, below_four), outer)) = col
+                    .split_at_checked(wd - cq - 1)
+                    .and_then(|(inner, outer)| Some((inner.split_at_checked(3 - q)?, outer)))
+                else {
                     return Err(outside(Resource::FactorEntries, f + cq, wd, col.len()));
                 };
-                let xc = *xc;
-                axpy(later, inner, xc);
-                *xq = outer;
-                *xsq = -xc;
+                // The triangle's entries column by column: 3 of column c, 2, 1, 0.
+                let at = [0, 3, 5, 6][q];
+                for (slot, &v) in tri.iter_mut().skip(at).zip(mine) {
+                    *slot = v;
+                }
+                (*xq, *rq) = (outer, below_four);
             }
-            if cols == 4 {
-                axpy4(t, x, xs);
-            } else {
-                let [x0, ..] = x;
-                let [xs0, ..] = xs;
-                axpy(t, x0, xs0);
+            let Some([w0, w1, w2, w3]) = wb
+                .get_mut(c..c + 4)
+                .and_then(|four| <&mut [T; 4]>::try_from(four).ok())
+            else {
+                return Err(outside(Resource::Vector, f + c, c + 4, wd));
+            };
+            let [l10, l20, l30, l21, l31, l32] = tri;
+            let x0 = *w0;
+            *w1 -= x0 * l10;
+            *w2 -= x0 * l20;
+            *w3 -= x0 * l30;
+            let x1 = *w1;
+            *w2 -= x1 * l21;
+            *w3 -= x1 * l31;
+            let x2 = *w2;
+            *w3 -= x2 * l32;
+            let xc = [x0, x1, x2, *w3];
+            if let Some(below_four) = wb.get_mut(c + 4..) {
+                axpy4_in_order(below_four, rest, xc);
             }
-            c += cols;
+            axpy4(t, x, xc.map(|v| -v));
+            c += 4;
+        }
+        // The last columns one at a time.
+        while c < wd {
+            let col = pan.column(l, f + c)?;
+            let (Some((inner, outer)), Some(([.., xc], later))) = (
+                col.split_at_checked(wd - c - 1),
+                wb.split_at_mut_checked(c + 1),
+            ) else {
+                return Err(outside(Resource::FactorEntries, f + c, wd, col.len()));
+            };
+            let xc = *xc;
+            axpy(later, inner, xc);
+            axpy(t, outer, -xc);
+            c += 1;
         }
         for (&r, &tv) in below.iter().zip(t.iter()) {
             match w.get_mut(ux(r)) {
