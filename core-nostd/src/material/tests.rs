@@ -1139,3 +1139,72 @@ mod neo_hookean {
         }
     }
 }
+
+/// Two elements at once ([`paired::svk_shares_of_two`], what a gradient-only assembly of SVK
+/// elements runs) give each element the energy, barrier energy and gradient of the
+/// one-element path bit for bit (a zero's sign aside, which no sum can tell), on every kind of
+/// deformation — below the barrier's floor and inverted included — with and without the
+/// barrier, and for each element of a pair whatever the other is.
+#[test]
+fn paired_gradient_is_the_single_elements_bit_for_bit() {
+    let same = |a: f64, b: f64| a == b || (a.is_nan() && b.is_nan());
+    let mut rng = Rng(0xB17_F0B17);
+    let mut below_floor = 0;
+    for nu in [0.3, 0.45, 0.0, -0.5] {
+        let l = lame(nu);
+        let floor_barrier = InversionBarrier::for_material(&l);
+        for round in 0..200 {
+            let kinds = [
+                KINDS[round % KINDS.len()],
+                KINDS[(round / 5 + 2) % KINDS.len()],
+            ];
+            let sizes = [rng.range(0.002, 2.0), rng.range(0.002, 2.0)];
+            let rests = [0, 1].map(|k| rest_tet(&mut rng, sizes[k]));
+            let elements = [0, 1].map(|k| ElementRest::new(&rests[k], k).unwrap());
+            let u = [0, 1].map(|k| disp(&deform(&mut rng, kinds[k], &rests[k]), &rests[k]));
+            for barrier in [Some(&floor_barrier), None] {
+                let shares = paired::svk_shares_of_two(
+                    &l,
+                    barrier,
+                    [&elements[0], &elements[1]],
+                    [&u[0], &u[1]],
+                );
+                for ((rest, u), share) in elements.iter().zip(&u).zip(&shares) {
+                    let g = rest.shape_gradients();
+                    let du = displacement_gradient(u, &g);
+                    let (energy, mut stress) =
+                        Law::SaintVenantKirchhoff.element_energy_stress_of_h(&l, rest.volume, &du);
+                    let barrier_energy = barrier.map(|b| {
+                        let mut e = 0.0;
+                        b.add_element_stress(rest.volume, &du, &mut e, &mut stress);
+                        if (Matrix3::identity() + du).determinant() < b.floor {
+                            below_floor += 1;
+                        }
+                        e
+                    });
+                    let gradient = element_gradient_of_stress(rest.volume, &stress, &g);
+                    assert!(
+                        same(share.energy, energy),
+                        "{kinds:?}: {} {energy}",
+                        share.energy
+                    );
+                    match (share.barrier_energy, barrier_energy) {
+                        (Some(a), Some(b)) => assert!(same(a, b), "{kinds:?}: barrier {a} {b}"),
+                        (None, None) => {}
+                        other => panic!("barrier energies {other:?}"),
+                    }
+                    for (a, b) in share
+                        .gradient
+                        .iter()
+                        .flatten()
+                        .zip(gradient.iter().flatten())
+                    {
+                        assert!(same(*a, *b), "{kinds:?}: gradient {a} {b}");
+                    }
+                }
+            }
+        }
+    }
+    // The barrier acted in some of them.
+    assert!(below_floor > 100, "{below_floor} elements below the floor");
+}

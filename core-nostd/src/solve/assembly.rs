@@ -12,8 +12,8 @@ use crate::embed::Embedding;
 use crate::error::{Error, Resource};
 use crate::features::Features;
 use crate::material::{
-    ElementRest, InversionBarrier, Lame, Law, PAIRS, TangentProjection, displacement_gradient,
-    element_gradient_of_stress,
+    ElementRest, ElementShare, InversionBarrier, Lame, Law, PAIRS, TangentProjection,
+    displacement_gradient, element_gradient_of_stress, svk_shares_of_two,
 };
 use crate::mesh::Mesh;
 use crate::real::Real;
@@ -332,7 +332,44 @@ impl<T: Real> Problem<'_, '_, T> {
         }
         let mut e = Energies::default();
         let mut force_sum = T::zero();
-        for (t, tet) in self.mesh.tets().iter().enumerate() {
+        let tets = self.mesh.tets();
+        // A gradient of SVK elements goes two elements at a time (the same values bit for
+        // bit, see `material::paired`), the last one of an odd count as a tangent does.
+        let mut paired = 0;
+        if hessian.is_none() && self.law == Law::SaintVenantKirchhoff {
+            let (twos, _) = tets.as_chunks::<2>();
+            for (k, two) in twos.iter().enumerate() {
+                let t = 2 * k;
+                let (rest_a, u_a) = (self.element_rest(t)?, self.element_u(t, &two[0], x)?);
+                let (rest_b, u_b) = (
+                    self.element_rest(t + 1)?,
+                    self.element_u(t + 1, &two[1], x)?,
+                );
+                let shares = svk_shares_of_two(
+                    &self.lame,
+                    self.barrier.as_ref(),
+                    [&rest_a, &rest_b],
+                    [&u_a, &u_b],
+                );
+                for (tet, share) in two.iter().zip(shares) {
+                    let ElementShare {
+                        energy,
+                        barrier_energy,
+                        gradient,
+                    } = share;
+                    e.elastic += energy;
+                    if let Some(energy) = barrier_energy {
+                        e.elastic += energy;
+                    }
+                    for (ga, &f) in gradient.iter().zip(&free_of(free, tet)) {
+                        add_gradient(grad, f, ga);
+                        force_sum += ga.abs().sum();
+                    }
+                }
+            }
+            paired = 2 * twos.len();
+        }
+        for (t, tet) in tets.iter().enumerate().skip(paired) {
             let rest = self.element_rest(t)?;
             let g = rest.shape_gradients();
             let du = displacement_gradient(&self.element_u(t, tet, x)?, &g);

@@ -821,8 +821,9 @@ pub(crate) fn solve<T: Real>(
                 else {
                     return Err(outside(Resource::FactorEntries, f + cq, wd, col.len()));
                 };
-                // The triangle's entries column by column: 3 of column c, 2, 1, 0.
-                let at = [0, 3, 5, 6][q];
+                // The triangle's entries column by column: 3 of column c (from slot 0), 2 (from
+                // slot 3), 1 (slot 5), none.
+                let at = q * (7 - q) / 2;
                 for (slot, &v) in tri.iter_mut().skip(at).zip(mine) {
                     *slot = v;
                 }
