@@ -401,6 +401,10 @@ const MIN_LIP_PAIRS: usize = 3;
 struct Lips<T> {
     slots: [(u32, bool); 2 * LIP_PAIRS],
     n: usize,
+    /// Bit `slot % 64` set for each of `slots`: a feature whose bit is clear is in none of
+    /// the pairs, told without the scan ([`Lips::side`] is asked of every feature a nearest
+    /// list would take).
+    mask: u64,
     /// Where the pairs place the cut, if any pair is near: see [`PairsCut`].
     cut: Option<PairsCut<T>>,
 }
@@ -446,6 +450,7 @@ impl<T: Real> Lips<T> {
         let mut lips = Lips {
             slots: [(u32::MAX, false); 2 * LIP_PAIRS],
             n: 0,
+            mask: 0,
             cut: None,
         };
         // Sums over the pairs: midpoints, unit directions, the positive and the negative lip's
@@ -489,6 +494,7 @@ impl<T: Real> Lips<T> {
                 if let Some(s) = lips.slots.get_mut(lips.n) {
                     *s = (slot, positive);
                     lips.n += 1;
+                    lips.mask |= 1 << (slot % 64);
                 }
             }
         }
@@ -540,6 +546,9 @@ impl<T: Real> Lips<T> {
 
     /// The lip of feature `slot`, if it belongs to one of the pairs.
     fn side(&self, slot: usize) -> Option<bool> {
+        if self.mask & (1 << (slot % 64)) == 0 {
+            return None;
+        }
         self.slots
             .iter()
             .take(self.n)

@@ -894,36 +894,37 @@ pub(crate) fn solve<T: Real>(
             return Err(outside(Resource::Vector, f, f + wd, w_len));
         };
         // Column `f + c` from position `wd` of the row list: its rows below the diagonal block.
-        let outer_of = |c: usize| -> Result<&[T], Error> {
-            let col = pan.column(l, f + c)?;
-            col.get(wd - c - 1..)
-                .ok_or_else(|| outside(Resource::FactorEntries, f + c, wd, col.len()))
-        };
         let mut c_end = wd;
         while c_end > 0 {
-            // Columns c0..c_end: their products with the rows below the diagonal block first
-            // (four at once share the loads of `t`), then the diagonal block, last column first.
+            // Columns c0..c_end, each looked up once and split into its rows in the diagonal
+            // block and those below it: their products with the rows below first (four at once
+            // share the loads of `t`), then the diagonal block, last column first.
             let c0 = c_end.saturating_sub(4);
-            let mut outer = [T::zero(); 4];
-            if c_end - c0 == 4 {
-                let mut x: [&[T]; 4] = [&[]; 4];
-                for (q, xq) in x.iter_mut().enumerate() {
-                    *xq = outer_of(c0 + q)?;
-                }
-                outer = dot4(x, t);
-            } else {
-                for (q, o) in outer.iter_mut().enumerate().take(c_end - c0) {
-                    *o = dot(outer_of(c0 + q)?, t);
-                }
-            }
-            for (c, &oc) in (c0..c_end).zip(outer.iter().take(c_end - c0)).rev() {
+            let width = c_end - c0;
+            let mut inner: [&[T]; 4] = [&[]; 4];
+            let mut x: [&[T]; 4] = [&[]; 4];
+            for (q, (iq, xq)) in inner.iter_mut().zip(x.iter_mut()).enumerate().take(width) {
+                let c = c0 + q;
                 let col = pan.column(l, f + c)?;
-                let (Some(inner), Some(([.., wc], later))) =
-                    (col.get(..wd - c - 1), wb.split_at_mut_checked(c + 1))
-                else {
+                let Some((diagonal_block, below_it)) = col.split_at_checked(wd - c - 1) else {
                     return Err(outside(Resource::FactorEntries, f + c, wd, col.len()));
                 };
-                *wc -= oc + dot(inner, later);
+                (*iq, *xq) = (diagonal_block, below_it);
+            }
+            let mut outer = [T::zero(); 4];
+            if width == 4 {
+                outer = dot4(x, t);
+            } else {
+                for (o, xq) in outer.iter_mut().zip(&x).take(width) {
+                    *o = dot(xq, t);
+                }
+            }
+            for (q, (&oc, iq)) in outer.iter().zip(&inner).enumerate().take(width).rev() {
+                let c = c0 + q;
+                let Some(([.., wc], later)) = wb.split_at_mut_checked(c + 1) else {
+                    return Err(outside(Resource::Vector, f + c, c + 1, wd));
+                };
+                *wc -= oc + dot(iq, later);
             }
             c_end = c0;
         }

@@ -148,6 +148,23 @@ impl<'a, T: Real> Detector<'a, T> {
         let current = self.current.get(..n).unwrap_or_default();
         let targets = targets.get(..n).unwrap_or_default();
         let np = self.n_pairs;
+        if newly_filtered {
+            // A pair with a newly filtered end is dropped for good: a pass of its own, in the
+            // frames that filter a feature, so that the other frames' loop below does not test
+            // for it on every pair.
+            let ends = self.pairs.get(..np).unwrap_or_default().iter();
+            for (&[i, j], state) in ends.zip(self.pair_state.get_mut(..np).unwrap_or_default()) {
+                let filtered = |f: u32| {
+                    feature_state
+                        .get(f as usize)
+                        .is_some_and(|s| s & FILTERED != 0)
+                };
+                if *state & DROPPED == 0 && (filtered(i) || filtered(j)) {
+                    *state |= DROPPED;
+                    lost += 1;
+                }
+            }
+        }
         let mut scratch = self.scratch.get_mut(..np).unwrap_or_default().iter_mut();
         let pairs = self
             .pairs
@@ -158,17 +175,6 @@ impl<'a, T: Real> Detector<'a, T> {
             .zip(self.difference.get_mut(..np).unwrap_or_default())
             .zip(self.length.get_mut(..np).unwrap_or_default());
         for (((&[i, j], state), difference), length) in pairs {
-            if newly_filtered
-                && *state & DROPPED == 0
-                && [i, j].iter().any(|&f| {
-                    feature_state
-                        .get(f as usize)
-                        .is_some_and(|s| s & FILTERED != 0)
-                })
-            {
-                *state |= DROPPED;
-                lost += 1;
-            }
             let (i, j) = (i as usize, j as usize);
             let measured = match (
                 *state & DROPPED == 0,
