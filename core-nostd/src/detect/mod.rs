@@ -252,7 +252,8 @@ impl DetectionWork {
     /// - feature visits `7 n`: the temporal filter's four passes (two without filtering), the
     ///   per-feature tertiles' two (the counts reset; the ranks set and the slopes cleared),
     ///   and the outlier counts' reset;
-    /// - pair visits `6 P`: the temporal filter's pairs, the differences, the pairs' slopes,
+    /// - pair visits `7 P`: the temporal filter's pairs, the pairs dropped for a newly
+    ///   filtered end (in the frames that filter one), the differences, the pairs' slopes,
     ///   the walk in order of slope, outliers, persistence;
     /// - selection steps: the median and MAD of the changes (`2 S(n)`) and of the differences
     ///   (`2 S(P)`), with `S(m)` the most steps of one selection among at most `m` values
@@ -262,7 +263,7 @@ impl DetectionWork {
         use crate::robust::{radix_order_steps, select_bound_up_to};
         DetectionWork {
             feature_visits: 7 * features,
-            pair_visits: 6 * pairs,
+            pair_visits: 7 * pairs,
             selection_steps: 2 * select_bound_up_to(features)
                 + 2 * select_bound_up_to(pairs)
                 + radix_order_steps(pairs),

@@ -163,9 +163,12 @@ pub(crate) struct ElementShare<T: Real> {
 /// `rest` and node displacements `u` (metres, from rest), each bit for bit what the
 /// one-element path gives (see the module documentation).
 ///
-/// Where nalgebra adds a zero (its trace and its sum `I + H` start from one, the off-diagonal
-/// entries of `λ tr(E) I`), this leaves the addition out: it changes nothing but the sign of
-/// a zero result, which no sum the assembly forms can tell (it starts from `+0`).
+/// Where nalgebra adds a zero (its trace starts from zero; `I + H` and `λ tr(E) I` add zeros
+/// off the diagonal), this leaves the addition out: it changes nothing but the sign of a zero
+/// result (and for the trace not even that: a diagonal entry of `E` is never `−0`), which no
+/// sum the assembly forms can tell (they start from `+0`). Where two NaNs meet, the NaN kept
+/// may be the other one (some products take their operands the other way round): a NaN
+/// either way.
 #[inline(always)]
 pub(crate) fn svk_shares_of_two<T: Real>(
     lame: &Lame<T>,

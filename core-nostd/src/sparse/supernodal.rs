@@ -893,7 +893,6 @@ pub(crate) fn solve<T: Real>(
         let Some(wb) = w.get_mut(f..f + wd) else {
             return Err(outside(Resource::Vector, f, f + wd, w_len));
         };
-        // Column `f + c` from position `wd` of the row list: its rows below the diagonal block.
         let mut c_end = wd;
         while c_end > 0 {
             // Columns c0..c_end, each looked up once and split into its rows in the diagonal

@@ -207,7 +207,8 @@ impl<'a, T: Real> Detector<'a, T> {
             };
         }
         self.pairs_lost += lost;
-        work.pair_visits += np as u64;
+        // The differences' pass, and the drop pass in a frame that filtered a feature.
+        work.pair_visits += (np * (1 + usize::from(newly_filtered))) as u64;
         // Every pair in use takes part, an unmeasured one as `+∞` behind the measured ones:
         // the selections cost as much in every frame of a topology, however many pairs are
         // measured, and the median and MAD are those of the measured pairs.
