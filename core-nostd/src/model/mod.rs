@@ -324,7 +324,7 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
         config.detection.validate()?;
         if !config.material.law.is_built() {
             return Err(Error::InvalidParameter {
-                parameter: crate::error::Parameter::Law,
+                parameter: Parameter::Law,
             });
         }
         let lame = Lame::from_young_poisson(config.material.young, config.material.poisson)?;
