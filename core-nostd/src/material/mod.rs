@@ -39,6 +39,7 @@ mod element;
 mod law;
 #[cfg(feature = "neo-hookean")]
 mod neohookean;
+#[cfg(feature = "paired-elements")]
 mod paired;
 
 use nalgebra::{Matrix3, Vector3};
@@ -52,6 +53,7 @@ pub use element::{ElementRest, deformation_gradient, displacement_gradient};
 pub use law::{Lame, energy_density, first_piola_kirchhoff, green_strain, second_piola_kirchhoff};
 #[cfg(feature = "neo-hookean")]
 pub use neohookean::{neo_hookean_energy_density, neo_hookean_first_piola_kirchhoff};
+#[cfg(feature = "paired-elements")]
 pub(crate) use paired::{ElementShare, svk_shares_of_two};
 
 /// The strain energy law of the model's material. Both laws take the same Lamé pair and agree

@@ -1,4 +1,6 @@
-//! The SVK element gradient of two tetrahedra at once, for the gradient-only assembly.
+//! The SVK element gradient of two tetrahedra at once, for the gradient-only assembly
+//! (feature `paired-elements`: the host builds it; a firmware build at opt-level "s", where the
+//! compiler does not pack the two lanes and the kernel only adds code, leaves it out).
 //!
 //! Every quantity of the two elements is held as a [`Pair`] of scalars, one lane each, so
 //! that each operation of the one-element path ([`super::Law::element_energy_stress_of_h`],

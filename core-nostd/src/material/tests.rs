@@ -1145,6 +1145,7 @@ mod neo_hookean {
 /// one-element path bit for bit (a zero's sign aside, which no sum can tell), on every kind of
 /// deformation — below the barrier's floor and inverted included — with and without the
 /// barrier, and for each element of a pair whatever the other is.
+#[cfg(feature = "paired-elements")]
 #[test]
 fn paired_gradient_is_the_single_elements_bit_for_bit() {
     let same = |a: f64, b: f64| a == b || (a.is_nan() && b.is_nan());

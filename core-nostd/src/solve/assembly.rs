@@ -12,9 +12,11 @@ use crate::embed::Embedding;
 use crate::error::{Error, Resource};
 use crate::features::Features;
 use crate::material::{
-    ElementRest, ElementShare, InversionBarrier, Lame, Law, PAIRS, TangentProjection,
-    displacement_gradient, element_gradient_of_stress, svk_shares_of_two,
+    ElementRest, InversionBarrier, Lame, Law, PAIRS, TangentProjection, displacement_gradient,
+    element_gradient_of_stress,
 };
+#[cfg(feature = "paired-elements")]
+use crate::material::{ElementShare, svk_shares_of_two};
 use crate::mesh::Mesh;
 use crate::real::Real;
 use crate::sparse::{NONE, UpperCsc, ux};
@@ -334,8 +336,12 @@ impl<T: Real> Problem<'_, '_, T> {
         let mut force_sum = T::zero();
         let tets = self.mesh.tets();
         // A gradient of SVK elements goes two elements at a time (the same values bit for
-        // bit, see `material::paired`), the last one of an odd count as a tangent does.
+        // bit, see `material::paired`), the last one of an odd count as a tangent does. Built
+        // with the `paired-elements` feature (the host's; a firmware build at opt-level "s"
+        // leaves it out, where the compiler does not pack the lanes and it only adds code).
+        #[allow(unused_mut)]
         let mut paired = 0;
+        #[cfg(feature = "paired-elements")]
         if hessian.is_none() && self.law == Law::SaintVenantKirchhoff {
             let (twos, _) = tets.as_chunks::<2>();
             for (k, two) in twos.iter().enumerate() {
