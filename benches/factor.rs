@@ -9,6 +9,11 @@
 //! Last, the same on SOFA's fine liver (`../shared/data/liver/liverFine.vtu`, 4293 nodes, read
 //! where it lies, its nodes within 5 mm of its smallest `x` fixed), when the file is there.
 //!
+//! Then the arithmetic rates of the machine in the same run: separate multiplies and adds as
+//! safe Rust compiles them for the build's target (the ceiling of the core's kernels, which
+//! cannot fuse them), and faer's dense product; the factorization table sets the core against
+//! the first.
+//!
 //! `cargo bench --bench factor` (`-- --quick` for fewer repetitions).
 
 use std::hint::black_box;
@@ -232,21 +237,82 @@ fn measure((label, mesh, fixed): (String, TetMesh, Vec<u32>), budget: f64) -> Ro
     }
 }
 
+/// Passes over the chains per timed run of the peak loop.
+const PEAK_PASSES: usize = 20_000;
+
+/// GFLOP/s of separate multiplies and adds on `C` independent chains of each, as safe Rust
+/// compiles them for this target (the compiler vectorises the chains and, by Rust's
+/// floating-point rules, never fuses a multiply with an add).
+fn multiply_then_add_rate<const C: usize>(budget: f64) -> f64 {
+    let (b, c) = (black_box(1.000_000_1f64), black_box(1e-9f64));
+    let seconds = best_seconds(5, budget, || {
+        let mut m = black_box([1.0f64; C]);
+        let mut s = black_box([0.0f64; C]);
+        for _ in 0..PEAK_PASSES {
+            for (m, s) in m.iter_mut().zip(s.iter_mut()) {
+                *m *= b;
+                *s += c;
+            }
+        }
+        black_box((m, s));
+    });
+    (2 * C * PEAK_PASSES) as f64 / seconds / 1e9
+}
+
+/// The most arithmetic the core's kernels can do per second here, whatever their blocking:
+/// the best of [`multiply_then_add_rate`] over 8, 16 and 32 chains (too few leave units idle
+/// while results are under way; too many spill out of the vector registers, fewer in some
+/// builds than in others).
+fn multiply_then_add_peak(budget: f64) -> f64 {
+    multiply_then_add_rate::<8>(budget)
+        .max(multiply_then_add_rate::<16>(budget))
+        .max(multiply_then_add_rate::<32>(budget))
+}
+
+/// Order of the dense product that measures faer's own arithmetic rate.
+const DENSE_ORDER: usize = 384;
+
+/// GFLOP/s of faer's dense matrix product (`2 n³` flops), single thread: the rate of its
+/// kernels, which dispatch at run time to the widest vector instructions this CPU has,
+/// fused multiply-adds included.
+fn faer_dense_product(budget: f64) -> f64 {
+    let n = DENSE_ORDER;
+    let mut rng = Rng::new(5);
+    let a = Mat::<f64>::from_fn(n, n, |_, _| rng.range(-1.0, 1.0));
+    let b = Mat::<f64>::from_fn(n, n, |_, _| rng.range(-1.0, 1.0));
+    let mut c = Mat::<f64>::zeros(n, n);
+    let seconds = best_seconds(3, budget, || {
+        faer::linalg::matmul::matmul(
+            c.as_mut(),
+            faer::Accum::Replace,
+            a.as_ref(),
+            b.as_ref(),
+            1.0,
+            Par::Seq,
+        );
+        black_box(&c);
+    });
+    2.0 * (n * n * n) as f64 / seconds / 1e9
+}
+
 fn main() {
     let quick = std::env::args().any(|a| a == "--quick");
     let budget = if quick { 0.2 } else { 1.0 };
     let cases = CASES.iter().map(|&c| box_case(c)).chain(fine_liver());
     let rows: Vec<Row> = cases.map(|c| measure(c, budget)).collect();
+    let peak = multiply_then_add_peak(budget);
+    let dense = faer_dense_product(budget);
 
     println!("## Numeric factorization (single thread, fastest of repeated runs)\n");
     println!(
-        "| nodes | unknowns | supernodes | core simplicial ms | core supernodal ms | faer supernodal ms | simplicial / faer | supernodal / faer | core GFLOP/s |"
+        "| nodes | unknowns | supernodes | core simplicial ms | core supernodal ms | faer supernodal ms | simplicial / faer | supernodal / faer | core GFLOP/s | core's share of the multiply-and-add rate | least supernodal / faer at that rate |"
     );
-    println!("| ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |");
+    println!("| ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |");
     for r in &rows {
         let peer = r.faer_llt.min(r.faer_ldlt);
+        let rate = 2.0 * r.flops as f64 / r.supernodal / 1e9;
         println!(
-            "| {} | {} | {} | {:.3} | {:.3} | {:.3} | {:.2} | {:.2} | {:.1} |",
+            "| {} | {} | {} | {:.3} | {:.3} | {:.3} | {:.2} | {:.2} | {:.1} | {:.0} % | {:.2} |",
             r.nodes,
             r.n,
             r.supernodes,
@@ -255,12 +321,34 @@ fn main() {
             peer * 1e3,
             r.simplicial / peer,
             r.supernodal / peer,
-            2.0 * r.flops as f64 / r.supernodal / 1e9,
+            rate,
+            100.0 * rate / peak,
+            2.0 * r.flops as f64 / peak / 1e9 / peer,
         );
     }
     println!(
         "\nfaer: the faster of its supernodal LLᵀ and LDLᵀ (AMD ordering). GFLOP/s: 2 × the \
-         multiply-adds of the core's factorization over its supernodal time.\n"
+         multiply-adds of the core's factorization over its supernodal time. The last two \
+         columns set it against the multiply-and-add rate below, the most arithmetic per second \
+         the core's kernels can do in this build: the share of it the factorization reaches, \
+         and the ratio to faer it would have if every one of its multiply-adds ran at that rate \
+         with nothing else to do (the least this build can reach on that matrix).\n"
+    );
+
+    println!("## Arithmetic rates of this machine (single thread, same run)\n");
+    println!("| what | GFLOP/s |");
+    println!("| --- | ---: |");
+    println!(
+        "| multiplies and adds on independent chains, safe Rust as this build compiles it (best of 8, 16 and 32 chains) | {peak:.1} |"
+    );
+    println!(
+        "| faer's dense product, order {DENSE_ORDER} (its kernels: fused multiply-adds where the CPU has them) | {dense:.1} |"
+    );
+    println!(
+        "\nRust never fuses a multiply and an add (a fused one rounds once, so it would change the \
+         result), and safe `no_std` Rust has no stable way to ask for one: the core's kernels \
+         issue the two, and the first row is their ceiling. faer's kernels are chosen at run \
+         time for this CPU and fuse them.\n"
     );
 
     println!("## Triangular solve pair (forward, diagonal, backward; permutation included)\n");
