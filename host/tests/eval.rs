@@ -141,16 +141,82 @@ fn eval_runs_one_variant_of_each_kind_and_sums_them_up_consistently() {
         assert_eq!(sheet.width(), 5 * (w / 2), "{name}");
         assert!(sheet.height() > h / 2, "{name}");
     }
-    let strip = |mut v: serde_json::Value| {
-        for f in v.as_array_mut().unwrap() {
-            for variant in f["variants"].as_array_mut().unwrap() {
-                let s = variant["summary"].as_object_mut().unwrap();
-                s.retain(|k, _| !k.starts_with("ms_"));
-            }
+    assert_eq!(without_timings(first), without_timings(second));
+}
+
+/// The summaries with their timings taken out (the rest is reproduced run to run).
+fn without_timings(mut families: serde_json::Value) -> serde_json::Value {
+    for f in families.as_array_mut().unwrap() {
+        for variant in f["variants"].as_array_mut().unwrap() {
+            let s = variant["summary"].as_object_mut().unwrap();
+            s.retain(|k, _| !k.starts_with("ms_"));
         }
-        v
-    };
-    assert_eq!(strip(first), strip(second));
+    }
+    families
+}
+
+#[test]
+fn a_sweep_runs_every_setting_and_its_defaults_are_the_plain_run() {
+    let tmp = tempfile::tempdir().unwrap();
+    let band = &families()[..1];
+    let plain = eval_json_of(band, tmp.path(), &[]);
+    let plot = tmp.path().join("sweep.svg");
+    let rows = eval_json_of(
+        band,
+        tmp.path(),
+        &[
+            "--sweep",
+            "persistence=1,2",
+            "--plot",
+            plot.to_str().unwrap(),
+        ],
+    );
+    let rows = rows.as_array().unwrap();
+    assert_eq!(rows.len(), 2);
+    assert_eq!(rows[0]["settings"], serde_json::json!(["persistence = 1"]));
+    assert_eq!(rows[0]["defaults"], false);
+    assert_eq!(rows[1]["defaults"], true);
+    // The defaults' row is the plain run, and every family pooled sums its families up.
+    assert_eq!(
+        without_timings(rows[1]["families"].clone()),
+        without_timings(plain)
+    );
+    for r in rows {
+        assert_eq!(r["all"]["family"], "all");
+        let families = r["families"].as_array().unwrap();
+        for key in ["false_cuts", "missed", "intact", "cut"] {
+            let sum: u64 = families.iter().map(|f| f[key].as_u64().unwrap()).sum();
+            assert_eq!(r["all"][key].as_u64(), Some(sum), "{key}");
+        }
+    }
+    let svg = std::fs::read_to_string(&plot).unwrap();
+    assert!(svg.starts_with("<svg") && svg.contains("<circle"), "{svg}");
+}
+
+#[test]
+fn a_setting_that_is_no_field_is_refused_before_anything_runs() {
+    let tmp = tempfile::tempdir().unwrap();
+    for args in [
+        ["--set", "persistance=1"],
+        ["--sweep", "persistence=0,1"],
+        ["--set", "outlier_sigmas"],
+    ] {
+        let out = Command::new(env!("CARGO_BIN_EXE_incise"))
+            .arg("eval")
+            .args(families())
+            .arg("--work")
+            .arg(tmp.path().join("work"))
+            .args(args)
+            .output()
+            .unwrap();
+        assert!(!out.status.success(), "{args:?}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            err.contains("persistance") || err.contains("persistence") || err.contains("KEY"),
+            "{args:?}: {err}"
+        );
+        assert!(!tmp.path().join("work").exists(), "{args:?}");
+    }
 }
 
 /// The `seed =` line of a variant's scenario.
@@ -207,6 +273,7 @@ fn families_meet_the_detection_acceptance() {
         seed: None,
         model_mesh: ModelMesh::Scenario,
         pictures: None,
+        detection: vec![],
     };
     let done: Vec<_> = families()
         .iter()

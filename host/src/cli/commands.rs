@@ -296,6 +296,8 @@ pub(super) fn eval_command(
     per_variant: bool,
     json: bool,
 ) -> Result<(), Failure> {
+    // A setting that is not a field or out of its range, before anything runs.
+    crate::eval::sweep::are_defaults(&options.detection)?;
     let mut done = vec![];
     for f in families {
         done.push(crate::eval::eval_family(f, options)?);
@@ -310,6 +312,28 @@ pub(super) fn eval_command(
             outln!("\n{}:\n", f.family)?;
             out!("{}", crate::eval::variant_table(f))?;
         }
+    }
+    Ok(())
+}
+
+pub(super) fn eval_sweep_command(
+    families: &[PathBuf],
+    options: &crate::eval::EvalOptions,
+    swept: &[Vec<crate::scene::DetectionSetting>],
+    plot: Option<&Path>,
+    json: bool,
+) -> Result<(), Failure> {
+    let rows = crate::eval::sweep::sweep(families, options, swept)?;
+    if let Some(file) = plot {
+        crate::eval::sweep::plot_sweep(&rows, file)?;
+    }
+    if json {
+        let text = serde_json::to_string_pretty(&rows).map_err(|e| e.to_string())?;
+        return outln!("{text}");
+    }
+    out!("{}", crate::eval::sweep::sweep_table(&rows))?;
+    if let Some(file) = plot {
+        outln!("plot: {}", file.display())?;
     }
     Ok(())
 }

@@ -8,7 +8,11 @@ use clap::{Args, Parser, Subcommand};
 
 use crate::generate::pipeline::ModelMesh;
 use crate::run::{RunOptions, run_scene};
-use crate::scene::{ModelLaw, Precision, Scene};
+use crate::scene::{DetectionSetting, ModelLaw, Precision, Scene};
+
+/// The values of one `--sweep` field (an alias, so that clap takes each `--sweep` for one
+/// value rather than for a list of them).
+type SweptValues = Vec<DetectionSetting>;
 
 /// incise: keeps a pre-operative organ model aligned with endoscopic video while the surgeon
 /// cuts (Paulus et al., MICCAI 2015).
@@ -188,6 +192,19 @@ pub enum Command {
         /// captioned with its kind, detection and line distance.
         #[arg(long, value_name = "DIR")]
         pictures: Option<PathBuf>,
+        /// Set a field of every variant's `[detection]` section, as the scene file would write
+        /// it (repeatable), e.g. `--set persistence=1`: to study a setting, not to tune one.
+        #[arg(long = "set", value_name = "KEY=VALUE", value_parser = DetectionSetting::parse)]
+        set: Vec<DetectionSetting>,
+        /// Run the families under each of these values of a `[detection]` field
+        /// (repeatable: every combination, the first field varying slowest), and print one row
+        /// per setting, every family pooled: false cuts against latency and line distance.
+        #[arg(long, value_name = "KEY=V1,V2,...", value_parser = DetectionSetting::parse_list)]
+        sweep: Vec<SweptValues>,
+        /// With --sweep, draw false cuts against latency and line distance, one point per
+        /// setting, to this SVG file.
+        #[arg(long, value_name = "FILE", requires = "sweep")]
+        plot: Option<PathBuf>,
     },
     /// Write one scene as a Rust module for a firmware build (`firmware/`): mesh, camera,
     /// settings, capacities and `const` buffer lengths, the uncut mesh's precomputed ordering
@@ -392,9 +409,11 @@ pub fn run(cli: Cli) -> i32 {
             seed,
             model_mesh,
             pictures,
-        } => eval_command(
-            &families,
-            &crate::eval::EvalOptions {
+            set,
+            sweep,
+            plot,
+        } => {
+            let options = crate::eval::EvalOptions {
                 work,
                 selection: crate::eval::Selection { per_kind },
                 fresh,
@@ -403,10 +422,14 @@ pub fn run(cli: Cli) -> i32 {
                 seed,
                 model_mesh,
                 pictures,
-            },
-            variants,
-            json,
-        ),
+                detection: set,
+            };
+            if sweep.is_empty() {
+                eval_command(&families, &options, variants, json)
+            } else {
+                eval_sweep_command(&families, &options, &sweep, plot.as_deref(), json)
+            }
+        }
         Command::Gen {
             family: Some(family),
             out,

@@ -294,6 +294,86 @@ impl DetectionSection {
             depth: self.depth,
         }
     }
+
+    /// This section with one field set as a `[detection]` section would write it.
+    ///
+    /// # Errors
+    /// A message naming the field when the section has no such field, the value is not of its
+    /// type, or the setting leaves the section out of its ranges
+    /// ([`incise_core::DetectionConfig::validate`]).
+    pub fn with(&self, setting: &DetectionSetting) -> Result<DetectionSection, String> {
+        let mut table = toml::Table::try_from(self).map_err(|e| e.to_string())?;
+        // `outlier_sigmas=5` means 5.0: an integer given for a field that holds a float.
+        let value = match (table.get(&setting.key), &setting.value) {
+            (Some(toml::Value::Float(_)), &toml::Value::Integer(i)) => toml::Value::Float(i as f64),
+            (_, v) => v.clone(),
+        };
+        table.insert(setting.key.clone(), value);
+        let set: DetectionSection = table
+            .try_into()
+            .map_err(|e: toml::de::Error| format!("[detection] {setting}: {}", e.message()))?;
+        set.config()
+            .validate()
+            .map_err(|e| format!("[detection] {setting}: {e}"))?;
+        Ok(set)
+    }
+}
+
+/// One field of `[detection]` set by hand (`KEY=VALUE`, the value as the scene file would write
+/// it): what `incise eval --set` and `--sweep` apply to every variant.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DetectionSetting {
+    /// The field's name in `[detection]`, e.g. `persistence`.
+    pub key: String,
+    /// Its value.
+    pub value: toml::Value,
+}
+
+impl std::fmt::Display for DetectionSetting {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{} = {}", self.key, self.value)
+    }
+}
+
+impl DetectionSetting {
+    /// Parses `KEY=VALUE`, the value in TOML (`2`, `6.5`, `true`).
+    ///
+    /// # Errors
+    /// A message saying what is malformed.
+    pub fn parse(text: &str) -> Result<DetectionSetting, String> {
+        let (key, value) = text
+            .split_once('=')
+            .ok_or_else(|| format!("`{text}`: expected KEY=VALUE, e.g. persistence=1"))?;
+        Ok(DetectionSetting {
+            key: key.trim().to_string(),
+            value: parse_value(value.trim()).map_err(|e| format!("`{text}`: {e}"))?,
+        })
+    }
+
+    /// Parses `KEY=V1,V2,…`: one setting per value, in order.
+    ///
+    /// # Errors
+    /// A message saying what is malformed.
+    pub fn parse_list(text: &str) -> Result<Vec<DetectionSetting>, String> {
+        let (key, values) = text
+            .split_once('=')
+            .ok_or_else(|| format!("`{text}`: expected KEY=V1,V2,…, e.g. persistence=1,2"))?;
+        values
+            .split(',')
+            .map(|v| DetectionSetting::parse(&format!("{key}={v}")))
+            .collect()
+    }
+}
+
+/// One TOML value on its own.
+fn parse_value(text: &str) -> Result<toml::Value, String> {
+    let table: toml::Table = format!("v = {text}")
+        .parse()
+        .map_err(|e: toml::de::Error| e.message().to_string())?;
+    table
+        .get("v")
+        .cloned()
+        .ok_or_else(|| "no value".to_string())
 }
 
 /// `[ground_truth]`: facts the generator knows.

@@ -34,8 +34,8 @@ mod formats;
 pub(crate) use file::refusal_of;
 
 pub use file::{
-    CameraSection, DetectionSection, GroundTruthSection, ModelLaw, ModelSection, SceneFile,
-    SolverSection, default_depth_prior,
+    CameraSection, DetectionSection, DetectionSetting, GroundTruthSection, ModelLaw, ModelSection,
+    SceneFile, SolverSection, default_depth_prior,
 };
 pub use formats::{
     CutParts, CutPoint, Surface, TrueOutlier, read_cut_csv, read_obj, read_outliers_csv,

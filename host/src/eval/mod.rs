@@ -8,6 +8,8 @@
 //! whose `scenario.toml` is the one the family draws now (so changing the detector does not
 //! mean simulating again), and regenerates it otherwise or with `fresh`.
 
+pub mod sweep;
+
 use std::path::{Path, PathBuf};
 
 use indicatif::{ProgressBar, ProgressStyle};
@@ -22,7 +24,7 @@ use crate::render::Canvas;
 use crate::run::{
     FilterTruth, FrameSink, RunError, RunOptions, Summary, TrackSource, run_scene_with,
 };
-use crate::scene::Scene;
+use crate::scene::{DetectionSetting, Scene};
 
 /// The acceptance of issue 11, per family: what [`FamilySummary::passes`] checks.
 #[derive(Clone, Copy, Debug, Serialize, PartialEq)]
@@ -202,6 +204,9 @@ pub struct EvalOptions {
     pub model_mesh: ModelMesh,
     /// Where each variant's last overlay and the family's sheet of them go, if anywhere.
     pub pictures: Option<PathBuf>,
+    /// Fields of `[detection]` set on every variant, in order (none: the defaults, or what a
+    /// variant's own section says).
+    pub detection: Vec<DetectionSetting>,
 }
 
 /// Whether `dir` holds the scene of scenario `s` (drawn relative to `base`) already.
@@ -288,6 +293,13 @@ pub fn eval_family(family_path: &Path, options: &EvalOptions) -> Result<FamilySu
         let mut scene = Scene::load(&dir).map_err(|e| format!("{}: {e}", s.name))?;
         if let Some(law) = options.law {
             scene.file.model.law = law;
+        }
+        for setting in &options.detection {
+            scene.file.detection = scene
+                .file
+                .detection
+                .with(setting)
+                .map_err(|e| format!("{}: {e}", s.name))?;
         }
         // With pictures asked for, the overlays (with the detector's pairs) are drawn and the
         // last one kept; without, none is drawn.
