@@ -94,6 +94,45 @@ fn table_prints_the_filter_against_the_true_jumps_when_asked() {
     );
 }
 
+/// `table --set` runs the scenes under a detection setting: switched off, the side cut is
+/// neither found nor cut; a field that `[detection]` does not have is refused by name.
+#[test]
+fn table_runs_the_scenes_under_a_detection_setting() {
+    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/../fixtures/band-side-cut");
+    let row = |extra: &[&str]| {
+        let output = incise()
+            .arg("table")
+            .args(extra)
+            .arg(scene)
+            .output()
+            .unwrap();
+        assert!(
+            output.status.success(),
+            "{}",
+            String::from_utf8_lossy(&output.stderr)
+        );
+        let stdout = String::from_utf8_lossy(&output.stdout).into_owned();
+        let line = stdout.lines().find(|l| l.starts_with("| band-side-cut |"));
+        // The cells up to the Dice, the timings left out.
+        line.unwrap()
+            .split('|')
+            .take(9)
+            .collect::<Vec<_>>()
+            .join("|")
+    };
+    let plain = row(&[]);
+    assert_eq!(row(&["--set", "persistence=2"]), plain);
+    let off = row(&["--set", "enabled=false"]);
+    assert_ne!(off, plain);
+    assert!(off.contains("| – | – |"), "{off}");
+    let output = incise()
+        .args(["table", "--set", "persistance=2", scene])
+        .output()
+        .unwrap();
+    assert!(!output.status.success());
+    assert!(String::from_utf8_lossy(&output.stderr).contains("persistance"));
+}
+
 /// `--pairs` draws the detector's split pairs (orange) on the overlays: none at frame 0,
 /// many once the side cut is found (frame 7).
 #[test]

@@ -49,7 +49,10 @@ pub(super) fn table_command(
     dirs: &[PathBuf],
     (true_cut, filter): (bool, bool),
     (real, law): (Precision, Option<ModelLaw>),
+    detection: &[crate::scene::DetectionSetting],
 ) -> Result<(), Failure> {
+    // A setting that is not a field or out of its range, before anything runs.
+    crate::eval::sweep::are_defaults(detection)?;
     let mut rows = vec![];
     let options = RunOptions {
         true_cut,
@@ -60,6 +63,13 @@ pub(super) fn table_command(
         scene.precision = real;
         if let Some(law) = law {
             scene.file.model.law = law;
+        }
+        for setting in detection {
+            scene.file.detection = scene
+                .file
+                .detection
+                .with(setting)
+                .map_err(|e| format!("{}: {e}", dir.display()))?;
         }
         let (summary, _) = run_scene(&scene, &options).map_err(|e| e.to_string())?;
         rows.push(summary);

@@ -107,6 +107,11 @@ pub enum Command {
         /// The model's strain energy law, in place of each scene's `[model] law`.
         #[arg(long, value_enum)]
         law: Option<ModelLaw>,
+        /// Set a field of every scene's `[detection]` section, as the scene file would write it
+        /// (repeatable), e.g. `--set persistence=1`: what a detection setting does to the
+        /// committed scenes (`incise eval --set` does the same on the families).
+        #[arg(long = "set", value_name = "KEY=VALUE", value_parser = DetectionSetting::parse)]
+        set: Vec<DetectionSetting>,
     },
     /// Write one page (index.html, with its figures as SVG and its data as CSV and JSON) on
     /// the scenes: error against run time over solver settings with the Pareto front and a
@@ -456,7 +461,8 @@ pub fn run(cli: Cli) -> i32 {
             filter,
             real,
             law,
-        } => table_command(&scenes, (true_cut, filter), (real, law)),
+            set,
+        } => table_command(&scenes, (true_cut, filter), (real, law), &set),
         Command::Sweep { scene, out } => sweep_command(&scene, out.as_deref()),
         Command::Instructions {
             scene,
