@@ -167,6 +167,44 @@ fn run_draws_the_detector_pairs_when_asked() {
         with > without + 200,
         "{with} orange pixels with --pairs, {without} without"
     );
+    // And `pairs.csv`: every measured pair of every frame after the first, what its test read
+    // and whether it crosses the true cut; an outlier lies above its level, and the pairs
+    // that cross the true cut carry the evidence the detector found.
+    assert!(!plain.join("pairs.csv").exists());
+    let text = std::fs::read_to_string(pairs.join("pairs.csv")).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let column = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    let (frame, difference, level, outlier, split, crosses) = (
+        column("frame"),
+        column("difference_px"),
+        column("level_px"),
+        column("outlier"),
+        column("split"),
+        column("crosses_true_cut"),
+    );
+    let (mut rows, mut outliers, mut crossing_outliers) = (0, 0, 0);
+    for line in lines {
+        let cells: Vec<&str> = line.split(',').collect();
+        assert_eq!(cells.len(), header.len(), "{line}");
+        assert!(cells[frame].parse::<usize>().unwrap() >= 1, "{line}");
+        let number = |k: usize| cells[k].parse::<f64>().unwrap();
+        if cells[outlier] == "1" {
+            assert!(number(difference) > number(level), "{line}");
+            outliers += 1;
+            crossing_outliers += usize::from(cells[crosses] == "1");
+        }
+        assert!(cells[split] == "0" || cells[split] == "1", "{line}");
+        assert!(cells[crosses] == "0" || cells[crosses] == "1", "{line}");
+        rows += 1;
+    }
+    assert!(rows > 10_000, "{rows} rows");
+    assert!(
+        outliers > 0 && 2 * crossing_outliers > outliers,
+        "{crossing_outliers} of {outliers} outliers cross the true cut"
+    );
+    let frames = std::fs::read_to_string(pairs.join("frames.csv")).unwrap();
+    assert!(frames.starts_with("frame,dice,tre_mm,step_ms,observed,outlier_pairs,separation_points,difference_median_px,difference_deviation_px,"));
 }
 
 #[test]

@@ -207,6 +207,19 @@ pub const OUTLIER_SIGMAS: f64 = 6.0;
 /// Default [`DetectionConfig::temporal_sigmas`].
 pub const TEMPORAL_SIGMAS: f64 = 10.0;
 
+/// What the outlier test read of one neighbour pair in a frame
+/// ([`Detector::pair_measure`]), pixels.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PairMeasure<T> {
+    /// The residual difference `μ_ij = ‖d_i − d_j‖`.
+    pub difference: T,
+    /// The pair's length in the image `ℓ_ij` (between the tracked features).
+    pub length: T,
+    /// What the smooth field explains over it, `min(sᵢ, sⱼ) · ℓ_ij` (each feature's lower
+    /// tertile of its pairs' slopes `μ / ℓ`).
+    pub smooth: T,
+}
+
 /// What the detector saw in one frame.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct DetectionReport<T> {

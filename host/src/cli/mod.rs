@@ -57,7 +57,10 @@ pub enum Command {
         law: Option<ModelLaw>,
         /// Also draw the detector's evidence on the overlays (with --out or --video): the
         /// neighbour pairs that are outliers in the frame (magenta) and those counted as split
-        /// (orange), between their features.
+        /// (orange), between their features; with --out, also write OUT/pairs.csv: every pair
+        /// measured in every frame, what its outlier test read (difference, smooth share,
+        /// level, margin), whether it was an outlier and is split, and whether it crosses the
+        /// true cut.
         #[arg(long)]
         pairs: bool,
         // --- OpenCV video driver (options present in every build; they need `opencv`) ---

@@ -305,7 +305,7 @@ fn run_pass_in<T: Real, F: Real>(
     let truth = Truth::load(scene)?;
     embed_targets(truth.as_ref(), &mut model)?;
     let rest_targets = target_positions(&model);
-    let mut outputs = Outputs::new(out, sink)?;
+    let mut outputs = Outputs::new(out, sink, scene.overlay_pairs)?;
     let bar = if progress {
         progress_bar(source.len_hint(), &scene.file.name)
     } else {
@@ -333,6 +333,11 @@ fn run_pass_in<T: Real, F: Real>(
         let surface = model.mesh().surface().to_vec();
         pass.read_cut_line(&model, f)?;
         let measure = FrameMeasure::new(scene, truth.as_ref(), f, &camera, &model, (&x, &surface))?;
+        if outputs.wants_pairs() {
+            let true_cut = truth.as_ref().and_then(|t| t.cut_at(f));
+            let rows = pair_rows(&model, &record, &scene.file.detection, true_cut.as_deref());
+            outputs.pairs(&rows);
+        }
         if outputs.wants_overlay() {
             let virtual_features: Vec<[f64; 2]> = (0..model.features().len())
                 .filter_map(|slot| model.projected_feature(slot).ok())
@@ -437,6 +442,90 @@ fn detector_pairs<T: Real, F: Real>(model: &Model<'_, T, F>) -> DetectorPairs {
     pairs
 }
 
+/// The rows of `pairs.csv` for one frame: every pair the detector measured in it, between its
+/// features' tracked positions, with what its outlier test read (the difference `μ`, the
+/// smooth field's share `min(sᵢ, sⱼ)·ℓ`, the level `max(median, smooth) + margin` that `μ`
+/// must pass, the margin `max(κ σ̂, min_difference)`), whether it was an outlier and is split,
+/// and, with a ground truth, whether it crosses the true cut of that frame (1 or 0): the
+/// evidence the detector had, pair by pair, to study a rule against.
+fn pair_rows<T: Real, F: Real>(
+    model: &Model<'_, T, F>,
+    record: &FrameRecord,
+    detection: &crate::scene::DetectionSection,
+    true_cut: Option<&[Vec<[f64; 2]>]>,
+) -> String {
+    use std::fmt::Write;
+    let detector = model.detector();
+    let features = model.features();
+    let seen = features.targets();
+    if record.difference_median_px.is_nan() {
+        // No pair measured this frame (frame 0, a refused frame).
+        return String::new();
+    }
+    let margin =
+        (detection.outlier_sigmas * record.difference_deviation_px).max(detection.min_difference);
+    let mut rows = String::new();
+    for (k, &[i, j]) in detector.pairs().iter().enumerate() {
+        let (Some(m), Some(a), Some(b), Some(id_i), Some(id_j)) = (
+            detector.pair_measure(k),
+            seen.get(i as usize).map(to_f64),
+            seen.get(j as usize).map(to_f64),
+            features.id_of(i as usize),
+            features.id_of(j as usize),
+        ) else {
+            continue;
+        };
+        let (difference, smooth) = (m.difference.to_f64(), m.smooth.to_f64());
+        let level = record.difference_median_px.max(smooth) + margin;
+        let crosses = true_cut.map_or("", |parts| {
+            if crosses_polyline(a, b, parts) {
+                "1"
+            } else {
+                "0"
+            }
+        });
+        let _ = writeln!(
+            rows,
+            "{},{k},{id_i},{id_j},{:.3},{:.3},{:.3},{:.3},{difference:.4},{smooth:.4},{level:.4},{margin:.4},{},{},{crosses}",
+            record.frame,
+            a[0],
+            a[1],
+            b[0],
+            b[1],
+            u8::from(detector.is_outlier(k)),
+            u8::from(detector.is_split(k)),
+        );
+    }
+    rows
+}
+
+/// Whether segment `a b` crosses one of the polylines `parts` (touching counts).
+fn crosses_polyline(a: [f64; 2], b: [f64; 2], parts: &[Vec<[f64; 2]>]) -> bool {
+    // The side of `r` from the line `p q`: 1, -1, or 0 on it (`f64::signum` has no zero).
+    let side = |p: [f64; 2], q: [f64; 2], r: [f64; 2]| {
+        let c = (q[0] - p[0]) * (r[1] - p[1]) - (q[1] - p[1]) * (r[0] - p[0]);
+        if c > 0.0 {
+            1
+        } else if c < 0.0 {
+            -1
+        } else {
+            0
+        }
+    };
+    let overlap = |p: f64, q: f64, r: f64, s: f64| p.min(q) <= r.max(s) && r.min(s) <= p.max(q);
+    parts.iter().any(|part| {
+        part.windows(2).any(|w| {
+            let (c, d) = (w[0], w[1]);
+            let (abc, abd) = (side(a, b, c), side(a, b, d));
+            if abc == 0 && abd == 0 {
+                // On one line: crossing where the two overlap.
+                return overlap(a[0], b[0], c[0], d[0]) && overlap(a[1], b[1], c[1], d[1]);
+            }
+            abc * abd <= 0 && side(c, d, a) * side(c, d, b) <= 0
+        })
+    })
+}
+
 /// Runs a scene and summarises it (with cutting on, and, for the `_uncut` figures, off).
 ///
 /// # Errors
@@ -499,4 +588,29 @@ pub fn run_scene_with(
         summary.tre_mm_final_true_cut = Some(along.tre_final * 1e3);
     }
     Ok((summary, trace))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::crosses_polyline;
+
+    #[test]
+    fn a_pair_crosses_the_polyline_it_spans() {
+        let cut = vec![vec![[0.0, 0.0], [0.0, 10.0], [5.0, 20.0]]];
+        // Across the first segment, across the second, beside both, touching an end.
+        assert!(crosses_polyline([-1.0, 5.0], [1.0, 5.0], &cut));
+        assert!(crosses_polyline([0.0, 15.0], [5.0, 15.0], &cut));
+        assert!(!crosses_polyline([1.0, 5.0], [3.0, 5.0], &cut));
+        assert!(crosses_polyline([0.0, -1.0], [0.0, 0.0], &cut));
+        // Along the line of a segment: only where the two overlap.
+        assert!(crosses_polyline([0.0, 2.0], [0.0, 4.0], &cut));
+        assert!(!crosses_polyline([0.0, -3.0], [0.0, -1.0], &cut));
+        // No cut, or a part of one point.
+        assert!(!crosses_polyline([-1.0, 5.0], [1.0, 5.0], &[]));
+        assert!(!crosses_polyline(
+            [-1.0, 5.0],
+            [1.0, 5.0],
+            &[vec![[0.0, 5.0]]]
+        ));
+    }
 }

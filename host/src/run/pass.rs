@@ -60,6 +60,8 @@ impl Pass {
             observed: obs.len(),
             outlier_pairs: 0,
             separation_points: 0,
+            difference_median_px: f64::NAN,
+            difference_deviation_px: f64::NAN,
             cut_vertices: 0,
             work: None,
             health: None,
@@ -86,6 +88,10 @@ impl Pass {
             Ok(report) => {
                 record.outlier_pairs = report.detection.outliers;
                 record.separation_points = report.detection.separation_points;
+                if report.detection.pairs_active > 0 {
+                    record.difference_median_px = report.detection.median_difference_px.to_f64();
+                    record.difference_deviation_px = report.detection.deviation_px.to_f64();
+                }
                 record.cut_vertices = report.cut_line.vertices;
                 record.work = Some(FrameWork {
                     solve: report.work,

@@ -26,13 +26,17 @@ pub(crate) struct Outputs<'d, 's> {
     sink: Option<&'s mut dyn FrameSink>,
     /// The `.pvd` series: time and file of each frame's mesh.
     pvd: Vec<(f64, String)>,
+    /// `pairs.csv` so far (with an output directory and the detector's pairs asked for).
+    pairs: Option<String>,
 }
 
 impl<'d, 's> Outputs<'d, 's> {
     /// Outputs to `dir` (created if missing) and `sink`.
+    /// With `pairs`, `pairs.csv` too (in `dir`, if any).
     pub(crate) fn new(
         dir: Option<&'d Path>,
         sink: Option<&'s mut dyn FrameSink>,
+        pairs: bool,
     ) -> Result<Self, RunError> {
         if let Some(dir) = dir {
             std::fs::create_dir_all(dir).map_err(output_at(dir))?;
@@ -41,7 +45,20 @@ impl<'d, 's> Outputs<'d, 's> {
             dir,
             sink,
             pvd: vec![],
+            pairs: (pairs && dir.is_some()).then(|| PAIRS_CSV_HEADER.to_string()),
         })
+    }
+
+    /// Whether `pairs.csv` is written.
+    pub(crate) fn wants_pairs(&self) -> bool {
+        self.pairs.is_some()
+    }
+
+    /// Appends rows to `pairs.csv`.
+    pub(crate) fn pairs(&mut self, rows: &str) {
+        if let Some(csv) = self.pairs.as_mut() {
+            csv.push_str(rows);
+        }
     }
 
     /// Whether any output wants the overlay pictures.
@@ -82,10 +99,18 @@ impl<'d, 's> Outputs<'d, 's> {
             let (pvd, csv) = (dir.join("mesh.pvd"), dir.join("frames.csv"));
             vtu::write_pvd(&pvd, &self.pvd).map_err(output_at(&pvd))?;
             write_frames_csv(&csv, frames).map_err(output_at(&csv))?;
+            if let Some(rows) = &self.pairs {
+                let file = dir.join("pairs.csv");
+                std::fs::write(&file, rows).map_err(output_at(&file))?;
+            }
         }
         Ok(())
     }
 }
+
+/// The columns of `pairs.csv`: per frame, every neighbour pair measured in it (see
+/// [`pair_rows`](crate::run)).
+const PAIRS_CSV_HEADER: &str = "frame,pair,id_i,id_j,u_i,v_i,u_j,v_j,difference_px,smooth_px,level_px,margin_px,outlier,split,crosses_true_cut\n";
 
 /// An output error that names the file or directory it came from.
 fn output_at<E: std::fmt::Display>(path: &Path) -> impl Fn(E) -> RunError + '_ {
@@ -125,11 +150,11 @@ fn write_mesh_vtu<T: Real, F: Real>(path: &Path, model: &Model<'_, T, F>) -> std
 /// The I/O error of writing `path`.
 fn write_frames_csv(path: &Path, frames: &[FrameRecord]) -> std::io::Result<()> {
     let mut csv = String::from(
-        "frame,dice,tre_mm,step_ms,observed,outlier_pairs,separation_points,cut_vertices\n",
+        "frame,dice,tre_mm,step_ms,observed,outlier_pairs,separation_points,difference_median_px,difference_deviation_px,cut_vertices\n",
     );
     for r in frames {
         csv.push_str(&format!(
-            "{},{:.5},{:.4},{:.3},{},{},{},{}\n",
+            "{},{:.5},{:.4},{:.3},{},{},{},{:.4},{:.4},{}\n",
             r.frame,
             r.dice,
             r.tre_mm,
@@ -137,6 +162,8 @@ fn write_frames_csv(path: &Path, frames: &[FrameRecord]) -> std::io::Result<()> 
             r.observed,
             r.outlier_pairs,
             r.separation_points,
+            r.difference_median_px,
+            r.difference_deviation_px,
             r.cut_vertices
         ));
     }

@@ -133,6 +133,11 @@ pub struct FrameRecord {
     pub outlier_pairs: usize,
     /// Separation points.
     pub separation_points: usize,
+    /// Median residual difference `μ` over the measured pairs, pixels (NaN without a
+    /// detection that frame).
+    pub difference_median_px: f64,
+    /// Its robust deviation `σ̂` (1.4826 × MAD), pixels (NaN likewise).
+    pub difference_deviation_px: f64,
     /// Vertices of the cut line.
     pub cut_vertices: usize,
     /// The work the core counted in this frame, beside its worst-case formulas (`None` for

@@ -1,7 +1,7 @@
 //! The detector: its storage, set-up at frame 0 and the frame update, whose steps live in
 //! `steps.rs`.
 
-use super::{DetectionConfig, DetectionReport, DetectionWork};
+use super::{DetectionConfig, DetectionReport, DetectionWork, PairMeasure};
 use crate::error::{Error, Resource};
 use crate::features::{image_bounds, spacing_px};
 use crate::real::Real;
@@ -263,6 +263,27 @@ impl<'a, T: Real> Detector<'a, T> {
     /// detector's evidence.
     pub fn is_outlier(&self, k: usize) -> bool {
         self.pair_state.get(k).is_some_and(|s| s & OUTLIER != 0)
+    }
+
+    /// What the outlier test read of pair `k` in the last frame, `None` when it was not
+    /// measured then: with [`Detector::pairs`] and the frame's [`DetectionReport`] (its median
+    /// and robust deviation), for a caller that studies the evidence. The test itself
+    /// ([`crate::detect`]): an outlier when `difference > max(median, smooth) + margin`,
+    /// with the margin `max(κ σ̂, min_difference_px)`, and with `opening_only` when the
+    /// residuals also diverge along the pair.
+    pub fn pair_measure(&self, k: usize) -> Option<PairMeasure<T>> {
+        let &[i, j] = self.pairs().get(k)?;
+        let difference = *self.difference.get(k)?;
+        if !(difference >= T::zero()) {
+            return None;
+        }
+        let length = *self.length.get(k)?;
+        let (si, sj) = (*self.slope.get(i as usize)?, *self.slope.get(j as usize)?);
+        Some(PairMeasure {
+            difference,
+            length,
+            smooth: si.min(sj) * length,
+        })
     }
 
     /// The pairs counted as split so far, for the cut line to tell the lips apart.

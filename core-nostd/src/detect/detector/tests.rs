@@ -130,6 +130,54 @@ fn a_clean_jump_across_a_line_gives_separation_points_on_it() {
     }
 }
 
+/// The measures a caller reads back give the outlier flags again, by the rule written out:
+/// every measured pair, a frame with a jump across a line and a smooth stretch.
+#[test]
+fn the_pair_measures_give_the_outliers_by_the_rule() {
+    let mut s = store();
+    let mut det = detector(&mut s, 400, 2000);
+    let uv = grid(20, 10.0);
+    let config = DetectionConfig {
+        opening_only: false,
+        ..config()
+    };
+    det.init(&uv, &[[0.0; 2]; 400], &config).unwrap();
+    let mut d = [[0.0; 2]; 400];
+    for k in 0..400 {
+        let x = uv[k][0];
+        d[k] = [
+            if x > 95.0 { 6.0 } else { -6.0 } + 0.02 * x,
+            0.03 * uv[k][1],
+        ];
+    }
+    // One feature unobserved: its pairs are not measured.
+    let mut observed = [1; 400];
+    observed[37] = 0;
+    let r = det.update(1, &d, &observed, &uv, &config);
+    let margin = (config.outlier_sigmas * r.deviation_px).max(config.min_difference_px);
+    let (mut measured, mut outliers) = (0, 0);
+    for (k, &[i, j]) in det.pairs().iter().enumerate() {
+        let Some(m) = det.pair_measure(k) else {
+            assert!(i == 37 || j == 37, "pair {k} unmeasured");
+            continue;
+        };
+        measured += 1;
+        let (a, b) = (uv[i as usize], uv[j as usize]);
+        assert!((m.length - ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)).sqrt()).abs() < 1e-12);
+        let mu = ((d[i as usize][0] - d[j as usize][0]).powi(2)
+            + (d[i as usize][1] - d[j as usize][1]).powi(2))
+        .sqrt();
+        assert!((m.difference - mu).abs() < 1e-12);
+        let out = m.difference > r.median_difference_px.max(m.smooth) + margin;
+        assert_eq!(det.is_outlier(k), out, "pair {k}: {m:?}");
+        outliers += usize::from(out);
+    }
+    assert_eq!(measured, r.pairs_active);
+    assert_eq!(outliers, r.outliers);
+    assert!(outliers > 0);
+    assert_eq!(det.pair_measure(det.pairs().len()), None);
+}
+
 #[test]
 #[cfg(feature = "temporal-filter")]
 fn a_single_jumping_feature_is_filtered_and_cuts_nothing() {
