@@ -8,6 +8,15 @@ fn incise() -> Command {
     Command::new(env!("CARGO_BIN_EXE_incise"))
 }
 
+/// Fails the test with the command's standard error unless it succeeded.
+fn assert_succeeded(output: &std::process::Output) {
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+}
+
 #[test]
 fn demo_writes_pictures_and_a_summary() {
     let tmp = tempfile::tempdir().unwrap();
@@ -18,11 +27,7 @@ fn demo_writes_pictures_and_a_summary() {
         .arg(&out)
         .output()
         .unwrap();
-    assert!(
-        output.status.success(),
-        "{}",
-        String::from_utf8_lossy(&output.stderr)
-    );
+    assert_succeeded(&output);
     let stdout = String::from_utf8_lossy(&output.stdout);
     assert!(stdout.contains("Dice last frame"), "{stdout}");
     // The demo's cut is detected: how far its line ends from the true cut.
@@ -45,11 +50,7 @@ fn demo_writes_pictures_and_a_summary() {
 fn run_json_is_one_object() {
     let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/../fixtures/band-no-cut");
     let output = incise().args(["run", scene, "--json"]).output().unwrap();
-    assert!(
-        output.status.success(),
-        "{}",
-        String::from_utf8_lossy(&output.stderr)
-    );
+    assert_succeeded(&output);
     let v: serde_json::Value = serde_json::from_slice(&output.stdout).unwrap();
     assert_eq!(v["scene"], "band-no-cut");
     assert!(v["cut_detected_frame"].is_null());
@@ -76,11 +77,7 @@ fn table_prints_the_filter_against_the_true_jumps_when_asked() {
         .args(["table", "--filter", scene])
         .output()
         .unwrap();
-    assert!(
-        output.status.success(),
-        "{}",
-        String::from_utf8_lossy(&output.stderr)
-    );
+    assert_succeeded(&output);
     let stdout = String::from_utf8_lossy(&output.stdout);
     assert!(
         stdout.contains("| jumps made | jumps taken out |"),
@@ -106,11 +103,7 @@ fn table_runs_the_scenes_under_a_detection_setting() {
             .arg(scene)
             .output()
             .unwrap();
-        assert!(
-            output.status.success(),
-            "{}",
-            String::from_utf8_lossy(&output.stderr)
-        );
+        assert_succeeded(&output);
         let stdout = String::from_utf8_lossy(&output.stdout).into_owned();
         let line = stdout.lines().find(|l| l.starts_with("| band-side-cut |"));
         // The cells up to the Dice, the timings left out.
@@ -147,11 +140,7 @@ fn run_draws_the_detector_pairs_when_asked() {
             .args(extra)
             .output()
             .unwrap();
-        assert!(
-            output.status.success(),
-            "{}",
-            String::from_utf8_lossy(&output.stderr)
-        );
+        assert_succeeded(&output);
     }
     let split = image::Rgb([255u8, 160, 0]);
     let count = |dir: &std::path::Path, f: &str| {
