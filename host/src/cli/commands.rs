@@ -52,7 +52,7 @@ pub(super) fn table_command(
     detection: &[crate::scene::DetectionSetting],
 ) -> Result<(), Failure> {
     // A setting that is not a field or out of its range, before anything runs.
-    crate::eval::sweep::are_defaults(detection)?;
+    crate::scene::DetectionSection::default().with_all(detection)?;
     let mut rows = vec![];
     let options = RunOptions {
         true_cut,
@@ -64,13 +64,11 @@ pub(super) fn table_command(
         if let Some(law) = law {
             scene.file.model.law = law;
         }
-        for setting in detection {
-            scene.file.detection = scene
-                .file
-                .detection
-                .with(setting)
-                .map_err(|e| format!("{}: {e}", dir.display()))?;
-        }
+        scene.file.detection = scene
+            .file
+            .detection
+            .with_all(detection)
+            .map_err(|e| format!("{}: {e}", dir.display()))?;
         let (summary, _) = run_scene(&scene, &options).map_err(|e| e.to_string())?;
         rows.push(summary);
     }
@@ -307,7 +305,7 @@ pub(super) fn eval_command(
     json: bool,
 ) -> Result<(), Failure> {
     // A setting that is not a field or out of its range, before anything runs.
-    crate::eval::sweep::are_defaults(&options.detection)?;
+    crate::scene::DetectionSection::default().with_all(&options.detection)?;
     let mut done = vec![];
     for f in families {
         done.push(crate::eval::eval_family(f, options)?);

@@ -294,13 +294,11 @@ pub fn eval_family(family_path: &Path, options: &EvalOptions) -> Result<FamilySu
         if let Some(law) = options.law {
             scene.file.model.law = law;
         }
-        for setting in &options.detection {
-            scene.file.detection = scene
-                .file
-                .detection
-                .with(setting)
-                .map_err(|e| format!("{}: {e}", s.name))?;
-        }
+        scene.file.detection = scene
+            .file
+            .detection
+            .with_all(&options.detection)
+            .map_err(|e| format!("{}: {e}", s.name))?;
         // With pictures asked for, the overlays (with the detector's pairs) are drawn and the
         // last one kept; without, none is drawn.
         let drawing = options.pictures.is_some();

@@ -52,11 +52,7 @@ pub fn combinations(
 /// The first setting that is not a field of `[detection]` or out of its range.
 pub fn are_defaults(settings: &[DetectionSetting]) -> Result<bool, String> {
     let defaults = DetectionSection::default();
-    let mut set = defaults.clone();
-    for s in settings {
-        set = set.with(s)?;
-    }
-    Ok(set == defaults)
+    Ok(defaults.with_all(settings)? == defaults)
 }
 
 /// Runs `families` under every combination of `swept` (after `options.detection`).
@@ -114,12 +110,6 @@ fn label(settings: &[String], defaults: bool) -> String {
     }
 }
 
-fn spread(s: Option<super::Spread>) -> String {
-    s.map_or("–".to_string(), |s| {
-        format!("{:.1} / {:.1}", s.median, s.max)
-    })
-}
-
 /// The sweep as a table: one row per setting, every family pooled, and the families that meet
 /// issue 11's acceptance on their own.
 pub fn sweep_table(rows: &[SweepRow]) -> String {
@@ -148,8 +138,8 @@ pub fn sweep_table(rows: &[SweepRow]) -> String {
             per_family.join(", "),
             r.all.missed,
             r.all.cut,
-            spread(r.all.latency),
-            spread(r.all.hausdorff_percent),
+            super::spread(r.all.latency, 1),
+            super::spread(r.all.hausdorff_percent, 1),
             if met.is_empty() {
                 "none".to_string()
             } else {

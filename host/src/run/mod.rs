@@ -455,13 +455,13 @@ fn pair_rows<T: Real, F: Real>(
     true_cut: Option<&[Vec<[f64; 2]>]>,
 ) -> String {
     use std::fmt::Write;
-    let detector = model.detector();
-    let features = model.features();
-    let seen = features.targets();
     if record.difference_median_px.is_nan() {
         // No pair measured this frame (frame 0, a refused frame).
         return String::new();
     }
+    let detector = model.detector();
+    let features = model.features();
+    let seen = features.targets();
     let margin =
         (detection.outlier_sigmas * record.difference_deviation_px).max(detection.min_difference);
     let mut rows = String::new();
@@ -504,13 +504,7 @@ fn crosses_polyline(a: [f64; 2], b: [f64; 2], parts: &[Vec<[f64; 2]>]) -> bool {
     // The side of `r` from the line `p q`: 1, -1, or 0 on it (`f64::signum` has no zero).
     let side = |p: [f64; 2], q: [f64; 2], r: [f64; 2]| {
         let c = (q[0] - p[0]) * (r[1] - p[1]) - (q[1] - p[1]) * (r[0] - p[0]);
-        if c > 0.0 {
-            1
-        } else if c < 0.0 {
-            -1
-        } else {
-            0
-        }
+        i32::from(c > 0.0) - i32::from(c < 0.0)
     };
     let overlap = |p: f64, q: f64, r: f64, s: f64| p.min(q) <= r.max(s) && r.min(s) <= p.max(q);
     parts.iter().any(|part| {

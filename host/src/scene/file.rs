@@ -319,6 +319,16 @@ impl DetectionSection {
     }
 }
 
+impl DetectionSection {
+    /// This section with `settings` set one after the other ([`DetectionSection::with`]).
+    ///
+    /// # Errors
+    /// As [`DetectionSection::with`], for the first setting that fails.
+    pub fn with_all(&self, settings: &[DetectionSetting]) -> Result<DetectionSection, String> {
+        settings.iter().try_fold(self.clone(), |set, s| set.with(s))
+    }
+}
+
 /// One field of `[detection]` set by hand (`KEY=VALUE`, the value as the scene file would write
 /// it): what `incise eval --set` and `--sweep` apply to every variant.
 #[derive(Clone, Debug, PartialEq)]
