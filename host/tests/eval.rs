@@ -141,7 +141,79 @@ fn eval_runs_one_variant_of_each_kind_and_sums_them_up_consistently() {
         assert_eq!(sheet.width(), 5 * (w / 2), "{name}");
         assert!(sheet.height() > h / 2, "{name}");
     }
-    assert_eq!(without_timings(first), without_timings(second));
+    assert_eq!(without_timings(first.clone()), without_timings(second));
+    // Reading the pairs as the oracle would changes no result, and its tests weaken in order
+    // of level, frames and pairs: a weaker one holds no later (a cut variant) and in no fewer
+    // frames (an intact one).
+    let third = eval_json_of(&families(), tmp.path(), &["--evidence"]);
+    let mut read = third.clone();
+    for f in read.as_array_mut().unwrap() {
+        f.as_object_mut()
+            .unwrap()
+            .insert("evidence".into(), serde_json::Value::Null);
+        for v in f["variants"].as_array_mut().unwrap() {
+            v.as_object_mut()
+                .unwrap()
+                .insert("evidence".into(), serde_json::Value::Null);
+        }
+    }
+    assert_eq!(without_timings(first), without_timings(read));
+    for f in third.as_array().unwrap() {
+        let rows = f["evidence"]["tests"].as_array().expect("evidence rows");
+        // The cut left beyond the crossing pairs: a share of the diagonal per variant and
+        // level, and the family's rows count the variants without any such pair.
+        let coverage = f["evidence"]["coverage"].as_array().unwrap();
+        let cut_variants: Vec<&serde_json::Value> = f["variants"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|v| v["kind"] != "intact")
+            .collect();
+        for (k, row) in coverage.iter().enumerate() {
+            let gaps: Vec<Option<f64>> = cut_variants
+                .iter()
+                .map(|v| v["evidence"]["end_gap_percent"][k].as_f64())
+                .collect();
+            assert!(
+                gaps.iter().flatten().all(|g| (0.0..=100.0).contains(g)),
+                "{gaps:?}"
+            );
+            let none = gaps.iter().filter(|g| g.is_none()).count();
+            assert_eq!(row["none"].as_u64(), Some(none as u64), "{row}");
+        }
+        let tests: Vec<[f64; 3]> = rows
+            .iter()
+            .map(|r| ["deviations", "frames", "pairs"].map(|k| r["test"][k].as_f64().unwrap()))
+            .collect();
+        assert_eq!(tests[0], [6.0, 2.0, 6.0], "the detector's own test first");
+        for v in f["variants"].as_array().unwrap() {
+            let e = &v["evidence"];
+            let (key, intact) = if v["kind"] == "intact" {
+                ("frames_held", true)
+            } else {
+                ("oracle_latency", false)
+            };
+            let per_test = e[key].as_array().unwrap();
+            assert_eq!(per_test.len(), tests.len(), "{v}");
+            for (a, ta) in tests.iter().enumerate() {
+                for (b, tb) in tests.iter().enumerate() {
+                    if (0..3).any(|k| tb[k] > ta[k]) {
+                        continue;
+                    }
+                    let (x, y) = (&per_test[a], &per_test[b]);
+                    if intact {
+                        assert!(y.as_u64() >= x.as_u64(), "{} {a} {b}: {e}", v["name"]);
+                    } else if let Some(x) = x.as_i64() {
+                        assert!(
+                            y.as_i64().is_some_and(|y| y <= x),
+                            "{} {a} {b}: {e}",
+                            v["name"]
+                        );
+                    }
+                }
+            }
+        }
+    }
 }
 
 /// The summaries with their timings taken out (the rest is reproduced run to run).
@@ -274,6 +346,7 @@ fn families_meet_the_detection_acceptance() {
         model_mesh: ModelMesh::Scenario,
         pictures: None,
         detection: vec![],
+        evidence: false,
     };
     let done: Vec<_> = families()
         .iter()

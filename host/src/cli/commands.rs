@@ -315,6 +315,12 @@ pub(super) fn eval_command(
         return outln!("{text}");
     }
     out!("{}", crate::eval::markdown_table(&done))?;
+    if options.evidence {
+        outln!("\nWhat the pairs carry, read by an oracle that knows the true cut:\n")?;
+        out!("{}", crate::eval::evidence::evidence_table(&done))?;
+        outln!("\nHow much of the cut the crossing pairs cover (their best frame):\n")?;
+        out!("{}", crate::eval::evidence::coverage_table(&done))?;
+    }
     if per_variant {
         for f in &done {
             outln!("\n{}:\n", f.family)?;

@@ -213,6 +213,12 @@ pub enum Command {
         /// setting, to this SVG file.
         #[arg(long, value_name = "FILE", requires = "sweep")]
         plot: Option<PathBuf>,
+        /// Also read the detector's pairs as an oracle that knows the true cut would: per
+        /// test (a level in robust deviations, frames in a row, pairs at once), how soon after
+        /// the opening enough pairs across the cut stand out, and on how many intact variants
+        /// the same test holds on some pairs (a second table, after the families').
+        #[arg(long, conflicts_with = "sweep")]
+        evidence: bool,
     },
     /// Write one scene as a Rust module for a firmware build (`firmware/`): mesh, camera,
     /// settings, capacities and `const` buffer lengths, the uncut mesh's precomputed ordering
@@ -420,6 +426,7 @@ pub fn run(cli: Cli) -> i32 {
             set,
             sweep,
             plot,
+            evidence,
         } => {
             let options = crate::eval::EvalOptions {
                 work,
@@ -431,6 +438,7 @@ pub fn run(cli: Cli) -> i32 {
                 model_mesh,
                 pictures,
                 detection: set,
+                evidence,
             };
             if sweep.is_empty() {
                 eval_command(&families, &options, variants, json)

@@ -8,6 +8,7 @@
 //! whose `scenario.toml` is the one the family draws now (so changing the detector does not
 //! mean simulating again), and regenerates it otherwise or with `fresh`.
 
+pub mod evidence;
 pub mod sweep;
 
 use std::path::{Path, PathBuf};
@@ -91,6 +92,8 @@ pub struct VariantResult {
     pub cut_to_line_percent: Option<f64>,
     /// The whole summary of the run.
     pub summary: Summary,
+    /// What its pairs carried under each test of [`evidence::TESTS`] (with `--evidence`).
+    pub evidence: Option<evidence::VariantEvidence>,
 }
 
 /// Median and largest of some numbers (`None` for none).
@@ -171,6 +174,9 @@ pub struct FamilySummary {
     pub filter: Option<FilterTruth>,
     /// Whether [`ACCEPTANCE`] holds.
     pub passes: bool,
+    /// Per test of [`evidence::TESTS`], what an oracle that knows the true cut reads from the
+    /// pairs, and how often the test holds on the intact variants (with `--evidence`).
+    pub evidence: Option<evidence::FamilyEvidence>,
     /// Every variant.
     pub variants: Vec<VariantResult>,
 }
@@ -207,6 +213,9 @@ pub struct EvalOptions {
     /// Fields of `[detection]` set on every variant, in order (none: the defaults, or what a
     /// variant's own section says).
     pub detection: Vec<DetectionSetting>,
+    /// Also record the pairs that stand out in every frame and read them under
+    /// [`evidence::TESTS`] ([`VariantResult::evidence`]).
+    pub evidence: bool,
 }
 
 /// Whether `dir` holds the scene of scenario `s` (drawn relative to `base`) already.
@@ -303,15 +312,31 @@ pub fn eval_family(family_path: &Path, options: &EvalOptions) -> Result<FamilySu
         // last one kept; without, none is drawn.
         let drawing = options.pictures.is_some();
         scene.overlay_pairs = drawing;
+        scene.record_excess = options.evidence;
         let mut last = LastPicture(None);
-        let (summary, _) = run_scene_with(
+        let (summary, trace) = run_scene_with(
             &scene,
             &mut TrackSource::new(&scene.frames),
             drawing.then_some(&mut last as &mut dyn FrameSink),
             &RunOptions::default(),
         )
         .map_err(|e| format!("{}: {e}", s.name))?;
-        let result = variant_result(s, kind, summary);
+        let mut result = variant_result(s, kind, summary);
+        if options.evidence {
+            let file = dir.join("gt").join("cut.csv");
+            let cut = match std::fs::read_to_string(&file) {
+                Ok(text) => crate::scene::read_cut_csv(&text, &file).map_err(|e| e.to_string())?,
+                Err(e) => return Err(format!("{}: {e}", file.display())),
+            };
+            let camera = &scene.file.camera;
+            result.evidence = Some(evidence::VariantEvidence::new(
+                &trace.excess,
+                kind,
+                result.open_frame,
+                &cut,
+                f64::from(camera.width).hypot(f64::from(camera.height)),
+            ));
+        }
         if let Some(picture) = last.0 {
             pictures.push((picture, caption(&result)));
         }
@@ -449,6 +474,7 @@ fn variant_result(s: &Scenario, kind: Kind, summary: Summary) -> VariantResult {
             summary.cut_to_line_percent
         },
         summary,
+        evidence: None,
     }
 }
 
@@ -518,6 +544,7 @@ pub fn summarise(family: &str, variants: Vec<VariantResult>) -> FamilySummary {
                 genuine_before_detection: a.genuine_before_detection + b.genuine_before_detection,
             }),
         passes,
+        evidence: evidence::rows(&variants),
         variants,
     }
 }

@@ -27,8 +27,8 @@ pub use sinks::FrameSink;
 pub use sources::VideoFrames;
 pub use sources::{FrameSource, SourceFrame, TrackSource, rest_silhouette};
 pub use trace::{
-    CutTrace, DetectionTrace, FilterTruth, FilteredFeature, FrameHealth, FrameRecord, FrameWork,
-    Summary, Trace,
+    CutTrace, DetectionTrace, EXCESS_FLOOR, FilterTruth, FilteredFeature, FrameHealth, FrameRecord,
+    FrameWork, PairExcess, Summary, Trace,
 };
 
 use crate::render::overlay::{self, DetectorPairs, Overlay};
@@ -338,6 +338,11 @@ fn run_pass_in<T: Real, F: Real>(
             let rows = pair_rows(&model, &record, &scene.file.detection, true_cut.as_deref());
             outputs.pairs(&rows);
         }
+        if scene.record_excess {
+            let true_cut = truth.as_ref().and_then(|t| t.cut_at(f));
+            pass.excess
+                .push(pair_excess(&model, &record, true_cut.as_deref()));
+        }
         if outputs.wants_overlay() {
             let virtual_features: Vec<[f64; 2]> = (0..model.features().len())
                 .filter_map(|slot| model.projected_feature(slot).ok())
@@ -419,6 +424,7 @@ fn run_pass_in<T: Real, F: Real>(
         spring_stiffness: model.spring_stiffness().to_f64(),
         spring_threshold_px: model.spring_threshold_px().to_f64(),
         model_bytes,
+        excess: pass.excess,
     })
 }
 
@@ -442,6 +448,51 @@ fn detector_pairs<T: Real, F: Real>(model: &Model<'_, T, F>) -> DetectorPairs {
     pairs
 }
 
+/// One pair the detector measured in a frame, between its features' tracked positions, as
+/// its outlier test read it.
+struct MeasuredPair {
+    /// Its index in the detector.
+    k: usize,
+    /// Its features' ids.
+    ids: [u32; 2],
+    /// Its features' tracked positions, pixels.
+    ends: [[f64; 2]; 2],
+    /// `μ`, pixels.
+    difference: f64,
+    /// The smooth field's share `min(sᵢ, sⱼ)·ℓ`, pixels.
+    smooth: f64,
+    outlier: bool,
+    split: bool,
+}
+
+/// Every pair the detector measured in the frame it last stepped.
+fn measured_pairs<'m, T: Real, F: Real>(
+    model: &'m Model<'_, T, F>,
+) -> impl Iterator<Item = MeasuredPair> + 'm {
+    let detector = model.detector();
+    let features = model.features();
+    let seen = features.targets();
+    detector
+        .pairs()
+        .iter()
+        .enumerate()
+        .filter_map(move |(k, &[i, j])| {
+            let m = detector.pair_measure(k)?;
+            Some(MeasuredPair {
+                k,
+                ids: [features.id_of(i as usize)?, features.id_of(j as usize)?],
+                ends: [
+                    seen.get(i as usize).map(to_f64)?,
+                    seen.get(j as usize).map(to_f64)?,
+                ],
+                difference: m.difference.to_f64(),
+                smooth: m.smooth.to_f64(),
+                outlier: detector.is_outlier(k),
+                split: detector.is_split(k),
+            })
+        })
+}
+
 /// The rows of `pairs.csv` for one frame: every pair the detector measured in it, between its
 /// features' tracked positions, with what its outlier test read (the difference `μ`, the
 /// smooth field's share `min(sᵢ, sⱼ)·ℓ`, the level `max(median, smooth) + margin` that `μ`
@@ -459,24 +510,12 @@ fn pair_rows<T: Real, F: Real>(
         // No pair measured this frame (frame 0, a refused frame).
         return String::new();
     }
-    let detector = model.detector();
-    let features = model.features();
-    let seen = features.targets();
     let margin =
         (detection.outlier_sigmas * record.difference_deviation_px).max(detection.min_difference);
     let mut rows = String::new();
-    for (k, &[i, j]) in detector.pairs().iter().enumerate() {
-        let (Some(m), Some(a), Some(b), Some(id_i), Some(id_j)) = (
-            detector.pair_measure(k),
-            seen.get(i as usize).map(to_f64),
-            seen.get(j as usize).map(to_f64),
-            features.id_of(i as usize),
-            features.id_of(j as usize),
-        ) else {
-            continue;
-        };
-        let (difference, smooth) = (m.difference.to_f64(), m.smooth.to_f64());
-        let level = record.difference_median_px.max(smooth) + margin;
+    for p in measured_pairs(model) {
+        let [a, b] = p.ends;
+        let level = record.difference_median_px.max(p.smooth) + margin;
         let crosses = true_cut.map_or("", |parts| {
             if crosses_polyline(a, b, parts) {
                 "1"
@@ -486,17 +525,48 @@ fn pair_rows<T: Real, F: Real>(
         });
         let _ = writeln!(
             rows,
-            "{},{k},{id_i},{id_j},{:.3},{:.3},{:.3},{:.3},{difference:.4},{smooth:.4},{level:.4},{margin:.4},{},{},{crosses}",
+            "{},{},{},{},{:.3},{:.3},{:.3},{:.3},{:.4},{:.4},{level:.4},{margin:.4},{},{},{crosses}",
             record.frame,
+            p.k,
+            p.ids[0],
+            p.ids[1],
             a[0],
             a[1],
             b[0],
             b[1],
-            u8::from(detector.is_outlier(k)),
-            u8::from(detector.is_split(k)),
+            p.difference,
+            p.smooth,
+            u8::from(p.outlier),
+            u8::from(p.split),
         );
     }
     rows
+}
+
+/// The pairs of one frame that stand [`EXCESS_FLOOR`] robust deviations or more above what
+/// the frame explains (`max(median, smooth)`), and whether each crosses the true cut: what an
+/// outlier test at any level from the floor up would have read ([`Trace::excess`]).
+fn pair_excess<T: Real, F: Real>(
+    model: &Model<'_, T, F>,
+    record: &FrameRecord,
+    true_cut: Option<&[Vec<[f64; 2]>]>,
+) -> Vec<PairExcess> {
+    let deviation = record.difference_deviation_px;
+    if record.difference_median_px.is_nan() || deviation.is_nan() || deviation <= 0.0 {
+        return Vec::new();
+    }
+    measured_pairs(model)
+        .filter_map(|p| {
+            let excess = (p.difference - record.difference_median_px.max(p.smooth)) / deviation;
+            let [a, b] = p.ends;
+            (excess >= EXCESS_FLOOR).then(|| PairExcess {
+                pair: p.k as u32,
+                deviations: excess as f32,
+                crosses: true_cut.is_some_and(|parts| crosses_polyline(a, b, parts)),
+                midpoint: [(0.5 * (a[0] + b[0])) as f32, (0.5 * (a[1] + b[1])) as f32],
+            })
+        })
+        .collect()
 }
 
 /// Whether segment `a b` crosses one of the polylines `parts` (touching counts).

@@ -7,8 +7,8 @@ use incise_core::{CutWork, Model, Observation, Real};
 
 use super::truth::Truth;
 use super::{
-    CutTrace, DetectionTrace, FilteredFeature, FrameHealth, FrameRecord, FrameWork, RunError,
-    cast_point, core, known_observations, to_f64,
+    CutTrace, DetectionTrace, FilteredFeature, FrameHealth, FrameRecord, FrameWork, PairExcess,
+    RunError, cast_point, core, known_observations, to_f64,
 };
 use crate::generate::object::signed_volume6;
 
@@ -28,6 +28,8 @@ pub(super) struct Pass {
     pub(super) last: (f64, f64),
     /// Length of the true cut line last cut into the mesh ([`super::Cutting::AlongTruth`]), pixels.
     pub(super) true_cut_px: f64,
+    /// Per frame, the pairs that stood out (when the scene asks for them).
+    pub(super) excess: Vec<Vec<PairExcess>>,
 }
 
 impl Pass {
@@ -41,6 +43,7 @@ impl Pass {
             cut_vertices: cut_vertices.max(1),
             last: (0.0, 0.0),
             true_cut_px: 0.0,
+            excess: vec![],
         }
     }
 

@@ -307,6 +307,26 @@ impl CutTrace {
     }
 }
 
+/// A pair that stood out in a frame (recorded with [`Scene::record_excess`], for `incise
+/// eval --evidence`): how far its `μ` stood above what the frame explains, the larger of the
+/// frame's median and the smooth field over the pair, in the frame's robust deviations, and
+/// whether it crosses the true cut of that frame.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PairExcess {
+    /// The pair's index in the detector.
+    pub pair: u32,
+    /// `(μ − max(median, smooth)) / σ̂`.
+    pub deviations: f32,
+    /// Whether the pair crosses the true cut of the frame.
+    pub crosses: bool,
+    /// The midpoint of its features' tracked positions, pixels.
+    pub midpoint: [f32; 2],
+}
+
+/// Pairs standing less than this many robust deviations above what the frame explains are
+/// not recorded as [`PairExcess`]: the lowest level `incise eval --evidence` tries.
+pub const EXCESS_FLOOR: f64 = 2.0;
+
 /// One pass over a scene.
 #[derive(Clone, Debug)]
 pub struct Trace {
@@ -342,6 +362,9 @@ pub struct Trace {
     pub spring_threshold_px: f64,
     /// Storage bytes.
     pub model_bytes: usize,
+    /// Per frame, the pairs that stood [`EXCESS_FLOOR`] deviations or more above what the
+    /// frame explains; empty unless the scene asks for it ([`Scene::record_excess`]).
+    pub excess: Vec<Vec<PairExcess>>,
 }
 
 impl Summary {

@@ -86,6 +86,9 @@ pub struct Scene {
     /// are outliers in the frame and those counted as split (`incise run --pairs`); off as
     /// loaded.
     pub overlay_pairs: bool,
+    /// Whether a run records, frame by frame, the pairs that stand out and whether they cross
+    /// the true cut (`Trace::excess`, for `incise eval --evidence`); off as loaded.
+    pub record_excess: bool,
     /// The scene directory.
     pub dir: PathBuf,
     /// `scene.toml` as read.
@@ -294,6 +297,7 @@ impl Scene {
         Ok(Scene {
             precision: Precision::F64,
             overlay_pairs: false,
+            record_excess: false,
             dir: dir.to_path_buf(),
             file,
             rest,
