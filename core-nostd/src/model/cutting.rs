@@ -37,6 +37,14 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
         (geometry, rebuild)
     }
 
+    /// Holds the cuts (`true`) or lets [`Model::step`] apply them (`false`, as built): held,
+    /// a step still detects the cut and grows its line, but leaves the mesh whole, for a cut
+    /// to be watched and not followed (an alarm), or to read the detector on the model that
+    /// never cuts. A line grown while held is applied, whole, at the first step after release.
+    pub fn hold_cuts(&mut self, held: bool) {
+        self.cut.held = held;
+    }
+
     /// Stage 5: cuts the mesh along the separation surface of the cut line as it is seen now
     /// (the line extruded along the camera rays, or the configured depth direction), where the
     /// mesh is not cut yet. A cut event happens when the line has grown since the last one

@@ -261,6 +261,9 @@ struct CutState<'a, T> {
     /// Scratch of the mesh cut ([`cut::real_len`]).
     #[cfg(feature = "cut")]
     scratch: &'a mut [T],
+    /// Cuts held: detected and grown, never applied to the mesh ([`Model::hold_cuts`]).
+    #[cfg(feature = "cut")]
+    held: bool,
 }
 
 impl<'a, T: Real, F: Real> Model<'a, T, F> {
@@ -390,6 +393,8 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
                 .0,
             #[cfg(feature = "cut")]
             scratch: scalar_slab.take(cut::real_len(caps.mesh.nodes, caps.cut_vertices))?,
+            #[cfg(feature = "cut")]
+            held: false,
         };
         let work = index_slab.take(size.work_len())?;
         load(&mut live, &lame, &config.solver, work)?;
@@ -630,7 +635,7 @@ impl<'a, T: Real, F: Real> Model<'a, T, F> {
             report.observed = report.observed.saturating_sub(unobservable);
             report.cut_line = self.grow_cut_line();
             #[cfg(feature = "cut")]
-            {
+            if !self.cut.held {
                 report.cut = match self.apply_cut() {
                     Ok(cut) => cut,
                     Err(e) => CutReport::refused(e),

@@ -16,8 +16,10 @@
 //! to the last leaves the cut's ends beyond uncovered ([`end_gap`]); the best frame of the run
 //! is the nearest any line grown on that evidence can come to covering the cut.
 //!
-//! The pairs are those of the detected run: once the detector has cut the mesh, the residuals
-//! across the cut shrink, so a test slower than the detector reads less than it could have.
+//! The pairs are read on a pass whose cuts are held ([`crate::run::Cutting::Held`]): the
+//! detector runs as in the product, but the mesh is never cut, so the residuals across the
+//! cut keep what it shows in every frame (cut, the model follows the lips and the pairs across
+//! them stop standing out).
 
 use serde::Serialize;
 

@@ -23,7 +23,8 @@ use image::{RgbImage, imageops};
 
 use crate::render::Canvas;
 use crate::run::{
-    FilterTruth, FrameSink, RunError, RunOptions, Summary, TrackSource, run_scene_with,
+    Cutting, FilterTruth, FrameSink, RunError, RunOptions, Summary, TrackSource, run_pass,
+    run_scene_with,
 };
 use crate::scene::{DetectionSetting, Scene};
 
@@ -312,7 +313,6 @@ pub fn eval_family(family_path: &Path, options: &EvalOptions) -> Result<FamilySu
         // last one kept; without, none is drawn.
         let drawing = options.pictures.is_some();
         scene.overlay_pairs = drawing;
-        scene.record_excess = options.evidence;
         let mut last = LastPicture(None);
         let (summary, trace) = run_scene_with(
             &scene,
@@ -323,6 +323,19 @@ pub fn eval_family(family_path: &Path, options: &EvalOptions) -> Result<FamilySu
         .map_err(|e| format!("{}: {e}", s.name))?;
         let mut result = variant_result(s, kind, summary);
         if options.evidence {
+            // The pairs read on the model that never cuts: cut, the model follows the lips and
+            // the pairs across them no longer stand out, which is no measure of what they
+            // carried.
+            scene.record_excess = true;
+            let held = run_pass(
+                &scene,
+                &mut TrackSource::new(&trace.observations),
+                Cutting::Held,
+                None,
+                None,
+                false,
+            )
+            .map_err(|e| format!("{}: {e}", s.name))?;
             let file = dir.join("gt").join("cut.csv");
             let cut = match std::fs::read_to_string(&file) {
                 Ok(text) => crate::scene::read_cut_csv(&text, &file).map_err(|e| e.to_string())?,
@@ -330,7 +343,7 @@ pub fn eval_family(family_path: &Path, options: &EvalOptions) -> Result<FamilySu
             };
             let camera = &scene.file.camera;
             result.evidence = Some(evidence::VariantEvidence::new(
-                &trace.excess,
+                &held.excess,
                 kind,
                 result.open_frame,
                 &cut,

@@ -114,6 +114,10 @@ pub enum Cutting {
     /// the difference to [`Cutting::Detected`] is the detector's share of the error, the rest
     /// the model's.
     AlongTruth,
+    /// Detected but held ([`incise_core::Model::hold_cuts`]): the line grows where the core
+    /// finds the cut, and the mesh stays whole, so that every frame's residuals are the
+    /// never-cut model's (what `incise eval --evidence` reads the pairs on).
+    Held,
 }
 
 /// The storage of `scene`'s model, its capacities checked.
@@ -273,7 +277,7 @@ fn run_pass_in<T: Real, F: Real>(
 ) -> Result<Trace, RunError> {
     let toml = scene.dir.join("scene.toml");
     let mut config = scene.model_config()?;
-    config.detection.enabled &= cutting == Cutting::Detected;
+    config.detection.enabled &= matches!(cutting, Cutting::Detected | Cutting::Held);
     config
         .detection
         .validate()
@@ -294,6 +298,7 @@ fn run_pass_in<T: Real, F: Real>(
     let mut model = storage
         .model(&mesh, &config)
         .map_err(core("building the model"))?;
+    model.hold_cuts(cutting == Cutting::Held);
     let rest_silhouette = silhouette(&camera, &scene.rest, model.mesh().surface());
     let first = source
         .next_frame(&rest_silhouette)?
@@ -676,5 +681,49 @@ mod tests {
             [1.0, 5.0],
             &[vec![[0.0, 5.0]]]
         ));
+    }
+
+    #[test]
+    fn a_held_pass_finds_the_cut_and_leaves_the_mesh_whole() {
+        use super::{Cutting, TrackSource, run_pass};
+        let dir =
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/band-side-cut");
+        let mut scene = crate::scene::Scene::load(&dir).unwrap();
+        scene.record_excess = true;
+        let pass = |cutting| {
+            run_pass(
+                &scene,
+                &mut TrackSource::new(&scene.frames),
+                cutting,
+                None,
+                None,
+                false,
+            )
+            .unwrap()
+        };
+        let (cut, held) = (pass(Cutting::Detected), pass(Cutting::Held));
+        // The same detection, the same line; the mesh cut in one pass only.
+        assert!(cut.detection.detected_frame.is_some());
+        assert_eq!(held.detection.detected_frame, cut.detection.detected_frame);
+        assert!(!cut.cuts.frames.is_empty());
+        assert!(held.cuts.frames.is_empty());
+        assert_eq!(held.mesh_final, (scene.rest.len(), scene.tets.len()));
+        // Up to the detection both passes read the same pairs; after it, the cut model follows
+        // the lips, and fewer pairs across the cut stand out than on the whole one.
+        let d = cut.detection.detected_frame.unwrap() as usize;
+        assert_eq!(held.excess[..=d], cut.excess[..=d]);
+        let crossing = |t: &super::Trace| {
+            t.excess[d + 1..]
+                .iter()
+                .flatten()
+                .filter(|p| p.crosses)
+                .count()
+        };
+        assert!(
+            crossing(&held) > crossing(&cut),
+            "{} {}",
+            crossing(&held),
+            crossing(&cut)
+        );
     }
 }
