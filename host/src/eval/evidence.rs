@@ -16,17 +16,21 @@
 //! to the last leaves the cut's ends beyond uncovered ([`end_gap`]); the best frame of the run
 //! is the nearest any line grown on that evidence can come to covering the cut.
 //!
-//! The pairs are read on a pass whose cuts are held ([`crate::run::Cutting::Held`]): the
-//! detector runs as in the product, but the mesh is never cut, so the residuals across the
-//! cut keep what it shows in every frame (cut, the model follows the lips and the pairs across
-//! them stop standing out).
+//! The pairs are read on a pass whose cuts are held ([`crate::run::Cutting::Held`]) and whose
+//! temporal filter is off: the detector runs, but the mesh is never cut, so the residuals
+//! across the cut keep what it shows in every frame (cut, the model follows the lips and the
+//! pairs across them stop standing out), and every tracked feature is read (the filter takes
+//! genuine features out along an opening cut, and their pairs with them). The features the
+//! generator made jump are left out while they are off ([`without_jumps`]): the oracle knows
+//! them too. What it reads is what the tracked features carry, whatever a detector's filter
+//! and rules make of it.
 
 use serde::Serialize;
 
 use super::{FamilySummary, Spread, VariantResult};
 use crate::generate::family::Kind;
 use crate::run::{EXCESS_FLOOR, PairExcess};
-use crate::scene::{CutParts, CutPoint};
+use crate::scene::{CutParts, CutPoint, TrueOutlier};
 
 /// One test on the pairs: `pairs` pairs standing more than `deviations` robust deviations above
 /// what the frame explains, each in `frames` frames in a row.
@@ -85,6 +89,27 @@ pub fn holds(
         .filter(|p| (first..frame).all(|f| above(f).any(|q| q.pair == p.pair)))
         .count();
     count >= test.pairs
+}
+
+/// `excess` without the pairs of a feature the generator made jump, in the frames it is off
+/// its true position (`gt/outliers.csv`).
+pub fn without_jumps(excess: &[Vec<PairExcess>], jumps: &[TrueOutlier]) -> Vec<Vec<PairExcess>> {
+    excess
+        .iter()
+        .enumerate()
+        .map(|(f, pairs)| {
+            let off: Vec<u32> = jumps
+                .iter()
+                .filter(|j| u32::try_from(f).is_ok_and(|f| j.is_off_at(f)))
+                .map(|j| j.id)
+                .collect();
+            pairs
+                .iter()
+                .filter(|p| !p.ids.iter().any(|id| off.contains(id)))
+                .copied()
+                .collect()
+        })
+        .collect()
 }
 
 /// The levels the line's evidence is read at ([`end_gap`]), robust deviations.
@@ -449,6 +474,7 @@ mod tests {
     fn above(pair: u32, deviations: f32, crosses: bool) -> PairExcess {
         PairExcess {
             pair,
+            ids: [2 * pair, 2 * pair + 1],
             deviations,
             crosses,
             midpoint: [pair as f32, 0.0],
@@ -537,6 +563,7 @@ mod tests {
         ];
         let pair = |x: f32, deviations: f32, crosses: bool| PairExcess {
             pair: 0,
+            ids: [0, 1],
             deviations,
             crosses,
             midpoint: [x, 1.0],
@@ -564,5 +591,25 @@ mod tests {
         assert_eq!(e.end_gap_percent.len(), LEVELS.len());
         assert!((e.end_gap_percent[0].unwrap() - 40.0).abs() < 1e-9);
         assert!((e.end_gap_percent[1].unwrap() - 15.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn a_jumping_feature_s_pairs_are_left_out_while_it_is_off() {
+        // Pair k joins features 2k and 2k + 1; feature 3 (pair 1) is off in frames 1 and 2.
+        let excess: Vec<Vec<PairExcess>> = (0..4)
+            .map(|_| (0..3).map(|p| above(p, 5.0, true)).collect())
+            .collect();
+        let jumps = [TrueOutlier {
+            id: 3,
+            start: 1,
+            frames: 2,
+            jump: [10.0, 0.0],
+        }];
+        let kept = without_jumps(&excess, &jumps);
+        let pairs = |f: usize| kept[f].iter().map(|p| p.pair).collect::<Vec<_>>();
+        assert_eq!(pairs(0), [0, 1, 2]);
+        assert_eq!(pairs(1), [0, 2]);
+        assert_eq!(pairs(2), [0, 2]);
+        assert_eq!(pairs(3), [0, 1, 2]);
     }
 }

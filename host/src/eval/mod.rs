@@ -326,9 +326,12 @@ pub fn eval_family(family_path: &Path, options: &EvalOptions) -> Result<FamilySu
             // The pairs read on the model that never cuts: cut, the model follows the lips and
             // the pairs across them no longer stand out, which is no measure of what they
             // carried.
-            scene.record_excess = true;
+            // Every tracked feature read: the filter off, the jumps left out below.
+            let mut watched = scene.clone();
+            watched.record_excess = true;
+            watched.file.detection.temporal_sigmas = f64::INFINITY;
             let held = run_pass(
-                &scene,
+                &watched,
                 &mut TrackSource::new(&trace.observations),
                 Cutting::Held,
                 None,
@@ -341,9 +344,16 @@ pub fn eval_family(family_path: &Path, options: &EvalOptions) -> Result<FamilySu
                 Ok(text) => crate::scene::read_cut_csv(&text, &file).map_err(|e| e.to_string())?,
                 Err(e) => return Err(format!("{}: {e}", file.display())),
             };
+            let file = dir.join("gt").join("outliers.csv");
+            let jumps = match std::fs::read_to_string(&file) {
+                Ok(text) => {
+                    crate::scene::read_outliers_csv(&text, &file).map_err(|e| e.to_string())?
+                }
+                Err(e) => return Err(format!("{}: {e}", file.display())),
+            };
             let camera = &scene.file.camera;
             result.evidence = Some(evidence::VariantEvidence::new(
-                &held.excess,
+                &evidence::without_jumps(&held.excess, &jumps),
                 kind,
                 result.open_frame,
                 &cut,

@@ -566,6 +566,7 @@ fn pair_excess<T: Real, F: Real>(
             let [a, b] = p.ends;
             (excess >= EXCESS_FLOOR).then(|| PairExcess {
                 pair: p.k as u32,
+                ids: p.ids,
                 deviations: excess as f32,
                 crosses: true_cut.is_some_and(|parts| crosses_polyline(a, b, parts)),
                 midpoint: [(0.5 * (a[0] + b[0])) as f32, (0.5 * (a[1] + b[1])) as f32],

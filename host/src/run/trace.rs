@@ -315,6 +315,8 @@ impl CutTrace {
 pub struct PairExcess {
     /// The pair's index in the detector.
     pub pair: u32,
+    /// Its features' ids.
+    pub ids: [u32; 2],
     /// `(μ − max(median, smooth)) / σ̂`.
     pub deviations: f32,
     /// Whether the pair crosses the true cut of the frame.
