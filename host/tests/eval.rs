@@ -158,6 +158,33 @@ fn eval_runs_one_variant_of_each_kind_and_sums_them_up_consistently() {
         }
     }
     assert_eq!(without_timings(first), without_timings(read));
+    // The same per variant, as text: one row per variant after the oracle's heading, a cell per
+    // test and per level.
+    let out = Command::new(env!("CARGO_BIN_EXE_incise"))
+        .arg("eval")
+        .arg(&families()[0])
+        .args(["--per-kind", "1", "--evidence", "--variants", "--work"])
+        .arg(tmp.path())
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8(out.stdout).unwrap();
+    let table: Vec<&str> = text
+        .split("read by the oracle")
+        .nth(1)
+        .expect("the per-variant oracle table")
+        .lines()
+        .filter(|l| l.starts_with("| band-"))
+        .collect();
+    assert_eq!(table.len(), 3, "{text}");
+    for row in table {
+        let cells = 2 + incise::eval::evidence::TESTS.len() + incise::eval::evidence::LEVELS.len();
+        assert_eq!(row.matches('|').count(), cells + 1, "{row}");
+    }
     for f in third.as_array().unwrap() {
         let rows = f["evidence"]["tests"].as_array().expect("evidence rows");
         // The cut left beyond the crossing pairs: a share of the diagonal per variant and

@@ -325,6 +325,13 @@ pub(super) fn eval_command(
         for f in &done {
             outln!("\n{}:\n", f.family)?;
             out!("{}", crate::eval::variant_table(f))?;
+            if options.evidence {
+                outln!(
+                    "\n{}, read by the oracle (per test, a cut variant's latency, an intact one's frames where it holds):\n",
+                    f.family
+                )?;
+                out!("{}", crate::eval::evidence::variant_evidence_table(f))?;
+            }
         }
     }
     Ok(())

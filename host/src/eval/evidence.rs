@@ -467,6 +467,56 @@ pub fn coverage_table(families: &[FamilySummary]) -> String {
     s
 }
 
+/// A family's variants read by the oracle, one row each: per test of [`TESTS`] (headed `pairs
+/// > level × frames`), the oracle's latency on a cut variant (`–`: never) or the frames in which
+/// the test holds on an intact one (any pairs); then, for a cut variant, the cut left beyond its crossing
+/// pairs per level of [`LEVELS`] (percent of the diagonal). Empty when the family was run without
+/// `--evidence`.
+pub fn variant_evidence_table(f: &FamilySummary) -> String {
+    if f.evidence.is_none() {
+        return String::new();
+    }
+    let mut s = String::from("| variant | kind | ");
+    let tests: Vec<String> = TESTS
+        .iter()
+        .map(|t| format!("{} > {} σ̂ × {}", t.pairs, t.deviations, t.frames))
+        .collect();
+    s.push_str(&tests.join(" | "));
+    for level in LEVELS {
+        s.push_str(&format!(" | cut beyond pairs > {level} σ̂ (%)"));
+    }
+    s.push_str(" |\n|---|---|");
+    s.push_str(&"---|".repeat(TESTS.len() + LEVELS.len()));
+    s.push('\n');
+    let dash = || "–".to_string();
+    for v in &f.variants {
+        let Some(e) = &v.evidence else { continue };
+        let mut cells: Vec<String> = if v.kind == Kind::Intact {
+            e.frames_held.iter().map(ToString::to_string).collect()
+        } else {
+            e.oracle_latency
+                .iter()
+                .map(|l| l.map_or_else(dash, |l| l.to_string()))
+                .collect()
+        };
+        cells.resize(TESTS.len(), dash());
+        let mut gaps: Vec<String> = e
+            .end_gap_percent
+            .iter()
+            .map(|g| g.map_or_else(dash, |g| format!("{g:.1}")))
+            .collect();
+        gaps.resize(LEVELS.len(), dash());
+        cells.extend(gaps);
+        s.push_str(&format!(
+            "| {} | {} | {} |\n",
+            v.name,
+            v.kind.name(),
+            cells.join(" | ")
+        ));
+    }
+    s
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
