@@ -145,7 +145,14 @@ fn eval_runs_one_variant_of_each_kind_and_sums_them_up_consistently() {
     // Reading the pairs as the oracle would changes no result, and its tests weaken in order
     // of level, frames and pairs: a weaker one holds no later (a cut variant) and in no fewer
     // frames (an intact one).
-    let third = eval_json_of(&families(), tmp.path(), &["--evidence"]);
+    let plot = tmp.path().join("evidence.svg");
+    let third = eval_json_of(
+        &families(),
+        tmp.path(),
+        &["--evidence", "--plot", plot.to_str().unwrap()],
+    );
+    let svg = std::fs::read_to_string(&plot).unwrap();
+    assert!(svg.starts_with("<svg") && svg.contains("<circle"), "{svg}");
     let mut read = third.clone();
     for f in read.as_array_mut().unwrap() {
         f.as_object_mut()
@@ -299,6 +306,7 @@ fn a_setting_that_is_no_field_is_refused_before_anything_runs() {
         ["--set", "persistance=1"],
         ["--sweep", "persistence=0,1"],
         ["--set", "outlier_sigmas"],
+        ["--plot", "plot.svg"],
     ] {
         let out = Command::new(env!("CARGO_BIN_EXE_incise"))
             .arg("eval")
@@ -311,7 +319,10 @@ fn a_setting_that_is_no_field_is_refused_before_anything_runs() {
         assert!(!out.status.success(), "{args:?}");
         let err = String::from_utf8_lossy(&out.stderr);
         assert!(
-            err.contains("persistance") || err.contains("persistence") || err.contains("KEY"),
+            err.contains("persistance")
+                || err.contains("persistence")
+                || err.contains("KEY")
+                || err.contains("--plot needs"),
             "{args:?}: {err}"
         );
         assert!(!tmp.path().join("work").exists(), "{args:?}");

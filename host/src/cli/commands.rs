@@ -303,12 +303,16 @@ pub(super) fn eval_command(
     options: &crate::eval::EvalOptions,
     per_variant: bool,
     json: bool,
+    plot: Option<&Path>,
 ) -> Result<(), Failure> {
     // A setting that is not a field or out of its range, before anything runs.
     crate::scene::DetectionSection::default().with_all(&options.detection)?;
     let mut done = vec![];
     for f in families {
         done.push(crate::eval::eval_family(f, options)?);
+    }
+    if let Some(file) = plot {
+        crate::eval::evidence::plot_evidence(&done, file)?;
     }
     if json {
         let text = serde_json::to_string_pretty(&done).map_err(|e| e.to_string())?;
@@ -320,6 +324,9 @@ pub(super) fn eval_command(
         out!("{}", crate::eval::evidence::evidence_table(&done))?;
         outln!("\nHow much of the cut the crossing pairs cover (their best frame):\n")?;
         out!("{}", crate::eval::evidence::coverage_table(&done))?;
+        if let Some(file) = plot {
+            outln!("plot: {}", file.display())?;
+        }
     }
     if per_variant {
         for f in &done {

@@ -210,8 +210,9 @@ pub enum Command {
         #[arg(long, value_name = "KEY=V1,V2,...", value_parser = DetectionSetting::parse_list)]
         sweep: Vec<SweptValues>,
         /// With --sweep, draw false cuts against latency and line distance, one point per
-        /// setting, to this SVG file.
-        #[arg(long, value_name = "FILE", requires = "sweep")]
+        /// setting, to this SVG file; with --evidence, the oracle's latency against the intact
+        /// frames where its test holds, one point per test, a panel per family.
+        #[arg(long, value_name = "FILE")]
         plot: Option<PathBuf>,
         /// Also read the detector's pairs as an oracle that knows the true cut would: per
         /// test (a level in robust deviations, frames in a row, pairs at once), how soon after
@@ -441,7 +442,11 @@ pub fn run(cli: Cli) -> i32 {
                 evidence,
             };
             if sweep.is_empty() {
-                eval_command(&families, &options, variants, json)
+                if plot.is_some() && !evidence {
+                    Err(String::from("--plot needs --sweep or --evidence").into())
+                } else {
+                    eval_command(&families, &options, variants, json, plot.as_deref())
+                }
             } else {
                 eval_sweep_command(&families, &options, &sweep, plot.as_deref(), json)
             }

@@ -517,6 +517,95 @@ pub fn variant_evidence_table(f: &FamilySummary) -> String {
     s
 }
 
+/// Draws, per family with cut variants, each test of [`TESTS`] as a point: the oracle's median
+/// latency against the median frames in which the test holds on the family's intact variants,
+/// with a line from the median to the largest latency; the acceptance's median latency shaded
+/// (where no intact frame holds the test), the detector's own test red. SVG to `out`.
+///
+/// # Errors
+/// The file's, as a message.
+pub fn plot_evidence(families: &[FamilySummary], out: &std::path::Path) -> Result<(), String> {
+    use plotters::prelude::*;
+    let read: Vec<(&FamilySummary, &Vec<EvidenceRow>)> = families
+        .iter()
+        .filter(|f| f.cut > 0)
+        .filter_map(|f| f.evidence.as_ref().map(|e| (f, &e.tests)))
+        .collect();
+    let width = 360 * read.len().max(1) as u32;
+    let root = SVGBackend::new(out, (width, 420)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| e.to_string())?;
+    let root = root
+        .titled(
+            "each point a test of the pairs (pairs > level × frames), the detector's red; \
+             green: issue 11's median latency where no intact frame holds it",
+            ("sans-serif", 13),
+        )
+        .map_err(|e| e.to_string())?;
+    let accepted = super::ACCEPTANCE.latency_median;
+    for (area, (family, rows)) in root.split_evenly((1, read.len().max(1))).iter().zip(&read) {
+        let latest = rows
+            .iter()
+            .filter_map(|r| r.oracle_latency.map(|l| l.max))
+            .fold(accepted, f64::max)
+            + 1.0;
+        let frames = rows
+            .iter()
+            .filter_map(|r| r.intact_frames.map(|l| l.median))
+            .fold(1.0, f64::max)
+            * 1.1;
+        let mut chart = ChartBuilder::on(area)
+            .caption(family.family.clone(), ("sans-serif", 13))
+            .margin(12)
+            .x_label_area_size(36)
+            .y_label_area_size(44)
+            .build_cartesian_2d(-0.5..latest, -1.0..frames)
+            .map_err(|e| e.to_string())?;
+        chart
+            .configure_mesh()
+            .x_desc("oracle latency, frames (median, line to max)")
+            .y_desc("intact frames where it holds (median)")
+            .draw()
+            .map_err(|e| e.to_string())?;
+        chart
+            .draw_series(std::iter::once(Rectangle::new(
+                [(-0.5, -1.0), (accepted, 0.5)],
+                GREEN.mix(0.2).filled(),
+            )))
+            .map_err(|e| e.to_string())?;
+        // Points that coincide have their labels stacked, each 11 px under the one before.
+        let mut placed: Vec<(f64, f64)> = vec![];
+        for r in rows.iter() {
+            let (Some(latency), Some(held)) = (r.oracle_latency, r.intact_frames) else {
+                continue;
+            };
+            let here = (latency.median, held.median);
+            let below = placed.iter().filter(|&&p| p == here).count() as i32;
+            placed.push(here);
+            let colour = if r.test == TESTS[0] { RED } else { BLUE };
+            let y = held.median;
+            chart
+                .draw_series(std::iter::once(PathElement::new(
+                    vec![(latency.median, y), (latency.max, y)],
+                    colour.mix(0.5).stroke_width(1),
+                )))
+                .map_err(|e| e.to_string())?;
+            let t = r.test;
+            chart
+                .draw_series(std::iter::once(
+                    EmptyElement::at((latency.median, y))
+                        + Circle::new((0, 0), 4, colour.filled())
+                        + Text::new(
+                            format!("{}>{}×{}", t.pairs, t.deviations, t.frames),
+                            (6, -12 + 11 * below),
+                            ("sans-serif", 10).into_font(),
+                        ),
+                ))
+                .map_err(|e| e.to_string())?;
+        }
+    }
+    root.present().map_err(|e| e.to_string())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
