@@ -22,12 +22,18 @@ fn families() -> Vec<PathBuf> {
 
 /// `incise eval FAMILIES --per-kind 1 --json --work WORK EXTRA…`, parsed.
 fn eval_json_of(families: &[PathBuf], work: &Path, extra: &[&str]) -> serde_json::Value {
+    let json = [&["--json"], extra].concat();
+    serde_json::from_slice(&eval_output(families, work, &json)).unwrap()
+}
+
+/// `incise eval FAMILIES --per-kind 1 --work WORK ARGS…`, its output, once it succeeded.
+fn eval_output(families: &[PathBuf], work: &Path, args: &[&str]) -> Vec<u8> {
     let out = Command::new(env!("CARGO_BIN_EXE_incise"))
         .arg("eval")
         .args(families)
-        .args(["--per-kind", "1", "--json", "--work"])
+        .args(["--per-kind", "1", "--work"])
         .arg(work)
-        .args(extra)
+        .args(args)
         .output()
         .unwrap();
     assert!(
@@ -35,7 +41,7 @@ fn eval_json_of(families: &[PathBuf], work: &Path, extra: &[&str]) -> serde_json
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    serde_json::from_slice(&out.stdout).unwrap()
+    out.stdout
 }
 
 fn eval_json(work: &Path) -> serde_json::Value {
@@ -167,19 +173,8 @@ fn eval_runs_one_variant_of_each_kind_and_sums_them_up_consistently() {
     assert_eq!(without_timings(first), without_timings(read));
     // The same per variant, as text: one row per variant after the oracle's heading, a cell per
     // test and per level.
-    let out = Command::new(env!("CARGO_BIN_EXE_incise"))
-        .arg("eval")
-        .arg(&families()[0])
-        .args(["--per-kind", "1", "--evidence", "--variants", "--work"])
-        .arg(tmp.path())
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let text = String::from_utf8(out.stdout).unwrap();
+    let out = eval_output(&families()[..1], tmp.path(), &["--evidence", "--variants"]);
+    let text = String::from_utf8(out).unwrap();
     let table: Vec<&str> = text
         .split("read by the oracle")
         .nth(1)
