@@ -5,16 +5,18 @@
 //! explains for `persistence` frames in a row, and starts a line on six such separation points
 //! along one line. An oracle that reads the same pairs but knows which of them cross the true
 //! cut needs no line and no search: it declares the cut in the first frame from the opening on
-//! in which enough *crossing* pairs stand above a level in enough frames in a row. It is the
-//! fastest any test of that kind can be on that level, so its latency bounds the detector's
-//! from below; the same test counted over *every* pair of an intact variant says how often
+//! in which enough *crossing* pairs stand above a level in enough frames in a row: the
+//! reference for any test of that kind on that level (not a strict bound: a detector may find
+//! a cut sooner on pairs beside it, which the oracle does not count); the same test counted
+//! over *every* pair of an intact variant says how often
 //! that level holds where there is nothing to find, the price a detector without the oracle's
 //! knowledge would pay in false cuts. The levels go down to [`EXCESS_FLOOR`] deviations.
 //!
 //! The same knowledge bounds the line: the crossing pairs that stand above a level in a frame,
 //! projected onto the true cut, span a stretch of it, and a line drawn from the first of them
 //! to the last leaves the cut's ends beyond uncovered ([`end_gap`]); the best frame of the run
-//! is the nearest any line grown on that evidence can come to covering the cut.
+//! is about the nearest a line grown on that evidence comes to covering the cut (the detected
+//! line's ends reach one feature spacing past their evidence).
 //!
 //! The pairs are read on a pass whose cuts are held ([`crate::run::Cutting::Held`]) and whose
 //! temporal filter is off: the detector runs, but the mesh is never cut, so the residuals
