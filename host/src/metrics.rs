@@ -156,7 +156,8 @@ pub fn point_segment_distance_2d(p: [f64; 2], a: [f64; 2], b: [f64; 2]) -> f64 {
     distance_2d(p, closest_on_segment(p, a, b))
 }
 
-fn distance_2d(p: [f64; 2], q: [f64; 2]) -> f64 {
+/// Distance between two image points.
+pub fn distance_2d(p: [f64; 2], q: [f64; 2]) -> f64 {
     let (dx, dy) = (q[0] - p[0], q[1] - p[1]);
     (dx * dx + dy * dy).sqrt()
 }
@@ -184,6 +185,41 @@ fn closest_on_polyline(p: [f64; 2], line: &[[f64; 2]]) -> Option<([f64; 2], f64)
             .map(|w| nearest(closest_on_segment(p, w[0], w[1])))
             .min_by(|x, y| x.1.total_cmp(&y.1)),
     }
+}
+
+/// Where along `line` the point of it nearest `p` lies (its arc length from the line's first
+/// point) and how far `p` is from it; `None` for an empty line.
+pub fn arc_position(p: [f64; 2], line: &[[f64; 2]]) -> Option<(f64, f64)> {
+    let first = *line.first()?;
+    let mut best = (0.0, distance_2d(p, first));
+    let mut walked = 0.0;
+    for w in line.windows(2) {
+        let q = closest_on_segment(p, w[0], w[1]);
+        let d = distance_2d(p, q);
+        if d < best.1 {
+            best = (walked + distance_2d(w[0], q), d);
+        }
+        walked += distance_2d(w[0], w[1]);
+    }
+    Some(best)
+}
+
+/// The point at arc length `s` along `line` from its first point, clamped to its ends; `None`
+/// for an empty line.
+pub fn point_at_arc(line: &[[f64; 2]], s: f64) -> Option<[f64; 2]> {
+    let mut walked = 0.0;
+    for w in line.windows(2) {
+        let length = distance_2d(w[0], w[1]);
+        if length > 0.0 && walked + length >= s {
+            let t = ((s - walked) / length).clamp(0.0, 1.0);
+            return Some([
+                w[0][0] + t * (w[1][0] - w[0][0]),
+                w[0][1] + t * (w[1][1] - w[0][1]),
+            ]);
+        }
+        walked += length;
+    }
+    line.last().copied()
 }
 
 fn point_polyline_distance(p: [f64; 2], line: &[[f64; 2]]) -> f64 {
@@ -337,6 +373,24 @@ mod tests {
         assert!((point_triangle_distance([0.5, -2.0, 0.0], a, b, c) - 2.0).abs() < 1e-15);
         assert!((point_triangle_distance([1.0, 1.0, 0.0], a, b, c) - 0.5f64.sqrt()).abs() < 1e-15);
         assert_eq!(point_triangle_distance([0.1, 0.1, 0.0], a, b, c), 0.0);
+    }
+
+    #[test]
+    fn arc_positions_along_a_bent_line() {
+        let line = [[0.0, 0.0], [10.0, 0.0], [10.0, 10.0]];
+        let (s, d) = arc_position([4.0, 2.0], &line).unwrap();
+        assert!((s - 4.0).abs() < 1e-12 && (d - 2.0).abs() < 1e-12);
+        let (s, d) = arc_position([13.0, 6.0], &line).unwrap();
+        assert!((s - 16.0).abs() < 1e-12 && (d - 3.0).abs() < 1e-12);
+        assert_eq!(
+            arc_position([1.0, 1.0], &[[0.0, 0.0]]),
+            Some((0.0, 2f64.sqrt()))
+        );
+        assert_eq!(arc_position([1.0, 1.0], &[]), None);
+        assert_eq!(point_at_arc(&line, 16.0), Some([10.0, 6.0]));
+        assert_eq!(point_at_arc(&line, -3.0), Some([0.0, 0.0]));
+        assert_eq!(point_at_arc(&line, 99.0), Some([10.0, 10.0]));
+        assert_eq!(point_at_arc(&[], 1.0), None);
     }
 
     #[test]

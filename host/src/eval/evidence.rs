@@ -31,8 +31,10 @@ use serde::Serialize;
 
 use super::{FamilySummary, Spread, VariantResult};
 use crate::generate::family::Kind;
+use crate::metrics::{arc_position, distance_2d, point_at_arc};
+use crate::run::{Cutting, Trace, TrackSource, Truth, run_pass};
 use crate::run::{EXCESS_FLOOR, PairExcess};
-use crate::scene::{CutParts, CutPoint, TrueOutlier};
+use crate::scene::{Scene, TrueOutlier};
 
 /// One test on the pairs: `pairs` pairs standing more than `deviations` robust deviations above
 /// what the frame explains, each in `frames` frames in a row.
@@ -117,61 +119,14 @@ pub fn without_jumps(excess: &[Vec<PairExcess>], jumps: &[TrueOutlier]) -> Vec<V
 /// The levels the line's evidence is read at ([`end_gap`]), robust deviations.
 pub const LEVELS: [f64; 4] = [6.0, 4.0, 3.0, EXCESS_FLOOR];
 
-/// The point at arc length `s` along `line`, and the arc length of `p`'s nearest point on it.
-fn along(line: &[[f64; 2]], s: f64) -> [f64; 2] {
-    let mut walked = 0.0;
-    for w in line.windows(2) {
-        let length = dist(w[0], w[1]);
-        if walked + length >= s && length > 0.0 {
-            let t = (s - walked) / length;
-            return [
-                w[0][0] + t * (w[1][0] - w[0][0]),
-                w[0][1] + t * (w[1][1] - w[0][1]),
-            ];
-        }
-        walked += length;
-    }
-    line.last().copied().unwrap_or_default()
-}
-
-/// The arc length along `line` of the point of it nearest `p`, and that distance.
-fn project(line: &[[f64; 2]], p: [f64; 2]) -> (f64, f64) {
-    let (mut best, mut walked) = ((0.0, f64::INFINITY), 0.0);
-    for w in line.windows(2) {
-        let (a, b) = (w[0], w[1]);
-        let length = dist(a, b);
-        let t = if length > 0.0 {
-            (((p[0] - a[0]) * (b[0] - a[0]) + (p[1] - a[1]) * (b[1] - a[1])) / (length * length))
-                .clamp(0.0, 1.0)
-        } else {
-            0.0
-        };
-        let q = [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])];
-        let d = dist(p, q);
-        if d < best.1 {
-            best = (walked + t * length, d);
-        }
-        walked += length;
-    }
-    best
-}
-
-fn dist(a: [f64; 2], b: [f64; 2]) -> f64 {
-    (a[0] - b[0]).hypot(a[1] - b[1])
-}
-
 /// How far the cut's ends lie beyond its evidence in one frame, pixels: the pairs of `pairs`
 /// crossing the true cut `parts` above `level` deviations, each taken to the part its midpoint
 /// is nearest, span a stretch of that part from the first to the last along it; a part's gap
 /// is the larger distance from one of its ends to that stretch, and a part no pair is taken to
 /// has its farthest point from any of them as its gap. The frame's is the largest over its
 /// parts; `None` without such a pair.
-pub fn end_gap(pairs: &[PairExcess], parts: &[Vec<CutPoint>], level: f64) -> Option<f64> {
-    let lines: Vec<Vec<[f64; 2]>> = parts
-        .iter()
-        .map(|part| part.iter().map(|p| p.uv).collect())
-        .filter(|line: &Vec<[f64; 2]>| !line.is_empty())
-        .collect();
+pub fn end_gap(pairs: &[PairExcess], parts: &[Vec<[f64; 2]>], level: f64) -> Option<f64> {
+    let lines: Vec<&Vec<[f64; 2]>> = parts.iter().filter(|line| !line.is_empty()).collect();
     let midpoints: Vec<[f64; 2]> = pairs
         .iter()
         .filter(|p| p.crosses && f64::from(p.deviations) > level)
@@ -185,7 +140,7 @@ pub fn end_gap(pairs: &[PairExcess], parts: &[Vec<CutPoint>], level: f64) -> Opt
     for &m in &midpoints {
         let (k, (s, _)) = lines
             .iter()
-            .map(|line| project(line, m))
+            .filter_map(|line| arc_position(m, line))
             .enumerate()
             .min_by(|a, b| a.1.1.total_cmp(&b.1.1))?;
         let span = spans.get_mut(k)?;
@@ -196,15 +151,16 @@ pub fn end_gap(pairs: &[PairExcess], parts: &[Vec<CutPoint>], level: f64) -> Opt
         .zip(&spans)
         .map(|(line, span)| match span {
             Some((lo, hi)) => {
-                let (first, last) = (line.first()?, line.last()?);
-                Some(dist(*first, along(line, *lo)).max(dist(*last, along(line, *hi))))
+                let (first, last) = (*line.first()?, *line.last()?);
+                let (lo, hi) = (point_at_arc(line, *lo)?, point_at_arc(line, *hi)?);
+                Some(distance_2d(first, lo).max(distance_2d(last, hi)))
             }
             None => line
                 .iter()
                 .map(|&p| {
                     midpoints
                         .iter()
-                        .map(|&m| dist(p, m))
+                        .map(|&m| distance_2d(p, m))
                         .fold(f64::INFINITY, f64::min)
                 })
                 .reduce(f64::max),
@@ -227,13 +183,13 @@ pub struct VariantEvidence {
 
 impl VariantEvidence {
     /// The tests on a run's recorded `excess` (`Trace::excess`), for a variant of `kind` whose
-    /// cut opens at `open`, with its true cut per frame `cut` (`gt/cut.csv`) in an image whose
-    /// diagonal is `diagonal` pixels.
+    /// cut opens at `open`, with its true cut per frame `cut` (each part a polyline) in an image
+    /// whose diagonal is `diagonal` pixels.
     pub fn new(
         excess: &[Vec<PairExcess>],
         kind: Kind,
         open: Option<u32>,
-        cut: &[CutParts],
+        cut: &[Vec<Vec<[f64; 2]>>],
         diagonal: f64,
     ) -> Self {
         let frames = 0..excess.len();
@@ -278,6 +234,48 @@ impl VariantEvidence {
             }
         }
     }
+}
+
+/// Reads a variant of `kind` (its `scene`, its cut opening at `open`) as the oracle does: the
+/// observations of its product run `trace` replayed on a pass whose cuts are held and whose
+/// temporal filter is off, recording the pairs that stand out; the generator's jumping
+/// features left out while they are off; against the true cut of each frame.
+///
+/// # Errors
+/// The pass's, or a ground truth that cannot be read, naming the file.
+pub fn read_variant(
+    scene: &Scene,
+    trace: &Trace,
+    kind: Kind,
+    open: Option<u32>,
+) -> Result<VariantEvidence, String> {
+    let mut watched = scene.clone();
+    watched.record_excess = true;
+    watched.file.detection.temporal_sigmas = f64::INFINITY;
+    let held = run_pass(
+        &watched,
+        &mut TrackSource::new(&trace.observations),
+        Cutting::Held,
+        None,
+        None,
+        false,
+    )
+    .map_err(|e| e.to_string())?;
+    let truth = Truth::load(scene).map_err(|e| e.to_string())?;
+    let cut: Vec<Vec<Vec<[f64; 2]>>> = (0..held.excess.len())
+        .map(|f| truth.as_ref().and_then(|t| t.cut_at(f)).unwrap_or_default())
+        .collect();
+    let jumps = Truth::load_outliers(scene)
+        .map_err(|e| e.to_string())?
+        .unwrap_or_default();
+    let camera = &scene.file.camera;
+    Ok(VariantEvidence::new(
+        &without_jumps(&held.excess, &jumps),
+        kind,
+        open,
+        &cut,
+        f64::from(camera.width).hypot(f64::from(camera.height)),
+    ))
 }
 
 /// One test over a family's variants.
@@ -393,30 +391,49 @@ fn test_name(t: &EvidenceTest) -> String {
     format!("{} pairs above {} σ̂, {frames}{own}", t.pairs, t.deviations)
 }
 
-/// The families' evidence as a markdown table, one row per test, one cell per family: the
-/// oracle's latency (median / max over the cut variants where the test held, and how many it
-/// never held on), then the intact variants on whose pairs the same test held in some frame.
-pub fn evidence_table(families: &[FamilySummary]) -> String {
-    let read: Vec<(&FamilySummary, &Vec<EvidenceRow>)> = families
+/// A markdown table of the families read by the oracle: a row per `labels` entry, a column
+/// per family headed `FAMILY: what`, row `k`'s cell `cell(evidence, k)`.
+fn per_family(
+    corner: &str,
+    what: &str,
+    families: &[&FamilySummary],
+    labels: &[String],
+    cell: impl Fn(&FamilyEvidence, usize) -> String,
+) -> String {
+    let read: Vec<(&str, &FamilyEvidence)> = families
         .iter()
-        .filter_map(|f| f.evidence.as_ref().map(|e| (f, &e.tests)))
+        .filter_map(|f| f.evidence.as_ref().map(|e| (f.family.as_str(), e)))
         .collect();
-    let mut s = String::from("| test |");
-    for (f, _) in &read {
-        s.push_str(&format!(
-            " {}: oracle latency median / max (never); intact where it holds, frames (median) |",
-            f.family
-        ));
+    let mut s = format!("| {corner} |");
+    for (family, _) in &read {
+        s.push_str(&format!(" {family}: {what} |"));
     }
     s.push_str("\n|---|");
     s.push_str(&"---|".repeat(read.len()));
     s.push('\n');
-    for (k, test) in TESTS.iter().enumerate() {
-        s.push_str(&format!("| {} |", test_name(test)));
-        for (_, rows) in &read {
-            let Some(r) = rows.get(k) else {
-                s.push_str(" – |");
-                continue;
+    for (k, label) in labels.iter().enumerate() {
+        s.push_str(&format!("| {label} |"));
+        for (_, evidence) in &read {
+            s.push_str(&format!(" {} |", cell(evidence, k)));
+        }
+        s.push('\n');
+    }
+    s
+}
+
+/// The families' evidence as a markdown table, one row per test, one cell per family: the
+/// oracle's latency (median / max over the cut variants where the test held, and how many it
+/// never held on), then the intact variants on whose pairs the same test held in some frame.
+pub fn evidence_table(families: &[FamilySummary]) -> String {
+    let labels: Vec<String> = TESTS.iter().map(test_name).collect();
+    per_family(
+        "test",
+        "oracle latency median / max (never); intact where it holds, frames (median)",
+        &families.iter().collect::<Vec<_>>(),
+        &labels,
+        |e, k| {
+            let Some(r) = e.tests.get(k) else {
+                return "–".to_string();
             };
             let latency = r.oracle_latency.map_or("–".to_string(), |l| {
                 format!("{:.1} / {:.0}", l.median, l.max)
@@ -424,49 +441,33 @@ pub fn evidence_table(families: &[FamilySummary]) -> String {
             let frames = r
                 .intact_frames
                 .map_or("–".to_string(), |l| format!("{:.1}", l.median));
-            s.push_str(&format!(
-                " {latency} ({}); {} of {}, {frames} frames |",
+            format!(
+                "{latency} ({}); {} of {}, {frames} frames",
                 r.never, r.intact_held, r.intact
-            ));
-        }
-        s.push('\n');
-    }
-    s
+            )
+        },
+    )
 }
 
-/// How much of the cut the crossing pairs cover, as a markdown table: per level, per family,
-/// the best frame's [`end_gap`] (median / max over the cut variants, percent of the image
-/// diagonal; and how many variants had no crossing pair above the level).
+/// How much of the cut the crossing pairs cover, as a markdown table: per level, per family
+/// with cut variants, the best frame's [`end_gap`] (median / max over the cut variants,
+/// percent of the image diagonal; and how many variants had no crossing pair above the level).
 pub fn coverage_table(families: &[FamilySummary]) -> String {
-    let read: Vec<(&FamilySummary, &Vec<CoverageRow>)> = families
-        .iter()
-        .filter_map(|f| f.evidence.as_ref().map(|e| (f, &e.coverage)))
-        .filter(|(f, _)| f.cut > 0)
-        .collect();
-    let mut s = String::from("| crossing pairs above |");
-    for (f, _) in &read {
-        s.push_str(&format!(
-            " {}: cut left beyond them, median / max (% diag.; none) |",
-            f.family
-        ));
-    }
-    s.push_str("\n|---|");
-    s.push_str(&"---|".repeat(read.len()));
-    s.push('\n');
-    for (k, level) in LEVELS.iter().enumerate() {
-        s.push_str(&format!("| {level} σ̂ |"));
-        for (_, rows) in &read {
-            let cell = rows.get(k).map_or("–".to_string(), |r| {
+    let labels: Vec<String> = LEVELS.iter().map(|l| format!("{l} σ̂")).collect();
+    per_family(
+        "crossing pairs above",
+        "cut left beyond them, median / max (% diag.; none)",
+        &families.iter().filter(|f| f.cut > 0).collect::<Vec<_>>(),
+        &labels,
+        |e, k| {
+            e.coverage.get(k).map_or("–".to_string(), |r| {
                 let gap = r.end_gap_percent.map_or("–".to_string(), |g| {
                     format!("{:.1} / {:.1}", g.median, g.max)
                 });
                 format!("{gap} ({})", r.none)
-            });
-            s.push_str(&format!(" {cell} |"));
-        }
-        s.push('\n');
-    }
-    s
+            })
+        },
+    )
 }
 
 /// A family's variants read by the oracle, one row each: per test of [`TESTS`] (headed `pairs
@@ -690,12 +691,7 @@ mod tests {
 
     #[test]
     fn the_cut_beyond_its_evidence_is_measured_from_its_ends() {
-        let line = |points: &[[f64; 2]]| -> Vec<CutPoint> {
-            points
-                .iter()
-                .map(|&uv| CutPoint { uv, open: true })
-                .collect()
-        };
+        let line = |points: &[[f64; 2]]| points.to_vec();
         // A cut along y = 0 from x = 0 to 100 (bent at 50), and a second part from (0, 50)
         // to (0, 80) with no pair across it.
         let parts = vec![

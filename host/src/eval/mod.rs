@@ -23,8 +23,7 @@ use image::{RgbImage, imageops};
 
 use crate::render::Canvas;
 use crate::run::{
-    Cutting, FilterTruth, FrameSink, RunError, RunOptions, Summary, TrackSource, run_pass,
-    run_scene_with,
+    FilterTruth, FrameSink, RunError, RunOptions, Summary, TrackSource, run_scene_with,
 };
 use crate::scene::{DetectionSetting, Scene};
 
@@ -323,42 +322,10 @@ pub fn eval_family(family_path: &Path, options: &EvalOptions) -> Result<FamilySu
         .map_err(|e| format!("{}: {e}", s.name))?;
         let mut result = variant_result(s, kind, summary);
         if options.evidence {
-            // The pairs read on the model that never cuts: cut, the model follows the lips and
-            // the pairs across them no longer stand out, which is no measure of what they
-            // carried.
-            // Every tracked feature read: the filter off, the jumps left out below.
-            let mut watched = scene.clone();
-            watched.record_excess = true;
-            watched.file.detection.temporal_sigmas = f64::INFINITY;
-            let held = run_pass(
-                &watched,
-                &mut TrackSource::new(&trace.observations),
-                Cutting::Held,
-                None,
-                None,
-                false,
-            )
-            .map_err(|e| format!("{}: {e}", s.name))?;
-            let file = dir.join("gt").join("cut.csv");
-            let cut = match std::fs::read_to_string(&file) {
-                Ok(text) => crate::scene::read_cut_csv(&text, &file).map_err(|e| e.to_string())?,
-                Err(e) => return Err(format!("{}: {e}", file.display())),
-            };
-            let file = dir.join("gt").join("outliers.csv");
-            let jumps = match std::fs::read_to_string(&file) {
-                Ok(text) => {
-                    crate::scene::read_outliers_csv(&text, &file).map_err(|e| e.to_string())?
-                }
-                Err(e) => return Err(format!("{}: {e}", file.display())),
-            };
-            let camera = &scene.file.camera;
-            result.evidence = Some(evidence::VariantEvidence::new(
-                &evidence::without_jumps(&held.excess, &jumps),
-                kind,
-                result.open_frame,
-                &cut,
-                f64::from(camera.width).hypot(f64::from(camera.height)),
-            ));
+            result.evidence = Some(
+                evidence::read_variant(&scene, &trace, kind, result.open_frame)
+                    .map_err(|e| format!("{}: {e}", s.name))?,
+            );
         }
         if let Some(picture) = last.0 {
             pictures.push((picture, caption(&result)));

@@ -37,7 +37,8 @@ use crate::scene::{Precision, Scene, SceneError};
 use crate::storage::{ModelStorage, StorageError};
 use pass::Pass;
 use sinks::Outputs;
-use truth::{FrameMeasure, Truth, target_positions};
+pub(crate) use truth::Truth;
+use truth::{FrameMeasure, target_positions};
 
 /// A failure of a run.
 #[derive(Debug)]
@@ -338,15 +339,16 @@ fn run_pass_in<T: Real, F: Real>(
         let surface = model.mesh().surface().to_vec();
         pass.read_cut_line(&model, f)?;
         let measure = FrameMeasure::new(scene, truth.as_ref(), f, &camera, &model, (&x, &surface))?;
-        if outputs.wants_pairs() {
+        if outputs.wants_pairs() || scene.record_excess {
             let true_cut = truth.as_ref().and_then(|t| t.cut_at(f));
-            let rows = pair_rows(&model, &record, &scene.file.detection, true_cut.as_deref());
-            outputs.pairs(&rows);
-        }
-        if scene.record_excess {
-            let true_cut = truth.as_ref().and_then(|t| t.cut_at(f));
-            pass.excess
-                .push(pair_excess(&model, &record, true_cut.as_deref()));
+            if outputs.wants_pairs() {
+                let rows = pair_rows(&model, &record, &scene.file.detection, true_cut.as_deref());
+                outputs.pairs(&rows);
+            }
+            if scene.record_excess {
+                pass.excess
+                    .push(pair_excess(&model, &record, true_cut.as_deref()));
+            }
         }
         if outputs.wants_overlay() {
             let virtual_features: Vec<[f64; 2]> = (0..model.features().len())
@@ -466,7 +468,9 @@ struct MeasuredPair {
     difference: f64,
     /// The smooth field's share `min(sᵢ, sⱼ)·ℓ`, pixels.
     smooth: f64,
+    /// Whether it was an outlier this frame.
     outlier: bool,
+    /// Whether it is split.
     split: bool,
 }
 
